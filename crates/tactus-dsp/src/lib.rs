@@ -1,0 +1,206 @@
+//! # tactus-dsp: the paper's signal kernels, streaming, exact and fast
+//!
+//! Pure DSP for Tactus. No I/O, no threads, and no allocation after construction.
+//! Every stage has the same streaming shape:
+//!
+//! * `process(&mut self, input, ...)` accepts a block of **any** length (including 0);
+//! * `reset(&mut self)` returns the stage to its just-constructed state;
+//! * `latency_samples(&self)` says how many input samples the stage's output lags behind.
+//!
+//! Processing a signal in arbitrary chunks gives exactly the same output as processing it
+//! in one block; the property tests in `tests/` check this for every stage.
+//!
+//! ## Conventions shared by every stage
+//!
+//! * Samples are `f32`, mono. Sample rates are `u32` in Hz.
+//! * **Sample-domain stages** (filters, median) map `input[i] -> output[i]`, same length.
+//! * **Hop-domain stages** (YIN, pYIN, spectral flux, RMS) produce one value per hop.
+//!   Hop `i` describes the frame *centred* on sample `i * hop`, i.e. the stage behaves as if
+//!   `frame / 2` zeros preceded the input (librosa's `center=True`). Its time stamp is
+//!   `i * hop / sample_rate` seconds. A stream of `n` samples has `n.div_ceil(hop)` hops.
+//!   They push results through a callback `emit(hop_index, value)`, so nothing allocates.
+//!   `finish(emit)` flushes the last hops as if zeros followed the input; call `reset()`
+//!   before reusing a finished stage. See [`framer::Framer`], which they all build on.
+//! * Non-finite input samples never reach the arithmetic: they are replaced by 0 and
+//!   counted (see [`sanitize`]).
+//!
+//! ## Modules
+//! | module | algorithm | source |
+//! |---|---|---|
+//! | [`sos`] | Butterworth low/high/band-pass as second-order sections, f64 state | bilinear transform with prewarping |
+//! | [`median`] | running median over an odd window | — |
+//! | [`yin`] | YIN pitch, FFT difference function, CMND, parabolic interpolation | de Cheveigné & Kawahara 2002 |
+//! | [`pyin`] | probabilistic YIN with Viterbi tracking | Mauch & Dixon 2014 |
+//! | [`flux`] | half-wave-rectified spectral flux, adaptive-threshold peak picking | Dixon 2006; Böck et al. 2012 |
+//! | [`rms`] | frame RMS in dB and the 35 dB gate | the paper, §3 |
+//! | [`tukey`] | Tukey's fences (k = 1.5) on voiced pitch in semitones | Tukey 1977 |
+//! | [`discretize`] | N pitch levels over the stem's non-zero range | the paper, §3 |
+//! | [`binner`] | per-hop values into bins of B ms | the paper, §3 |
+#![forbid(unsafe_code)]
+
+pub mod binner;
+pub mod discretize;
+pub mod flux;
+pub mod framer;
+pub mod median;
+pub mod pyin;
+pub mod rms;
+pub mod sanitize;
+pub mod sos;
+pub mod tukey;
+pub mod yin;
+
+/// Errors raised when a stage is constructed with impossible parameters.
+/// Processing itself never fails.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// A parameter is outside its valid range.
+    #[error("invalid {name}: {reason}")]
+    Invalid {
+        /// The parameter's name.
+        name: &'static str,
+        /// Why it is rejected.
+        reason: String,
+    },
+}
+
+impl ConfigError {
+    /// Shorthand for [`ConfigError::Invalid`].
+    pub fn invalid(name: &'static str, reason: impl Into<String>) -> Self {
+        ConfigError::Invalid {
+            name,
+            reason: reason.into(),
+        }
+    }
+}
+
+/// Converts a frequency in Hz to (fractional) MIDI semitones: A4 = 440 Hz = 69.
+#[inline]
+pub fn hz_to_semitones(hz: f32) -> f32 {
+    69.0 + 12.0 * (hz / 440.0).log2()
+}
+
+/// Converts (fractional) MIDI semitones to Hz.
+#[inline]
+pub fn semitones_to_hz(st: f32) -> f32 {
+    440.0 * ((st - 69.0) / 12.0).exp2()
+}
+
+/// A separated instrument stem, in the order Demucs uses for its 4-stem models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Stem {
+    /// Percussion; split further into [`Band`]s.
+    Drums,
+    /// Bass line (melodic).
+    Bass,
+    /// Lead voice (melodic).
+    Vocals,
+    /// Everything else (melodic, often polyphonic).
+    Other,
+}
+
+impl Stem {
+    /// All stems, in canonical order.
+    pub const ALL: [Stem; 4] = [Stem::Drums, Stem::Bass, Stem::Vocals, Stem::Other];
+    /// The melodic stems, which get pitch tracking.
+    pub const MELODIC: [Stem; 3] = [Stem::Bass, Stem::Vocals, Stem::Other];
+
+    /// Lower-case name used in files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stem::Drums => "drums",
+            Stem::Bass => "bass",
+            Stem::Vocals => "vocals",
+            Stem::Other => "other",
+        }
+    }
+
+    /// Parses a lower-case name.
+    pub fn from_name(s: &str) -> Option<Stem> {
+        Stem::ALL.into_iter().find(|x| x.name() == s)
+    }
+
+    /// Default pitch search range in Hz (DESIGN.md: bass 35–400, vocals 70–1400, other 50–2000).
+    /// `None` for drums, which get onset detection instead of pitch.
+    pub fn pitch_range_hz(self) -> Option<(f32, f32)> {
+        match self {
+            Stem::Drums => None,
+            Stem::Bass => Some((35.0, 400.0)),
+            Stem::Vocals => Some((70.0, 1400.0)),
+            Stem::Other => Some((50.0, 2000.0)),
+        }
+    }
+}
+
+/// A drum frequency band (the paper's Butterworth split of the drum stem).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Band {
+    /// 30–150 Hz.
+    Kick,
+    /// 150–800 Hz.
+    Snare,
+    /// 800–5000 Hz.
+    Toms,
+    /// 5000–12000 Hz.
+    Cymbals,
+}
+
+impl Band {
+    /// All bands, low to high.
+    pub const ALL: [Band; 4] = [Band::Kick, Band::Snare, Band::Toms, Band::Cymbals];
+
+    /// Lower-case name used in files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Band::Kick => "kick",
+            Band::Snare => "snare",
+            Band::Toms => "toms",
+            Band::Cymbals => "cymbals",
+        }
+    }
+
+    /// Parses a lower-case name.
+    pub fn from_name(s: &str) -> Option<Band> {
+        Band::ALL.into_iter().find(|x| x.name() == s)
+    }
+
+    /// The paper's nominal band edges in Hz, before any clamping to the sample rate.
+    pub fn edges_hz(self) -> (f64, f64) {
+        match self {
+            Band::Kick => (30.0, 150.0),
+            Band::Snare => (150.0, 800.0),
+            Band::Toms => (800.0, 5000.0),
+            Band::Cymbals => (5000.0, 12000.0),
+        }
+    }
+}
+
+/// A stage that maps input samples one-to-one to output samples (filters, median).
+pub trait SampleStage: Send {
+    /// Processes `input` into `output[..input.len()]`. Panics if `output` is shorter.
+    fn process(&mut self, input: &[f32], output: &mut [f32]);
+    /// Processes a block in place.
+    fn process_inplace(&mut self, block: &mut [f32]);
+    /// Back to the just-constructed state.
+    fn reset(&mut self);
+    /// Group delay in samples that the stage adds (0 for IIR filters by convention).
+    fn latency_samples(&self) -> usize;
+}
+
+/// A stage that turns samples into one value per hop (YIN, pYIN, flux, RMS).
+/// See the crate docs for the hop/time convention.
+pub trait HopStage: Send {
+    /// What the stage emits per hop.
+    type Out: Copy;
+    /// Feeds a block of any length; calls `emit(hop_index, value)` in hop order.
+    fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, Self::Out));
+    /// Ends the stream: emits every remaining hop (`n.div_ceil(hop)` in all).
+    fn finish(&mut self, emit: &mut dyn FnMut(usize, Self::Out));
+    /// Back to the just-constructed state.
+    fn reset(&mut self);
+    /// How many input samples after the centre of hop `i` must arrive before hop `i` is emitted.
+    fn latency_samples(&self) -> usize;
+    /// Samples between hops.
+    fn hop(&self) -> usize;
+}
