@@ -1,0 +1,502 @@
+//! The streaming engine: separator → per-stem chains → bins → glove frames.
+//!
+//! One [`Engine`] serves both drivers. It accepts planar stereo blocks of any size at the
+//! engine rate, plus optional stems supplied directly (`render --stem`), and builds only
+//! what the glove map needs: a drums-only map runs no pitch tracking and asks the
+//! separator for drums alone. Chains run on their own threads when a block is large enough
+//! to pay for it (offline rendering feeds 1 s blocks); results do not depend on the block
+//! size or on threading, because every stage is chunk-invariant.
+
+use std::time::{Duration, Instant};
+
+use tactus_dsp::sos::SosFilter;
+use tactus_dsp::{Band, SampleStage, Stem};
+use tactus_glove::{BinFeatures, Frame, GloveMap};
+use tactus_separate::none::NoneSeparator;
+use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
+use tactus_separate::{Separator, StemOutput, StemSet};
+
+use crate::track::{Denoise, Geometry, Mode, OnsetTrack, PitchMethod, PitchTrack};
+use crate::EngineError;
+
+/// The engine's default sample rate; inputs are resampled to it.
+pub const ENGINE_RATE: u32 = 44_100;
+
+/// Blocks at least this long are processed with one thread per stem chain.
+const PARALLEL_MIN_BLOCK: usize = 16_384;
+
+/// Which separator splits the mix.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SeparatorChoice {
+    /// The embedded pure-Rust spectral separator (HPSS + bass band + centre extraction).
+    #[default]
+    Spectral,
+    /// No separation: the mix feeds every stem chain.
+    None,
+}
+
+/// Everything the engine needs to know up front.
+#[derive(Debug, Clone)]
+pub struct EngineConfig {
+    /// Sample rate of the blocks given to [`Engine::process`].
+    pub sample_rate: u32,
+    /// Bin length in milliseconds (100 offline, as in the paper).
+    pub bin_ms: u32,
+    /// Pitch levels per melodic stem (8).
+    pub levels: u8,
+    /// Statistics mode.
+    pub mode: Mode,
+    /// Pitch tracker for melodic stems.
+    pub pitch: PitchMethod,
+    /// The glove map: decides which stems, bands and features exist.
+    pub map: GloveMap,
+    /// Separator for the stems not supplied directly.
+    pub separator: SeparatorChoice,
+    /// Stems the caller supplies directly (never separated).
+    pub supplied: StemSet,
+}
+
+impl Default for EngineConfig {
+    fn default() -> Self {
+        EngineConfig {
+            sample_rate: ENGINE_RATE,
+            bin_ms: 100,
+            levels: 8,
+            mode: Mode::Offline,
+            pitch: PitchMethod::default(),
+            map: GloveMap::default(),
+            separator: SeparatorChoice::default(),
+            supplied: StemSet::default(),
+        }
+    }
+}
+
+/// Wall time spent per stage, summed over the stream.
+#[derive(Debug, Clone, Default)]
+pub struct StageTimes {
+    /// (stage name, time) in pipeline order.
+    pub stages: Vec<(String, Duration)>,
+}
+
+/// One drum band: band-pass filter then onset track.
+struct BandChain {
+    band: Band,
+    filter: SosFilter,
+    track: OnsetTrack,
+    scratch: Vec<f32>,
+    t_filter: Duration,
+    t_onsets: Duration,
+}
+
+/// Everything computed from one stem.
+struct StemChain {
+    stem: Stem,
+    denoise: Denoise,
+    buf: Vec<f32>,
+    pitch: Option<PitchTrack>,
+    notes: Option<OnsetTrack>,
+    bands: Vec<BandChain>,
+    samples: usize,
+    t_denoise: Duration,
+    t_pitch: Duration,
+    t_notes: Duration,
+}
+
+impl StemChain {
+    fn new(stem: Stem, geo: Geometry, pitch: Option<PitchMethod>, notes: bool, bands: &[Band]) -> Result<Self, EngineError> {
+        let hp = if matches!(stem, Stem::Bass | Stem::Drums) { 30.0 } else { 60.0 };
+        let pitch = match (pitch, stem.pitch_range_hz()) {
+            (Some(m), Some((lo, hi))) => Some(PitchTrack::new(geo, lo, hi, m)?),
+            _ => None,
+        };
+        let notes = if notes { Some(OnsetTrack::new(geo)?) } else { None };
+        let mut chains = Vec::new();
+        for &band in bands {
+            match SosFilter::band(band, geo.sample_rate) {
+                Ok(filter) => chains.push(BandChain {
+                    band,
+                    filter,
+                    track: OnsetTrack::new(geo)?,
+                    scratch: Vec::with_capacity(PARALLEL_MIN_BLOCK * 4),
+                    t_filter: Duration::ZERO,
+                    t_onsets: Duration::ZERO,
+                }),
+                // A band above Nyquist (e.g. cymbals at 8 kHz) is skipped; it stays silent.
+                Err(_) => continue,
+            }
+        }
+        Ok(StemChain {
+            stem,
+            denoise: Denoise::new(hp, geo.sample_rate)?,
+            buf: Vec::with_capacity(PARALLEL_MIN_BLOCK * 4),
+            pitch,
+            notes,
+            bands: chains,
+            samples: 0,
+            t_denoise: Duration::ZERO,
+            t_pitch: Duration::ZERO,
+            t_notes: Duration::ZERO,
+        })
+    }
+
+    fn process(&mut self, block: &[f32]) {
+        self.samples += block.len();
+        let t = Instant::now();
+        self.buf.clear();
+        self.buf.extend_from_slice(block);
+        self.denoise.process_inplace(&mut self.buf);
+        self.t_denoise += t.elapsed();
+        if let Some(p) = &mut self.pitch {
+            let t = Instant::now();
+            p.process(&self.buf);
+            self.t_pitch += t.elapsed();
+        }
+        if let Some(n) = &mut self.notes {
+            let t = Instant::now();
+            n.process(&self.buf);
+            self.t_notes += t.elapsed();
+        }
+        for b in &mut self.bands {
+            let t = Instant::now();
+            b.scratch.clear();
+            b.scratch.extend_from_slice(&self.buf);
+            b.filter.process_inplace(&mut b.scratch);
+            let t2 = Instant::now();
+            b.track.process(&b.scratch);
+            b.t_filter += t2 - t;
+            b.t_onsets += t2.elapsed();
+        }
+    }
+
+    fn finish(&mut self) {
+        let t = Instant::now();
+        if let Some(p) = &mut self.pitch {
+            p.finish();
+        }
+        self.t_pitch += t.elapsed();
+        if let Some(n) = &mut self.notes {
+            n.finish();
+        }
+        for b in &mut self.bands {
+            let t = Instant::now();
+            b.track.finish();
+            b.t_onsets += t.elapsed();
+        }
+    }
+
+    fn latency_samples(&self) -> usize {
+        let mut l = 0;
+        if let Some(p) = &self.pitch {
+            l = l.max(p.latency_samples());
+        }
+        if let Some(n) = &self.notes {
+            l = l.max(n.latency_samples());
+        }
+        for b in &self.bands {
+            l = l.max(b.track.latency_samples());
+        }
+        l + self.denoise.latency_samples()
+    }
+
+    fn reset(&mut self) {
+        self.denoise.reset();
+        self.samples = 0;
+        if let Some(p) = &mut self.pitch {
+            p.reset();
+        }
+        if let Some(n) = &mut self.notes {
+            n.reset();
+        }
+        for b in &mut self.bands {
+            b.filter.reset();
+            b.track.reset();
+        }
+    }
+}
+
+/// The streaming pipeline. See the module docs.
+pub struct Engine {
+    cfg: EngineConfig,
+    geo: Geometry,
+    separator: Option<Box<dyn Separator>>,
+    sep_out: StemOutput,
+    chains: Vec<StemChain>,
+    n_in: usize,
+    t_separate: Duration,
+}
+
+impl Engine {
+    /// Builds the stages the map needs.
+    pub fn new(cfg: EngineConfig) -> Result<Engine, EngineError> {
+        if cfg.bin_ms == 0 {
+            return Err(EngineError::Config("bin length must be at least 1 ms".into()));
+        }
+        if cfg.levels == 0 {
+            return Err(EngineError::Config("levels must be at least 1".into()));
+        }
+        let bin_samples = (cfg.sample_rate as u64 * cfg.bin_ms as u64 / 1000).max(1) as usize;
+        let geo = Geometry {
+            sample_rate: cfg.sample_rate,
+            bin_samples,
+            levels: cfg.levels,
+            mode: cfg.mode,
+        };
+        let needs = cfg.map.needs();
+        let mut chains = Vec::new();
+        let mut separated = StemSet::default();
+        for stem in cfg.map.stems() {
+            let pitch = needs.pitch.contains(&stem).then_some(cfg.pitch);
+            let notes = needs.note_onsets.contains(&stem);
+            let bands: Vec<Band> = if stem == Stem::Drums { needs.bands.clone() } else { Vec::new() };
+            chains.push(StemChain::new(stem, geo, pitch, notes, &bands)?);
+            if !cfg.supplied.contains(stem) {
+                separated = separated.with(stem);
+            }
+        }
+        let separator: Option<Box<dyn Separator>> = if separated.is_empty() {
+            None
+        } else {
+            Some(match cfg.separator {
+                SeparatorChoice::Spectral => Box::new(
+                    SpectralSeparator::new(cfg.sample_rate, separated, SpectralConfig::default())
+                        .map_err(|e| EngineError::Config(e.to_string()))?,
+                ),
+                SeparatorChoice::None => Box::new(NoneSeparator::new(cfg.sample_rate, separated)),
+            })
+        };
+        Ok(Engine {
+            sep_out: StemOutput::with_capacity(separated, PARALLEL_MIN_BLOCK * 4),
+            cfg,
+            geo,
+            separator,
+            chains,
+            n_in: 0,
+            t_separate: Duration::ZERO,
+        })
+    }
+
+    /// The configuration the engine was built with.
+    pub fn config(&self) -> &EngineConfig {
+        &self.cfg
+    }
+
+    /// Stems the engine computes features for.
+    pub fn stems(&self) -> Vec<Stem> {
+        self.chains.iter().map(|c| c.stem).collect()
+    }
+
+    /// Name of the separator that runs, if any.
+    pub fn separator_name(&self) -> Option<&'static str> {
+        self.separator.as_ref().map(|s| s.name())
+    }
+
+    /// Feeds one block of the mix (planar stereo; pass the same slice twice for mono) and
+    /// the same span of every supplied stem. All slices must have the same length.
+    pub fn process(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {
+        self.n_in += left.len();
+        if let Some(sep) = &mut self.separator {
+            let t = Instant::now();
+            self.sep_out.clear();
+            sep.process(left, right, &mut self.sep_out);
+            self.t_separate += t.elapsed();
+        }
+        self.feed_chains(supplied);
+    }
+
+    /// Ends the stream: flushes the separator and every chain, and (offline) computes the
+    /// whole-track statistics.
+    pub fn finish(&mut self) {
+        if let Some(sep) = &mut self.separator {
+            let t = Instant::now();
+            self.sep_out.clear();
+            sep.finish(&mut self.sep_out);
+            self.t_separate += t.elapsed();
+            self.feed_chains(&[]);
+        }
+        let parallel = self.chains.len() > 1 && self.cfg.mode == Mode::Offline;
+        if parallel {
+            std::thread::scope(|s| {
+                for c in &mut self.chains {
+                    s.spawn(move || c.finish());
+                }
+            });
+        } else {
+            for c in &mut self.chains {
+                c.finish();
+            }
+        }
+    }
+
+    fn feed_chains(&mut self, supplied: &[(Stem, &[f32])]) {
+        let sep_out = &self.sep_out;
+        let inputs: Vec<(&mut StemChain, &[f32])> = self
+            .chains
+            .iter_mut()
+            .map(|c| {
+                let stem = c.stem;
+                let input = supplied
+                    .iter()
+                    .find(|(s, _)| *s == stem)
+                    .map(|(_, x)| *x)
+                    .unwrap_or_else(|| sep_out.get(stem));
+                (c, input)
+            })
+            .collect();
+        let big = inputs.iter().map(|(_, x)| x.len()).max().unwrap_or(0) >= PARALLEL_MIN_BLOCK;
+        if big && inputs.len() > 1 {
+            std::thread::scope(|s| {
+                for (c, x) in inputs {
+                    s.spawn(move || c.process(x));
+                }
+            });
+        } else {
+            for (c, x) in inputs {
+                c.process(x);
+            }
+        }
+    }
+
+    /// Samples fed so far.
+    pub fn samples_in(&self) -> usize {
+        self.n_in
+    }
+
+    /// Bin length in samples.
+    pub fn bin_samples(&self) -> usize {
+        self.geo.bin_samples
+    }
+
+    /// Number of bins the whole stream has (after [`Engine::finish`]).
+    pub fn total_bins(&self) -> usize {
+        self.n_in.div_ceil(self.geo.bin_samples)
+    }
+
+    /// Bins for which every feature the map uses is final (streaming mode).
+    pub fn ready_bins(&self) -> usize {
+        let mut ready = usize::MAX;
+        for c in &self.chains {
+            if let Some(p) = &c.pitch {
+                ready = ready.min(p.bins.len());
+            }
+            if let Some(n) = &c.notes {
+                ready = ready.min(n.bins.len());
+            }
+            for b in &c.bands {
+                ready = ready.min(b.track.bins.len());
+            }
+        }
+        if ready == usize::MAX {
+            self.n_in / self.geo.bin_samples
+        } else {
+            ready
+        }
+    }
+
+    /// The features of bin `k` (missing values count as silent).
+    pub fn bin_features(&self, k: usize) -> BinFeatures {
+        let mut f = BinFeatures::default();
+        for c in &self.chains {
+            let si = c.stem as usize;
+            if let Some(p) = &c.pitch {
+                f.level[si] = p.bins.get(k).copied().unwrap_or(0);
+            }
+            if let Some(n) = &c.notes {
+                f.note_onset[si] = n.bins.get(k).copied().unwrap_or(false);
+            }
+            for b in &c.bands {
+                f.band_beat[b.band as usize] = b.track.bins.get(k).copied().unwrap_or(false);
+            }
+        }
+        f
+    }
+
+    /// The glove frame of bin `k`.
+    pub fn frame(&self, k: usize) -> Frame {
+        self.cfg.map.render(&self.bin_features(k), self.cfg.levels)
+    }
+
+    /// All frames of a finished stream, one per bin.
+    pub fn frames(&self) -> Vec<Frame> {
+        (0..self.total_bins()).map(|k| self.frame(k)).collect()
+    }
+
+    /// Builds the features file contents (DESIGN.md "Files") of a finished stream.
+    pub fn features(&self) -> tactus_glove::Features {
+        let mut out = tactus_glove::Features {
+            hop_s: 0.01,
+            bin_s: self.geo.bin_samples as f64 / self.geo.sample_rate as f64,
+            ..Default::default()
+        };
+        let bins = self.total_bins();
+        for c in &self.chains {
+            let name = c.stem.name().to_string();
+            if let Some(p) = &c.pitch {
+                out.hop_s = p.hop() as f64 / self.geo.sample_rate as f64;
+                out.pitch_hz.insert(name.clone(), p.f0.clone());
+                let mut lv = p.bins.clone();
+                lv.resize(bins, 0);
+                out.levels.insert(name.clone(), lv);
+            }
+            if let Some(n) = &c.notes {
+                out.onsets_s.insert(name.clone(), n.onset_times());
+            }
+            for b in &c.bands {
+                let bn = b.band.name().to_string();
+                out.onsets_s.insert(bn.clone(), b.track.onset_times());
+                let mut beats: Vec<u8> = b.track.bins.iter().map(|&x| x as u8).collect();
+                beats.resize(bins, 0);
+                out.beats.insert(bn, beats);
+            }
+        }
+        out
+    }
+
+    /// The latency budget: (stage, milliseconds), summed along the longest path.
+    pub fn latency_budget(&self) -> Vec<(String, f64)> {
+        let ms = |n: usize| n as f64 * 1000.0 / self.geo.sample_rate as f64;
+        let mut v = Vec::new();
+        if let Some(s) = &self.separator {
+            v.push((format!("separator ({})", s.name()), ms(s.latency_samples())));
+        }
+        let feat = self.chains.iter().map(|c| c.latency_samples()).max().unwrap_or(0);
+        v.push(("features (denoise, pitch/onset look-ahead)".into(), ms(feat)));
+        v.push((format!("bin ({} ms)", self.cfg.bin_ms), ms(self.geo.bin_samples)));
+        v
+    }
+
+    /// Wall time per stage so far.
+    pub fn stage_times(&self) -> StageTimes {
+        let mut st = StageTimes::default();
+        if let Some(s) = &self.separator {
+            st.stages.push((format!("separate ({})", s.name()), self.t_separate));
+        }
+        for c in &self.chains {
+            let n = c.stem.name();
+            st.stages.push((format!("{n}: denoise"), c.t_denoise));
+            if c.pitch.is_some() {
+                st.stages.push((format!("{n}: pitch + gate + levels"), c.t_pitch));
+            }
+            if c.notes.is_some() {
+                st.stages.push((format!("{n}: note onsets"), c.t_notes));
+            }
+            for b in &c.bands {
+                st.stages.push((format!("{n}/{}: band-pass", b.band.name()), b.t_filter));
+                st.stages.push((format!("{n}/{}: onsets", b.band.name()), b.t_onsets));
+            }
+        }
+        st
+    }
+
+    /// Back to the just-constructed state.
+    pub fn reset(&mut self) {
+        if let Some(s) = &mut self.separator {
+            s.reset();
+        }
+        self.sep_out.clear();
+        for c in &mut self.chains {
+            c.reset();
+        }
+        self.n_in = 0;
+        self.t_separate = Duration::ZERO;
+    }
+}

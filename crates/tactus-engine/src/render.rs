@@ -1,0 +1,231 @@
+//! The offline driver: a song file (plus optional supplied stems) through the engine to a
+//! pattern and a features file. Decoding and resampling stream, so in `streaming` mode
+//! memory does not grow with the song beyond the per-hop feature records.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use tactus_dsp::Stem;
+use tactus_glove::{Features, Pattern, SourceInfo};
+
+use crate::engine::{Engine, EngineConfig, StageTimes};
+use crate::resample::StreamResampler;
+use crate::source::{file_sha256, AudioSource};
+use crate::EngineError;
+
+/// Samples per engine block in offline rendering (1 s at 44.1 kHz): large enough for the
+/// stem chains to run on separate threads.
+const BLOCK: usize = 44_100;
+
+/// What to render.
+#[derive(Debug, Clone)]
+pub struct RenderRequest {
+    /// The song.
+    pub input: PathBuf,
+    /// Stems supplied directly (`--stem NAME=PATH`).
+    pub stems: Vec<(Stem, PathBuf)>,
+    /// Engine settings (the `supplied` field is filled in from `stems`).
+    pub config: EngineConfig,
+}
+
+/// What came out.
+#[derive(Debug, Clone)]
+pub struct RenderOutput {
+    /// The pattern file contents.
+    pub pattern: Pattern,
+    /// The features file contents.
+    pub features: Features,
+    /// Things the user should know (sanitized samples, padded stems, truncation).
+    pub warnings: Vec<String>,
+    /// Time per stage, decode and resample included.
+    pub times: StageTimes,
+    /// Latency budget (stage, ms).
+    pub latency: Vec<(String, f64)>,
+    /// Stems the engine computed.
+    pub stems: Vec<Stem>,
+    /// Separator that ran.
+    pub separator: Option<&'static str>,
+    /// Duration of the input in seconds.
+    pub duration_s: f64,
+}
+
+/// A supplied stem, decoded and resampled whole, read out in step with the mix.
+struct SuppliedStem {
+    stem: Stem,
+    samples: Vec<f32>,
+    pos: usize,
+    buf: Vec<f32>,
+}
+
+fn load_stem(stem: Stem, path: &Path, rate: u32, warnings: &mut Vec<String>) -> Result<SuppliedStem, EngineError> {
+    let d = crate::source::decode_all(path)?;
+    if d.non_finite > 0 {
+        warnings.push(format!("{}: {} NaN/Inf samples replaced by 0", path.display(), d.non_finite));
+    }
+    let mono: Vec<f32> = d.left.iter().zip(&d.right).map(|(l, r)| 0.5 * (l + r)).collect();
+    let samples = if d.info.sample_rate == rate {
+        mono
+    } else {
+        let mut rs = StreamResampler::new(d.info.sample_rate, rate, 1)?;
+        let mut out = vec![Vec::new()];
+        rs.process(&[&mono], &mut out);
+        rs.finish(&mut out);
+        out.pop().unwrap_or_default()
+    };
+    Ok(SuppliedStem {
+        stem,
+        samples,
+        pos: 0,
+        buf: Vec::with_capacity(BLOCK),
+    })
+}
+
+impl SuppliedStem {
+    /// The next `n` samples, zero-padded past the end.
+    fn next(&mut self, n: usize) {
+        self.buf.clear();
+        let end = (self.pos + n).min(self.samples.len());
+        if self.pos < end {
+            self.buf.extend_from_slice(&self.samples[self.pos..end]);
+        }
+        self.buf.resize(n, 0.0);
+        self.pos += n;
+    }
+}
+
+/// Renders a song. `progress(fraction)` is called after every block when the duration is known.
+pub fn render(req: &RenderRequest, progress: &mut dyn FnMut(f64)) -> Result<RenderOutput, EngineError> {
+    let t_all = Instant::now();
+    let mut warnings = Vec::new();
+    let mut source = AudioSource::open(&req.input)?;
+    let info = source.info().clone();
+    let rate = req.config.sample_rate;
+
+    let mut cfg = req.config.clone();
+    let mut t_decode = Duration::ZERO;
+    let t = Instant::now();
+    let mut supplied = Vec::new();
+    for (stem, path) in &req.stems {
+        cfg.supplied = cfg.supplied.with(*stem);
+        supplied.push(load_stem(*stem, path, rate, &mut warnings)?);
+    }
+    t_decode += t.elapsed();
+    let mut engine = Engine::new(cfg)?;
+    // Only the supplied stems the map uses are fed.
+    let used = engine.stems();
+    supplied.retain(|s| used.contains(&s.stem));
+
+    let mut resampler = if info.sample_rate != rate {
+        Some(StreamResampler::new(info.sample_rate, rate, 2)?)
+    } else {
+        None
+    };
+    let mut t_resample = Duration::ZERO;
+    let (mut left, mut right) = (Vec::with_capacity(BLOCK * 2), Vec::with_capacity(BLOCK * 2));
+    let mut out = vec![Vec::with_capacity(BLOCK * 2), Vec::with_capacity(BLOCK * 2)];
+    let mut frames_in: u64 = 0;
+    let total = info.frames.unwrap_or(0);
+    let mut ended = false;
+    while !ended {
+        let t = Instant::now();
+        let n = source.read_block(&mut left, &mut right)?;
+        t_decode += t.elapsed();
+        if n == 0 {
+            ended = true;
+        }
+        frames_in += n as u64;
+        if !ended && left.len() < BLOCK {
+            continue;
+        }
+        let t = Instant::now();
+        match &mut resampler {
+            Some(rs) => {
+                rs.process(&[&left, &right], &mut out);
+                if ended {
+                    rs.finish(&mut out);
+                }
+            }
+            None => {
+                out[0].extend_from_slice(&left);
+                out[1].extend_from_slice(&right);
+            }
+        }
+        left.clear();
+        right.clear();
+        t_resample += t.elapsed();
+        let len = out[0].len().min(out[1].len());
+        feed(&mut engine, &out[0][..len], &out[1][..len], &mut supplied);
+        out[0].clear();
+        out[1].clear();
+        if total > 0 {
+            progress((frames_in as f64 / total as f64).min(1.0));
+        }
+    }
+    engine.finish();
+    progress(1.0);
+
+    if source.non_finite() > 0 {
+        warnings.push(format!(
+            "{}: {} NaN/Inf samples replaced by 0",
+            req.input.display(),
+            source.non_finite()
+        ));
+    }
+    if source.truncated() {
+        warnings.push(format!(
+            "{}: the file ends early; rendered the {:.2} s that could be decoded",
+            req.input.display(),
+            frames_in as f64 / info.sample_rate.max(1) as f64
+        ));
+    }
+    let n = engine.samples_in();
+    for s in &supplied {
+        let diff = s.samples.len() as i64 - n as i64;
+        if diff.unsigned_abs() as usize > rate as usize / 100 {
+            warnings.push(format!(
+                "stem {}: {:.3} s {} than the mix; {}",
+                s.stem.name(),
+                diff.unsigned_abs() as f64 / rate as f64,
+                if diff > 0 { "longer" } else { "shorter" },
+                if diff > 0 { "trimmed" } else { "padded with silence" }
+            ));
+        }
+    }
+
+    let duration_s = n as f64 / rate as f64;
+    let frames = engine.frames();
+    let pattern = Pattern {
+        source: SourceInfo {
+            path: req.input.display().to_string(),
+            sha256: file_sha256(&req.input).map_err(|e| EngineError::Io(req.input.clone(), e))?,
+            duration_s,
+            sample_rate: info.sample_rate,
+        },
+        bin_ms: req.config.bin_ms,
+        levels: req.config.levels,
+        map: req.config.map.clone(),
+        frames,
+    };
+    let mut times = engine.stage_times();
+    times.stages.insert(0, ("decode".into(), t_decode));
+    times.stages.insert(1, ("resample".into(), t_resample));
+    times.stages.push(("total (wall)".into(), t_all.elapsed()));
+    Ok(RenderOutput {
+        features: engine.features(),
+        latency: engine.latency_budget(),
+        stems: engine.stems(),
+        separator: engine.separator_name(),
+        pattern,
+        warnings,
+        times,
+        duration_s,
+    })
+}
+
+fn feed(engine: &mut Engine, l: &[f32], r: &[f32], supplied: &mut [SuppliedStem]) {
+    for s in supplied.iter_mut() {
+        s.next(l.len());
+    }
+    let views: Vec<(Stem, &[f32])> = supplied.iter().map(|s| (s.stem, s.buf.as_slice())).collect();
+    engine.process(l, r, &views);
+}

@@ -1,0 +1,368 @@
+//! Per-stem feature tracks: the chains of DESIGN.md from a mono stem signal to bins.
+//!
+//! * [`PitchTrack`]: denoised melodic stem → pitch tracker (YIN or pYIN) + RMS per hop →
+//!   RMS gate → Tukey fences → discretizer → level per bin.
+//! * [`OnsetTrack`]: a band-passed drum signal (or a melodic stem, for note onsets) →
+//!   spectral-flux onsets + RMS per hop → RMS gate → beat per bin.
+//!
+//! Both record their raw per-hop values, so that the same extraction serves the two
+//! statistics modes: `streaming` post-processes every hop as it arrives with running
+//! statistics (causal), `offline` post-processes the whole track at the end with global
+//! statistics (the paper's behaviour). Extraction is identical in both modes.
+
+use tactus_dsp::binner::{bin_beats, bin_levels, BeatBinner, LevelBinner};
+use tactus_dsp::discretize::{range_offline, Discretizer, RunningRange, Scale};
+use tactus_dsp::flux::{OnsetConfig, OnsetDetector, OnsetFrame};
+use tactus_dsp::median::MedianFilter;
+use tactus_dsp::pyin::{Pyin, PyinConfig};
+use tactus_dsp::rms::{gate_offline, Rms, StreamingGate, GATE_BELOW_DB};
+use tactus_dsp::sos::SosFilter;
+use tactus_dsp::tukey::{reject_outliers_offline, SlidingTukey, TUKEY_K};
+use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
+use tactus_dsp::{ConfigError, HopStage, SampleStage};
+
+/// Statistics mode (DESIGN.md "One engine, two drivers").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Mode {
+    /// Whole-track fences, ranges and gate reference: paper-faithful, for `render`.
+    #[default]
+    Offline,
+    /// Running statistics; nothing looks beyond the stated latency. Always used live.
+    Streaming,
+}
+
+/// Which pitch tracker a melodic track runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PitchMethod {
+    /// Plain YIN, as in the paper.
+    Yin,
+    /// Probabilistic YIN with fixed-lag Viterbi tracking (fewer octave errors).
+    #[default]
+    Pyin,
+}
+
+/// Streaming gate reference decay (dB per second). Slow enough that a held note does not
+/// re-open the gate on its own tail, fast enough that a quiet verse after a loud chorus
+/// is heard within a few seconds.
+pub const GATE_DECAY_DB_PER_S: f32 = 3.0;
+/// Window of the streaming Tukey fences, in hops (10 s at 10 ms hops).
+pub const TUKEY_WINDOW_HOPS: usize = 1000;
+/// Voiced values the streaming fences need before they reject anything.
+pub const TUKEY_MIN_COUNT: usize = 20;
+/// Fixed Viterbi lag of streaming pYIN, in hops (100 ms at 10 ms hops).
+pub const PYIN_LAG_HOPS: usize = 10;
+
+/// Shared geometry of every track in one engine.
+#[derive(Debug, Clone, Copy)]
+pub struct Geometry {
+    /// Engine sample rate in Hz.
+    pub sample_rate: u32,
+    /// Bin length in samples.
+    pub bin_samples: usize,
+    /// Pitch levels (default 8).
+    pub levels: u8,
+    /// Statistics mode.
+    pub mode: Mode,
+}
+
+/// Denoising front end of a stem (DESIGN.md: Butterworth high-pass order 4, then a
+/// 3-sample median).
+pub struct Denoise {
+    hp: SosFilter,
+    median: MedianFilter,
+}
+
+impl Denoise {
+    /// A high-pass at `cutoff_hz` then a 3-sample median.
+    pub fn new(cutoff_hz: f64, sample_rate: u32) -> Result<Self, ConfigError> {
+        Ok(Denoise {
+            hp: SosFilter::highpass(cutoff_hz, 4, sample_rate)?,
+            median: MedianFilter::new(3)?,
+        })
+    }
+
+    /// Denoises a block in place.
+    pub fn process_inplace(&mut self, block: &mut [f32]) {
+        self.hp.process_inplace(block);
+        self.median.process_inplace(block);
+    }
+
+    /// Samples of delay the median adds.
+    pub fn latency_samples(&self) -> usize {
+        self.hp.latency_samples() + self.median.latency_samples()
+    }
+
+    /// Back to the initial state.
+    pub fn reset(&mut self) {
+        self.hp.reset();
+        self.median.reset();
+    }
+}
+
+/// Pitch feature track of one melodic stem.
+pub struct PitchTrack {
+    tracker: Box<dyn HopStage<Out = PitchEstimate>>,
+    rms: Rms,
+    hop: usize,
+    geo: Geometry,
+    /// Raw tracker output per hop (Hz, 0 = unvoiced).
+    pub raw_f0: Vec<f32>,
+    /// RMS per hop in dBFS.
+    pub raw_rms: Vec<f32>,
+    // streaming post-processing
+    next: usize,
+    gate: StreamingGate,
+    tukey: SlidingTukey,
+    range: RunningRange,
+    disc: Discretizer,
+    binner: LevelBinner,
+    /// f0 per hop after gate and fences (streaming: filled as hops arrive; offline: at the end).
+    pub f0: Vec<f32>,
+    /// Level per hop.
+    pub hop_levels: Vec<u8>,
+    /// Level per bin.
+    pub bins: Vec<u8>,
+}
+
+impl PitchTrack {
+    /// A pitch track searching `[fmin_hz, fmax_hz]`.
+    pub fn new(geo: Geometry, fmin_hz: f32, fmax_hz: f32, method: PitchMethod) -> Result<Self, ConfigError> {
+        let yc = YinConfig::new(geo.sample_rate, fmin_hz, fmax_hz);
+        let hop = yc.hop;
+        let frame = yc.frame;
+        let tracker: Box<dyn HopStage<Out = PitchEstimate>> = match method {
+            PitchMethod::Yin => Box::new(Yin::new(yc)?),
+            PitchMethod::Pyin => {
+                let mut pc = PyinConfig::new(yc);
+                pc.lag_hops = PYIN_LAG_HOPS;
+                Box::new(Pyin::new(pc)?)
+            }
+        };
+        let hop_s = hop as f32 / geo.sample_rate as f32;
+        Ok(PitchTrack {
+            tracker,
+            rms: Rms::new(frame.min(4 * hop).max(hop), hop)?,
+            hop,
+            geo,
+            raw_f0: Vec::new(),
+            raw_rms: Vec::new(),
+            next: 0,
+            gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s),
+            tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT),
+            range: RunningRange::new(),
+            disc: Discretizer::new(geo.levels, Scale::Semitones)?,
+            binner: LevelBinner::new(hop, geo.bin_samples)?,
+            f0: Vec::new(),
+            hop_levels: Vec::new(),
+            bins: Vec::new(),
+        })
+    }
+
+    /// Samples between hops.
+    pub fn hop(&self) -> usize {
+        self.hop
+    }
+
+    /// Input samples of look-ahead this track needs before hop `i` is final.
+    pub fn latency_samples(&self) -> usize {
+        self.tracker.latency_samples().max(self.rms.latency_samples())
+    }
+
+    /// Feeds a block of the (denoised) stem.
+    pub fn process(&mut self, block: &[f32]) {
+        let raw_f0 = &mut self.raw_f0;
+        self.tracker.process(block, &mut |_, e| raw_f0.push(e.f0_hz));
+        let raw_rms = &mut self.raw_rms;
+        self.rms.process(block, &mut |_, r| raw_rms.push(r));
+        self.post_streaming();
+    }
+
+    /// Ends the stream (and, offline, computes the whole-track statistics).
+    pub fn finish(&mut self) {
+        let raw_f0 = &mut self.raw_f0;
+        self.tracker.finish(&mut |_, e| raw_f0.push(e.f0_hz));
+        let raw_rms = &mut self.raw_rms;
+        self.rms.finish(&mut |_, r| raw_rms.push(r));
+        self.post_streaming();
+        let bins = &mut self.bins;
+        self.binner.finish(&mut |_, l| bins.push(l));
+        if self.geo.mode == Mode::Offline {
+            self.post_offline();
+        }
+    }
+
+    fn post_streaming(&mut self) {
+        if self.geo.mode != Mode::Streaming {
+            return;
+        }
+        let ready = self.raw_f0.len().min(self.raw_rms.len());
+        while self.next < ready {
+            let i = self.next;
+            let open = self.gate.process(self.raw_rms[i]);
+            let f0 = if open { self.raw_f0[i] } else { 0.0 };
+            let f0 = self.tukey.process(f0);
+            let level = match self.range.update(f0) {
+                Some(r) => self.disc.level(f0, r),
+                None => 0,
+            };
+            self.f0.push(f0);
+            self.hop_levels.push(level);
+            let bins = &mut self.bins;
+            self.binner.push(i, level, &mut |_, l| bins.push(l));
+            self.next += 1;
+        }
+    }
+
+    fn post_offline(&mut self) {
+        let n = self.raw_f0.len().min(self.raw_rms.len());
+        let mut open = vec![false; n];
+        gate_offline(&self.raw_rms[..n], GATE_BELOW_DB, &mut open);
+        let mut f0: Vec<f32> = (0..n).map(|i| if open[i] { self.raw_f0[i] } else { 0.0 }).collect();
+        reject_outliers_offline(&mut f0, TUKEY_K);
+        let levels: Vec<u8> = match range_offline(&f0) {
+            Some(r) => f0.iter().map(|&f| self.disc.level(f, r)).collect(),
+            None => vec![0; n],
+        };
+        self.bins = bin_levels(&levels, self.hop, self.geo.bin_samples);
+        self.f0 = f0;
+        self.hop_levels = levels;
+    }
+
+    /// Back to the initial state.
+    pub fn reset(&mut self) {
+        self.tracker.reset();
+        self.rms.reset();
+        self.raw_f0.clear();
+        self.raw_rms.clear();
+        self.next = 0;
+        self.gate.reset();
+        self.tukey.reset();
+        self.range.reset();
+        self.binner.reset();
+        self.f0.clear();
+        self.hop_levels.clear();
+        self.bins.clear();
+    }
+}
+
+/// Onset feature track: a drum band, or note onsets of a melodic stem.
+pub struct OnsetTrack {
+    det: OnsetDetector,
+    rms: Rms,
+    hop: usize,
+    geo: Geometry,
+    /// Raw onset flag per hop.
+    pub raw_onset: Vec<bool>,
+    /// RMS per hop in dBFS.
+    pub raw_rms: Vec<f32>,
+    next: usize,
+    gate: StreamingGate,
+    binner: BeatBinner,
+    /// Gated onset flag per hop.
+    pub onsets: Vec<bool>,
+    /// Beat per bin.
+    pub bins: Vec<bool>,
+}
+
+impl OnsetTrack {
+    /// An onset track with the causal (streaming) or look-ahead (offline) detector.
+    pub fn new(geo: Geometry) -> Result<Self, ConfigError> {
+        let cfg = match geo.mode {
+            Mode::Streaming => OnsetConfig::causal(geo.sample_rate),
+            Mode::Offline => OnsetConfig::lookahead(geo.sample_rate),
+        };
+        let hop = cfg.hop;
+        let frame = cfg.frame;
+        let hop_s = hop as f32 / geo.sample_rate as f32;
+        Ok(OnsetTrack {
+            det: OnsetDetector::new(cfg)?,
+            rms: Rms::new(frame.max(hop), hop)?,
+            hop,
+            geo,
+            raw_onset: Vec::new(),
+            raw_rms: Vec::new(),
+            next: 0,
+            gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s),
+            binner: BeatBinner::new(hop, geo.bin_samples)?,
+            onsets: Vec::new(),
+            bins: Vec::new(),
+        })
+    }
+
+    /// Samples between hops.
+    pub fn hop(&self) -> usize {
+        self.hop
+    }
+
+    /// Input samples of look-ahead this track needs.
+    pub fn latency_samples(&self) -> usize {
+        self.det.latency_samples().max(self.rms.latency_samples())
+    }
+
+    /// Feeds a block.
+    pub fn process(&mut self, block: &[f32]) {
+        let raw = &mut self.raw_onset;
+        self.det.process(block, &mut |_, f: OnsetFrame| raw.push(f.onset));
+        let raw_rms = &mut self.raw_rms;
+        self.rms.process(block, &mut |_, r| raw_rms.push(r));
+        self.post_streaming();
+    }
+
+    /// Ends the stream.
+    pub fn finish(&mut self) {
+        let raw = &mut self.raw_onset;
+        self.det.finish(&mut |_, f: OnsetFrame| raw.push(f.onset));
+        let raw_rms = &mut self.raw_rms;
+        self.rms.finish(&mut |_, r| raw_rms.push(r));
+        self.post_streaming();
+        let bins = &mut self.bins;
+        self.binner.finish(&mut |_, b| bins.push(b));
+        if self.geo.mode == Mode::Offline {
+            let n = self.raw_onset.len().min(self.raw_rms.len());
+            let mut open = vec![false; n];
+            gate_offline(&self.raw_rms[..n], GATE_BELOW_DB, &mut open);
+            self.onsets = (0..n).map(|i| self.raw_onset[i] && open[i]).collect();
+            self.bins = bin_beats(&self.onsets, self.hop, self.geo.bin_samples);
+        }
+    }
+
+    fn post_streaming(&mut self) {
+        if self.geo.mode != Mode::Streaming {
+            return;
+        }
+        let ready = self.raw_onset.len().min(self.raw_rms.len());
+        while self.next < ready {
+            let i = self.next;
+            let open = self.gate.process(self.raw_rms[i]);
+            let onset = open && self.raw_onset[i];
+            self.onsets.push(onset);
+            let bins = &mut self.bins;
+            self.binner.push(i, onset, &mut |_, b| bins.push(b));
+            self.next += 1;
+        }
+    }
+
+    /// Onset times in seconds (after the gate).
+    pub fn onset_times(&self) -> Vec<f64> {
+        let hop_s = self.hop as f64 / self.geo.sample_rate as f64;
+        self.onsets
+            .iter()
+            .enumerate()
+            .filter(|(_, &o)| o)
+            .map(|(i, _)| i as f64 * hop_s)
+            .collect()
+    }
+
+    /// Back to the initial state.
+    pub fn reset(&mut self) {
+        self.det.reset();
+        self.rms.reset();
+        self.raw_onset.clear();
+        self.raw_rms.clear();
+        self.next = 0;
+        self.gate.reset();
+        self.binner.reset();
+        self.onsets.clear();
+        self.bins.clear();
+    }
+}
