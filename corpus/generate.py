@@ -13,7 +13,7 @@ rendered stem by stem with FluidSynth and the FluidR3 General MIDI soundfont:
   line (the highest sounding note at each instant);
 * drums:  a generated groove on GM channel 10: kick, snare, closed / open hi-hat, ride,
   crash, toms, soft snare ghost notes (~ -20 dB below the backbeat, calibrated), and a tom
-  fill at the end of every 4th bar.
+  fill on the last beat of bar 2 and of every 4th bar.
 
 Ground truth (truth.json, schema in corpus/README.md) comes from the MIDI events that are
 rendered, so it is exact up to the soundfont's own behaviour (sample attack, release tails),
@@ -133,7 +133,7 @@ def groove(rng, bpb: int, end_beat: float):
     n_bars = int(math.floor((end_beat - start) / bpb))
     for bar in range(n_bars):
         b0 = start + bar * bpb
-        fill = bar % 4 == 3
+        fill = bar % 4 == 3 or bar == 1  # bar 1: so that short excerpts have a fill
         if bar % 4 == 0:
             hits.append((b0, 49, 110))  # crash on the phrase downbeat
         for beat in range(bpb):
