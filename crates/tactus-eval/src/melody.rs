@@ -110,7 +110,13 @@ pub fn melody_scores(
             chroma_ok += usize::from((diff - octave).abs() < cent_tolerance);
         }
     }
-    let ratio = |num: usize, den: usize| if den == 0 { 0.0 } else { num as f64 / den as f64 };
+    let ratio = |num: usize, den: usize| {
+        if den == 0 {
+            0.0
+        } else {
+            num as f64 / den as f64
+        }
+    };
     Ok(MelodyScores {
         raw_pitch_accuracy: ratio(pitch_ok, ref_voiced),
         raw_chroma_accuracy: ratio(chroma_ok, ref_voiced),

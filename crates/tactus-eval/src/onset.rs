@@ -95,7 +95,7 @@ pub fn onset_scores(
 ) -> Result<OnsetScores, EvalError> {
     crate::check_finite("onset reference", reference)?;
     crate::check_finite("onset estimate", estimate)?;
-    if !(window_s >= 0.0) || !window_s.is_finite() {
+    if !window_s.is_finite() || window_s < 0.0 {
         return Err(EvalError::Invalid {
             name: "window_s",
             reason: format!("{window_s} is not a non-negative number"),

@@ -29,7 +29,7 @@ pub fn normalize_min_max(x: &[f64]) -> Vec<f64> {
     let lo = x.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let span = hi - lo;
-    if !(span > 0.0) || !span.is_finite() {
+    if !span.is_finite() || span <= 0.0 {
         return vec![0.0; x.len()];
     }
     x.iter().map(|v| (v - lo) / span).collect()
@@ -155,7 +155,7 @@ pub fn rhythm_accuracy(y: &[bool], y_hat: &[bool]) -> Result<f64, EvalError> {
 /// Onsets before 0 or at/after `n_bins · bin_s` are ignored; times within 1e-9 bins below
 /// a bin edge count in the later bin. `bin_s` must be > 0.
 pub fn onsets_to_bins(onsets_s: &[f64], bin_s: f64, n_bins: usize) -> Result<Vec<bool>, EvalError> {
-    if !(bin_s > 0.0) || !bin_s.is_finite() {
+    if !bin_s.is_finite() || bin_s <= 0.0 {
         return Err(EvalError::Invalid {
             name: "bin_s",
             reason: format!("{bin_s} is not a positive number"),

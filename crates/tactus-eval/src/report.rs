@@ -116,7 +116,11 @@ pub fn evaluate_with(features: &FeaturesLike, truth: &Truth, opts: &EvalOptions)
     };
     let stems = Stem::MELODIC
         .into_iter()
-        .filter_map(|stem| truth.f0(stem).map(|f0| stem_row(stem, f0, features, truth, bin_s, opts)))
+        .filter_map(|stem| {
+            truth
+                .f0(stem)
+                .map(|f0| stem_row(stem, f0, features, truth, bin_s, opts))
+        })
         .collect();
     let bands = Band::ALL
         .into_iter()
@@ -181,7 +185,10 @@ fn stem_row(
     y.resize(n, 0.0);
     let mut y_hat: Vec<f64> = est_levels.iter().map(|&l| f64::from(l)).collect();
     y_hat.resize(n, 0.0);
-    let (y, y_hat) = (paper::normalize_min_max(&y), paper::normalize_min_max(&y_hat));
+    let (y, y_hat) = (
+        paper::normalize_min_max(&y),
+        paper::normalize_min_max(&y_hat),
+    );
     row.paper_mae = paper::mae(&y, &y_hat).ok();
     row.paper_dtw = paper::normalized_dtw(&y, &y_hat).ok();
     row
@@ -268,7 +275,11 @@ impl Report {
 
     /// Two Markdown tables (stems, bands) and a line with the paper-metric means.
     pub fn to_markdown(&self) -> String {
-        let mut s = format!("### {} (bins of {} ms)\n\n", self.song, (self.bin_s * 1000.0).round());
+        let mut s = format!(
+            "### {} (bins of {} ms)\n\n",
+            self.song,
+            (self.bin_s * 1000.0).round()
+        );
         s.push_str("| stem | voiced hops | RPA | RCA | voicing recall | voicing FA | level exact | level ±1 | paper MAE | paper DTW | SDR dB |\n");
         s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
         for r in &self.stems {

@@ -54,7 +54,10 @@ impl Truth {
         if t.format != FORMAT || t.version != VERSION {
             return Err(EvalError::Invalid {
                 name: "truth format",
-                reason: format!("expected {FORMAT} v{VERSION}, got {} v{}", t.format, t.version),
+                reason: format!(
+                    "expected {FORMAT} v{VERSION}, got {} v{}",
+                    t.format, t.version
+                ),
             });
         }
         if !(t.hop_s > 0.0 && t.hop_s.is_finite()) {

@@ -15,7 +15,10 @@ fn fixtures() -> Vec<Truth> {
         .filter(|p| p.exists())
         .collect();
     songs.sort();
-    assert!(songs.len() >= 2, "expected at least 2 fixture songs in {dir:?}");
+    assert!(
+        songs.len() >= 2,
+        "expected at least 2 fixture songs in {dir:?}"
+    );
     songs
         .iter()
         .map(|p| Truth::from_json_str(&std::fs::read_to_string(p).unwrap()).expect("valid truth"))
@@ -55,9 +58,19 @@ fn truth_files_are_consistent() {
             let f0 = t.f0(stem).expect("stem present");
             assert_eq!(f0.len(), frames, "{} {}", t.song, stem.name());
             let voiced: Vec<f64> = f0.iter().copied().filter(|&x| x > 0.0).collect();
-            assert!(voiced.len() > frames / 2, "{} {} mostly silent", t.song, stem.name());
+            assert!(
+                voiced.len() > frames / 2,
+                "{} {} mostly silent",
+                t.song,
+                stem.name()
+            );
             // bass is folded to E1 = 41.20 Hz at the lowest; vocal bends stay within ±0.75 st
-            assert!(voiced.iter().all(|&x| x >= lo - 0.01 && x <= hi), "{} {}", t.song, stem.name());
+            assert!(
+                voiced.iter().all(|&x| x >= lo - 0.01 && x <= hi),
+                "{} {}",
+                t.song,
+                stem.name()
+            );
         }
         // the vocals carry vibrato: many distinct values, not just equal-tempered notes
         let vocals = t.f0(Stem::Vocals).unwrap();
@@ -74,7 +87,9 @@ fn truth_files_are_consistent() {
             let hits = &t.onsets[band.name()];
             assert!(!hits.is_empty(), "{} {}", t.song, band.name());
             assert!(hits.windows(2).all(|w| w[0].time_s <= w[1].time_s));
-            assert!(hits.iter().all(|h| h.time_s >= 0.0 && h.time_s < t.duration_s));
+            assert!(hits
+                .iter()
+                .all(|h| h.time_s >= 0.0 && h.time_s < t.duration_s));
         }
         // ghost notes exist (velocity 33 snares) next to the backbeat (100)
         let snare = &t.onsets["snare"];
@@ -120,7 +135,11 @@ fn degradations_score_as_predicted() {
             .iter_mut()
             .for_each(|x| *x *= semitone);
         // an octave up: pitch wrong everywhere, chroma right everywhere
-        f.pitch_hz.get_mut("bass").unwrap().iter_mut().for_each(|x| *x *= 2.0);
+        f.pitch_hz
+            .get_mut("bass")
+            .unwrap()
+            .iter_mut()
+            .for_each(|x| *x *= 2.0);
         // onsets 60 ms late: the nearest hits (16ths at ≤ 140 bpm are ≥ 107 ms apart) are
         // all more than 50 ms away, so nothing matches
         f.onsets_s
@@ -142,13 +161,28 @@ fn degradations_score_as_predicted() {
             let truth_t: Vec<i64> = t.onset_times(band).into_iter().map(us).collect();
             let est_t: Vec<i64> = f.onsets_s[band.name()].iter().map(|&x| us(x)).collect();
             let n = (us(t.duration_s) + 99_999) / 100_000;
-            let beat = |ts: &[i64], k: i64| ts.iter().any(|&x| x >= k * 100_000 && x < (k + 1) * 100_000);
-            let agree = (0..n).filter(|&k| beat(&truth_t, k) == beat(&est_t, k)).count();
+            let beat = |ts: &[i64], k: i64| {
+                ts.iter()
+                    .any(|&x| x >= k * 100_000 && x < (k + 1) * 100_000)
+            };
+            let agree = (0..n)
+                .filter(|&k| beat(&truth_t, k) == beat(&est_t, k))
+                .count();
             let want = agree as f64 / n as f64;
             let got = b.paper_rhythm_accuracy.unwrap();
-            assert!((got - want).abs() < 1e-12, "{} {}: {got} vs oracle {want}", t.song, b.band);
+            assert!(
+                (got - want).abs() < 1e-12,
+                "{} {}: {got} vs oracle {want}",
+                t.song,
+                b.band
+            );
             if !truth_t.is_empty() {
-                assert!(got < 1.0, "{} {}: a 60 ms delay must move some beat", t.song, b.band);
+                assert!(
+                    got < 1.0,
+                    "{} {}: a 60 ms delay must move some beat",
+                    t.song,
+                    b.band
+                );
             }
         }
     }
@@ -166,7 +200,10 @@ fn features_json_and_report_round_trip() {
     let parsed = FeaturesLike::from_json_str(&v.to_string()).unwrap();
     assert_eq!(parsed, f);
     assert!(FeaturesLike::from_json_str(r#"{"hop_s": 0, "bin_s": 0.1}"#).is_err());
-    assert!(Truth::from_json_str(r#"{"format":"x","version":1,"sample_rate":1,"duration_s":1,"hop_s":0.01}"#).is_err());
+    assert!(Truth::from_json_str(
+        r#"{"format":"x","version":1,"sample_rate":1,"duration_s":1,"hop_s":0.01}"#
+    )
+    .is_err());
 
     let mut r = evaluate(&parsed, t);
     r.set_sdr(Stem::Vocals, 12.5);

@@ -102,7 +102,10 @@ fn binning_and_levels() {
     let l = discretize(&[110.0, 0.0, 220.0, 440.0, 155.0], 8).unwrap();
     // 155 Hz is 5.94 semitones above 110 -> 1 + floor(1.98) = 2
     assert_eq!(l, vec![1, 0, 5, 8, 2]);
-    assert_eq!(level_accuracy(&[1, 2, 3, 0], &[1, 3, 5]).unwrap(), (0.5, 0.75));
+    assert_eq!(
+        level_accuracy(&[1, 2, 3, 0], &[1, 3, 5]).unwrap(),
+        (0.5, 0.75)
+    );
 }
 
 #[test]

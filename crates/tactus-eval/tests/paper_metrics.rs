@@ -1,7 +1,9 @@
 //! The paper's metrics (§3.1) on hand-computed cases, and DTW against a brute-force oracle
 //! that enumerates every warping path.
 use proptest::prelude::*;
-use tactus_eval::paper::{dtw, mae, normalize_min_max, normalized_dtw, onsets_to_bins, rhythm_accuracy};
+use tactus_eval::paper::{
+    dtw, mae, normalize_min_max, normalized_dtw, onsets_to_bins, rhythm_accuracy,
+};
 
 #[test]
 fn dtw_hand_computed_4x3() {
@@ -65,7 +67,10 @@ fn mae_hand_computed() {
 fn normalization_is_min_max() {
     assert_eq!(normalize_min_max(&[0.0, 220.0, 440.0]), vec![0.0, 0.5, 1.0]);
     assert_eq!(normalize_min_max(&[0.0, 4.0, 8.0]), vec![0.0, 0.5, 1.0]);
-    assert_eq!(normalize_min_max(&[100.0, 150.0, 200.0]), vec![0.0, 0.5, 1.0]);
+    assert_eq!(
+        normalize_min_max(&[100.0, 150.0, 200.0]),
+        vec![0.0, 0.5, 1.0]
+    );
     assert_eq!(normalize_min_max(&[3.0, 3.0]), vec![0.0, 0.0]);
 }
 
@@ -82,14 +87,24 @@ fn rhythm_accuracy_hand_computed() {
 fn onsets_to_bins_edges() {
     // 0.3 / 0.1 = 2.9999999999999996 in f64: must still land in bin 3
     let b = onsets_to_bins(&[0.0, 0.3, 0.35, 0.99, 1.0, -0.1], 0.1, 10).unwrap();
-    let want = [true, false, false, true, false, false, false, false, false, true];
+    let want = [
+        true, false, false, true, false, false, false, false, false, true,
+    ];
     assert_eq!(b, want);
     assert!(onsets_to_bins(&[0.1], 0.0, 3).is_err());
 }
 
 /// Every boundary + monotone + continuous path from (0,0) to (n−1,m−1): (cost, K).
 fn all_paths(a: &[f64], b: &[f64]) -> Vec<(f64, usize)> {
-    fn go(a: &[f64], b: &[f64], i: usize, j: usize, cost: f64, k: usize, out: &mut Vec<(f64, usize)>) {
+    fn go(
+        a: &[f64],
+        b: &[f64],
+        i: usize,
+        j: usize,
+        cost: f64,
+        k: usize,
+        out: &mut Vec<(f64, usize)>,
+    ) {
         let cost = cost + (a[i] - b[j]).abs();
         if i + 1 == a.len() && j + 1 == b.len() {
             out.push((cost, k + 1));
