@@ -1,0 +1,95 @@
+//! Reader for the corpus ground truth, `truth.json` (schema in `corpus/README.md`,
+//! written by `corpus/generate.py`). Validates `format == "tactus-truth"` and
+//! `version == 1`; unknown keys are ignored.
+use std::collections::BTreeMap;
+
+use tactus_dsp::{Band, Stem};
+
+use crate::EvalError;
+
+/// The `format` value of a truth file.
+pub const FORMAT: &str = "tactus-truth";
+/// The supported `version`.
+pub const VERSION: u32 = 1;
+
+/// One drum hit.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DrumHit {
+    /// Onset time in seconds from the start of the audio.
+    pub time_s: f64,
+    /// MIDI velocity 1..=127.
+    pub velocity: u8,
+    /// General MIDI drum note number.
+    pub note: u8,
+}
+
+/// Ground truth for one song.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Truth {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// Always [`VERSION`].
+    pub version: u32,
+    /// Song name (its folder name).
+    #[serde(default)]
+    pub song: String,
+    /// Sample rate of the audio files.
+    pub sample_rate: u32,
+    /// Length of the audio in seconds.
+    pub duration_s: f64,
+    /// Hop of the f0 contours: value `i` is at time `i·hop_s`.
+    pub hop_s: f64,
+    /// f0 in Hz per hop per melodic stem name; 0 = silent.
+    #[serde(default)]
+    pub f0_hz: BTreeMap<String, Vec<f64>>,
+    /// Drum hits per band name (GM note mapped to a band), sorted by time.
+    #[serde(default)]
+    pub onsets: BTreeMap<String, Vec<DrumHit>>,
+}
+
+impl Truth {
+    /// Parses and validates a truth file's text.
+    pub fn from_json_str(text: &str) -> Result<Truth, EvalError> {
+        let t: Truth = serde_json::from_str(text)?;
+        if t.format != FORMAT || t.version != VERSION {
+            return Err(EvalError::Invalid {
+                name: "truth format",
+                reason: format!(
+                    "expected {FORMAT} v{VERSION}, got {} v{}",
+                    t.format, t.version
+                ),
+            });
+        }
+        if !(t.hop_s > 0.0 && t.hop_s.is_finite()) {
+            return Err(EvalError::Invalid {
+                name: "hop_s",
+                reason: format!("{} is not positive", t.hop_s),
+            });
+        }
+        for v in t.f0_hz.values() {
+            crate::check_finite("truth f0_hz", v)?;
+        }
+        for hits in t.onsets.values() {
+            if !hits.iter().all(|h| h.time_s.is_finite()) {
+                return Err(EvalError::NonFinite("truth onsets"));
+            }
+        }
+        Ok(t)
+    }
+
+    /// The f0 contour of a melodic stem, if the truth has one.
+    pub fn f0(&self, stem: Stem) -> Option<&[f64]> {
+        self.f0_hz.get(stem.name()).map(Vec::as_slice)
+    }
+
+    /// Sorted onset times of a band (empty if the band has no hits).
+    pub fn onset_times(&self, band: Band) -> Vec<f64> {
+        let mut t: Vec<f64> = self
+            .onsets
+            .get(band.name())
+            .map(|h| h.iter().map(|x| x.time_s).collect())
+            .unwrap_or_default();
+        t.sort_by(f64::total_cmp);
+        t
+    }
+}
