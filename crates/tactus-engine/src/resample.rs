@@ -11,14 +11,16 @@
 //! Why this one: for a fixed ratio it is the cheapest high-quality option rubato offers (one
 //! FFT pair per block instead of a sinc dot product per output sample), its passband is flat
 //! (the measured ripple at 440/880 Hz is far below the 0.1 dB the tests demand) and with
-//! blocks of about 1024 input frames the anti-aliasing cutoff sits at about 99 % of the lower
+//! blocks of 1024 or more input frames the anti-aliasing cutoff sits at about 99 % of the lower
 //! Nyquist frequency (about 21.8 kHz for 44.1 kHz ↔ 48 kHz), where the BH² window gives a deep
 //! stop band. Everything the engine analyses (up to the 12 kHz cymbal band) is well inside.
 //!
 //! # Defaults
-//! Input block: the smallest multiple of `in_rate / gcd` that is at least 1024 frames
-//! (44.1 → 48 kHz: 1029 in, 1120 out; 48 → 44.1 kHz: 1120 in, 1029 out). Rate pairs with a small
-//! gcd get large blocks (44 100 → 44 101 Hz: 44 100 frames): correct, but slow to start.
+//! Input block: the smallest *even* multiple of `in_rate / gcd` that is at least 1024 frames
+//! (44.1 → 48 kHz: 1176 in, 1280 out; 48 → 44.1 kHz: 1280 in, 1176 out; 22.05 → 44.1 kHz:
+//! 1024 in, 2048 out). Even FFT sizes keep the delay an exact whole number of output frames.
+//! Rate pairs with a small gcd get large blocks (44 100 → 44 101 Hz: 88 200 frames): correct,
+//! but slow to start.
 //!
 //! # Stream contract
 //! [`StreamResampler::process`] accepts blocks of any size (buffered internally to rubato's fixed
@@ -31,7 +33,7 @@
 //!
 //! # Latency
 //! [`StreamResampler::latency_samples`]: at most `fft_out / 2 + fft_out` output frames (the
-//! filter delay plus one block of buffering); 44.1 → 48 kHz: 560 + 1120 = 1680 frames, 35 ms.
+//! filter delay plus one block of buffering); 44.1 → 48 kHz: 640 + 1280 = 1920 frames, 40 ms.
 
 use rubato::audioadapter_buffers::direct::SequentialSliceOfVecs;
 use rubato::{Fft, FixedSync, Resampler, WindowFunction};
@@ -149,7 +151,11 @@ impl StreamResampler {
         } else {
             let g = gcd(u64::from(in_rate), u64::from(out_rate));
             let min_in = (u64::from(in_rate) / g) as usize;
-            let block_in = TARGET_BLOCK.div_ceil(min_in) * min_in;
+            // An even number of minimum blocks makes both FFT sizes even. With an odd size
+            // the filter's true delay is `floor(fft_in / 2) · out / in` output frames, which
+            // differs from rubato's `output_delay()` (`fft_out / 2`) by half a frame or so;
+            // with even sizes the two agree exactly and the output is aligned to the frame.
+            let block_in = TARGET_BLOCK.div_ceil(min_in).next_multiple_of(2) * min_in;
             let fft = Fft::<f32>::new_custom(
                 in_rate as usize,
                 out_rate as usize,
