@@ -142,7 +142,8 @@ impl Features {
             version: FEATURES_VERSION,
             features: self,
         };
-        let mut s = serde_json::to_string(&out).map_err(|e| GloveError::Io(std::io::Error::other(e)))?;
+        let mut s =
+            serde_json::to_string(&out).map_err(|e| GloveError::Io(std::io::Error::other(e)))?;
         s.push('\n');
         Ok(s)
     }

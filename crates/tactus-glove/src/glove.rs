@@ -273,13 +273,15 @@ impl Frame {
     /// first character that is not a hex digit.
     pub fn from_hex(s: &str) -> Result<Frame, GloveError> {
         let chars = s.chars().count();
-        if let Some((position, character)) = s.chars().enumerate().find(|(_, c)| !c.is_ascii_hexdigit()) {
+        if let Some((position, character)) =
+            s.chars().enumerate().find(|(_, c)| !c.is_ascii_hexdigit())
+        {
             return Err(GloveError::Hex(HexError::NotHex {
                 position,
                 character,
             }));
         }
-        if chars % 2 != 0 {
+        if chars & 1 == 1 {
             return Err(GloveError::Hex(HexError::OddLength { chars }));
         }
         if chars != 2 * CELLS {

@@ -129,7 +129,12 @@ impl GloveMap {
     ///
     /// # Panics
     /// If `cell >= CELLS_PER_FINGER`.
-    pub fn set(&mut self, finger: Finger, cell: usize, source: CellSource) -> Result<(), GloveError> {
+    pub fn set(
+        &mut self,
+        finger: Finger,
+        cell: usize,
+        source: CellSource,
+    ) -> Result<(), GloveError> {
         check_source(source).map_err(|reason| GloveError::Map {
             finger: finger.name(),
             cell: CELL_KEYS[cell],
@@ -390,7 +395,13 @@ impl RawCell {
 
 impl RawMap {
     fn fingers(&self) -> [&RawFinger; 5] {
-        [&self.thumb, &self.index, &self.middle, &self.ring, &self.pinky]
+        [
+            &self.thumb,
+            &self.index,
+            &self.middle,
+            &self.ring,
+            &self.pinky,
+        ]
     }
 }
 
@@ -400,7 +411,10 @@ impl TryFrom<RawMap> for GloveMap {
     fn try_from(raw: RawMap) -> Result<GloveMap, GloveError> {
         let mut map = GloveMap::off();
         for (finger, raw_finger) in Finger::ALL.into_iter().zip(raw.fingers()) {
-            for (cell, raw_cell) in [&raw_finger.cell0, &raw_finger.cell1].into_iter().enumerate() {
+            for (cell, raw_cell) in [&raw_finger.cell0, &raw_finger.cell1]
+                .into_iter()
+                .enumerate()
+            {
                 map.cells[finger.index()][cell] =
                     raw_cell.to_source().map_err(|reason| GloveError::Map {
                         finger: finger.name(),

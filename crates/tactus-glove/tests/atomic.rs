@@ -101,5 +101,8 @@ fn keeps_permissions_of_replaced_file() {
     fs::write(&path, b"a").unwrap();
     fs::set_permissions(&path, fs::Permissions::from_mode(0o640)).unwrap();
     write_atomic(&path, |w| w.write_all(b"b")).unwrap();
-    assert_eq!(fs::metadata(&path).unwrap().permissions().mode() & 0o777, 0o640);
+    assert_eq!(
+        fs::metadata(&path).unwrap().permissions().mode() & 0o777,
+        0o640
+    );
 }

@@ -4,7 +4,16 @@ use proptest::prelude::*;
 use tactus_glove::{level_dots, Dot, Finger, Frame, GloveError, HexError, CELLS_PER_FINGER};
 
 /// The contract, written out by hand: (level, dot number) for 8 levels.
-const CONTRACT_LEVELS: [(u8, u8); 8] = [(1, 7), (2, 3), (3, 2), (4, 1), (5, 8), (6, 6), (7, 5), (8, 4)];
+const CONTRACT_LEVELS: [(u8, u8); 8] = [
+    (1, 7),
+    (2, 3),
+    (3, 2),
+    (4, 1),
+    (5, 8),
+    (6, 6),
+    (7, 5),
+    (8, 4),
+];
 
 #[test]
 fn level_dots_matches_contract_for_8_levels() {
@@ -24,7 +33,11 @@ fn level_dots_climbs_left_column_then_right_column_upwards() {
         let dot = Dot::new(mask.trailing_zeros() as u8 + 1).unwrap();
         let expected_column = if level <= 4 { 0 } else { 1 };
         let expected_row = 3 - ((level as usize - 1) % 4);
-        assert_eq!((dot.column(), dot.row()), (expected_column, expected_row), "level {level}");
+        assert_eq!(
+            (dot.column(), dot.row()),
+            (expected_column, expected_row),
+            "level {level}"
+        );
     }
 }
 
@@ -44,11 +57,18 @@ fn level_dots_other_counts_are_monotone_and_span_the_positions() {
         }
         assert_eq!(position(level_dots(1, levels)), 0, "lowest level at dot 7");
         if levels > 1 {
-            assert_eq!(position(level_dots(levels, levels)), 7, "highest level at dot 4");
+            assert_eq!(
+                position(level_dots(levels, levels)),
+                7,
+                "highest level at dot 4"
+            );
         }
         assert_eq!(level_dots(0, levels), 0);
         // Levels above the count clamp to the top.
-        assert_eq!(level_dots(levels.saturating_add(1).max(levels), levels), level_dots(levels, levels));
+        assert_eq!(
+            level_dots(levels.saturating_add(1).max(levels), levels),
+            level_dots(levels, levels)
+        );
     }
     // 4 levels: round(0, 7/3, 14/3, 7) = positions 0, 2, 5, 7 = dots 7, 2, 6, 4.
     let four: Vec<u8> = (1..=4).map(|l| level_dots(l, 4)).collect();
@@ -91,15 +111,26 @@ fn pins_iterate_80_in_finger_cell_dot_order() {
     frame.set_cell(Finger::Index, 1, 0b1000_0001); // dots 1 and 8
     let pins: Vec<_> = frame.pins().collect();
     assert_eq!(pins.len(), 80);
-    assert_eq!(pins.iter().filter(|p| p.raised).count() as u32, frame.raised_dots());
-    let raised: Vec<usize> = pins.iter().enumerate().filter(|(_, p)| p.raised).map(|(i, _)| i).collect();
+    assert_eq!(
+        pins.iter().filter(|p| p.raised).count() as u32,
+        frame.raised_dots()
+    );
+    let raised: Vec<usize> = pins
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.raised)
+        .map(|(i, _)| i)
+        .collect();
     // Index finger = finger 1, cell 1 -> pins 24..32; dot 1 at 24, dot 8 at 31.
     assert_eq!(raised, vec![24, 31]);
     assert_eq!(pins[24].finger, Finger::Index);
     assert_eq!(pins[24].cell, 1);
     assert_eq!(pins[31].dot.number(), 8);
     for (i, p) in pins.iter().enumerate() {
-        assert_eq!(p.finger.index() * 16 + p.cell * 8 + (p.dot.number() as usize - 1), i);
+        assert_eq!(
+            p.finger.index() * 16 + p.cell * 8 + (p.dot.number() as usize - 1),
+            i
+        );
     }
 }
 
@@ -113,12 +144,36 @@ fn hex_known_values_and_errors() {
         other => panic!("expected hex error for {s:?}, got {other:?}"),
     };
     assert_eq!(err("000"), HexError::OddLength { chars: 3 });
-    assert_eq!(err("000000000000000000"), HexError::WrongLength { bytes: 9 });
-    assert_eq!(err("0000000000000000000000"), HexError::WrongLength { bytes: 11 });
+    assert_eq!(
+        err("000000000000000000"),
+        HexError::WrongLength { bytes: 9 }
+    );
+    assert_eq!(
+        err("0000000000000000000000"),
+        HexError::WrongLength { bytes: 11 }
+    );
     assert_eq!(err(""), HexError::WrongLength { bytes: 0 });
-    assert_eq!(err("00000000000000000g00"), HexError::NotHex { position: 17, character: 'g' });
-    assert_eq!(err("é0000000000000000000"), HexError::NotHex { position: 0, character: 'é' });
-    assert_eq!(err("+1000000000000000000"), HexError::NotHex { position: 0, character: '+' });
+    assert_eq!(
+        err("00000000000000000g00"),
+        HexError::NotHex {
+            position: 17,
+            character: 'g'
+        }
+    );
+    assert_eq!(
+        err("é0000000000000000000"),
+        HexError::NotHex {
+            position: 0,
+            character: 'é'
+        }
+    );
+    assert_eq!(
+        err("+1000000000000000000"),
+        HexError::NotHex {
+            position: 0,
+            character: '+'
+        }
+    );
 }
 
 #[test]

@@ -9,10 +9,16 @@ fn pitch(stem: Stem) -> CellSource {
     CellSource::PitchLevel(stem)
 }
 fn notes(stem: Stem) -> CellSource {
-    CellSource::NoteOnsets { stem, dots: ALL_DOTS }
+    CellSource::NoteOnsets {
+        stem,
+        dots: ALL_DOTS,
+    }
 }
 fn band(band: Band) -> CellSource {
-    CellSource::BandOnsets { band, dots: ALL_DOTS }
+    CellSource::BandOnsets {
+        band,
+        dots: ALL_DOTS,
+    }
 }
 
 /// DESIGN.md's table, typed in by hand.
@@ -30,17 +36,30 @@ fn contract_table() -> [[CellSource; 2]; 5] {
 fn default_map_is_the_contract_table() {
     let map = GloveMap::default();
     assert_eq!(map.cells, contract_table());
-    let from_file = GloveMap::from_path(concat!(env!("CARGO_MANIFEST_DIR"), "/maps/default.toml")).unwrap();
+    let from_file =
+        GloveMap::from_path(concat!(env!("CARGO_MANIFEST_DIR"), "/maps/default.toml")).unwrap();
     assert_eq!(from_file, map);
 }
 
 #[test]
 fn shipped_example_maps_parse() {
     let drums = GloveMap::from_toml_str(DRUMS_ONLY_MAP_TOML).unwrap();
-    assert_eq!(drums.get(Finger::Thumb, 0), CellSource::NoteOnsets { stem: Stem::Drums, dots: 0b0100_0111 });
+    assert_eq!(
+        drums.get(Finger::Thumb, 0),
+        CellSource::NoteOnsets {
+            stem: Stem::Drums,
+            dots: 0b0100_0111
+        }
+    );
     assert_eq!(drums.get(Finger::Ring, 0), CellSource::Off);
     let melody = GloveMap::from_toml_str(MELODY_MAP_TOML).unwrap();
-    assert_eq!(melody.get(Finger::Ring, 0), CellSource::BandOnsets { band: Band::Kick, dots: 0b1100_0000 });
+    assert_eq!(
+        melody.get(Finger::Ring, 0),
+        CellSource::BandOnsets {
+            band: Band::Kick,
+            dots: 0b1100_0000
+        }
+    );
     assert_eq!(melody.needs().bands, vec![Band::Kick]);
 }
 
@@ -60,7 +79,11 @@ fn needs_and_stems() {
     let drums = GloveMap::from_toml_str(DRUMS_ONLY_MAP_TOML).unwrap();
     assert_eq!(
         drums.needs(),
-        Needs { pitch: vec![], note_onsets: vec![Stem::Drums], bands: Band::ALL.to_vec() }
+        Needs {
+            pitch: vec![],
+            note_onsets: vec![Stem::Drums],
+            bands: Band::ALL.to_vec()
+        }
     );
     assert_eq!(drums.stems(), vec![Stem::Drums]);
 
@@ -72,7 +95,11 @@ fn needs_and_stems() {
 
 #[test]
 fn toml_and_json_round_trip() {
-    for text in [tactus_glove::map::DEFAULT_MAP_TOML, DRUMS_ONLY_MAP_TOML, MELODY_MAP_TOML] {
+    for text in [
+        tactus_glove::map::DEFAULT_MAP_TOML,
+        DRUMS_ONLY_MAP_TOML,
+        MELODY_MAP_TOML,
+    ] {
         let map = GloveMap::from_toml_str(text).unwrap();
         let again = GloveMap::from_toml_str(&map.to_toml_string()).unwrap();
         assert_eq!(again, map);
@@ -82,12 +109,19 @@ fn toml_and_json_round_trip() {
     let json = serde_json::to_value(GloveMap::default()).unwrap();
     assert_eq!(json["thumb"]["cell0"]["pitch"], "bass");
     assert_eq!(json["index"]["cell1"]["onsets"], "snare");
-    assert!(json["index"]["cell1"].get("dots").is_none(), "all 8 dots is the default, not written");
+    assert!(
+        json["index"]["cell1"].get("dots").is_none(),
+        "all 8 dots is the default, not written"
+    );
 }
 
 fn map_error(text: &str) -> (String, String, String) {
     match GloveMap::from_toml_str(text) {
-        Err(GloveError::Map { finger, cell, reason }) => (finger.to_string(), cell.to_string(), reason),
+        Err(GloveError::Map {
+            finger,
+            cell,
+            reason,
+        }) => (finger.to_string(), cell.to_string(), reason),
         other => panic!("expected a map error for {text:?}, got {other:?}"),
     }
 }
@@ -96,9 +130,17 @@ fn map_error(text: &str) -> (String, String, String) {
 fn bad_cells_give_clear_errors() {
     let (finger, cell, reason) = map_error("[ring]\ncell1 = { pitch = \"voclas\" }");
     assert_eq!((finger.as_str(), cell.as_str()), ("ring", "cell1"));
-    assert!(reason.contains("`pitch`") && reason.contains("\"voclas\""), "{reason}");
-    let full = GloveMap::from_toml_str("[ring]\ncell1 = { pitch = \"voclas\" }").unwrap_err().to_string();
-    assert!(full.starts_with("map: ring.cell1: `pitch`: unknown stem \"voclas\""), "{full}");
+    assert!(
+        reason.contains("`pitch`") && reason.contains("\"voclas\""),
+        "{reason}"
+    );
+    let full = GloveMap::from_toml_str("[ring]\ncell1 = { pitch = \"voclas\" }")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        full.starts_with("map: ring.cell1: `pitch`: unknown stem \"voclas\""),
+        "{full}"
+    );
 
     let (_, _, reason) = map_error("[index]\ncell0 = { onsets = \"kik\" }");
     assert!(reason.contains("unknown stem or band \"kik\""), "{reason}");
@@ -126,18 +168,41 @@ fn unknown_keys_are_syntax_errors_naming_the_key() {
             other => panic!("expected syntax error for {text:?}, got {other:?}"),
         }
     }
-    assert!(matches!(GloveMap::from_toml_str("[thumb"), Err(GloveError::MapSyntax(_))));
+    assert!(matches!(
+        GloveMap::from_toml_str("[thumb"),
+        Err(GloveError::MapSyntax(_))
+    ));
     // Embedded in JSON, validation applies too.
-    let err = serde_json::from_str::<GloveMap>(r#"{"thumb":{"cell0":{"pitch":"bas"}}}"#).unwrap_err();
+    let err =
+        serde_json::from_str::<GloveMap>(r#"{"thumb":{"cell0":{"pitch":"bas"}}}"#).unwrap_err();
     assert!(err.to_string().contains("thumb.cell0"), "{err}");
 }
 
 #[test]
 fn set_validates() {
     let mut map = GloveMap::off();
-    assert!(map.set(Finger::Pinky, 1, CellSource::PitchLevel(Stem::Drums)).is_err());
-    assert!(map.set(Finger::Pinky, 1, CellSource::BandOnsets { band: Band::Toms, dots: 0 }).is_err());
-    map.set(Finger::Pinky, 1, CellSource::BandOnsets { band: Band::Toms, dots: 3 }).unwrap();
+    assert!(map
+        .set(Finger::Pinky, 1, CellSource::PitchLevel(Stem::Drums))
+        .is_err());
+    assert!(map
+        .set(
+            Finger::Pinky,
+            1,
+            CellSource::BandOnsets {
+                band: Band::Toms,
+                dots: 0
+            }
+        )
+        .is_err());
+    map.set(
+        Finger::Pinky,
+        1,
+        CellSource::BandOnsets {
+            band: Band::Toms,
+            dots: 3,
+        },
+    )
+    .unwrap();
     assert_eq!(map.needs().bands, vec![Band::Toms]);
 }
 
@@ -151,13 +216,25 @@ fn render_oracle(map: &GloveMap, f: &BinFeatures, levels: u8) -> [u8; 10] {
                 CellSource::Off => 0,
                 CellSource::PitchLevel(s) => {
                     let l = f.level[Stem::ALL.iter().position(|x| *x == s).unwrap()];
-                    if l == 0 || levels != 8 { tactus_glove::level_dots(l, levels) } else { 1 << (order[l.min(8) as usize - 1] - 1) }
+                    if l == 0 || levels != 8 {
+                        tactus_glove::level_dots(l, levels)
+                    } else {
+                        1 << (order[l.min(8) as usize - 1] - 1)
+                    }
                 }
                 CellSource::NoteOnsets { stem, dots } => {
-                    if f.note_onset[Stem::ALL.iter().position(|x| *x == stem).unwrap()] { dots } else { 0 }
+                    if f.note_onset[Stem::ALL.iter().position(|x| *x == stem).unwrap()] {
+                        dots
+                    } else {
+                        0
+                    }
                 }
                 CellSource::BandOnsets { band, dots } => {
-                    if f.band_beat[Band::ALL.iter().position(|x| *x == band).unwrap()] { dots } else { 0 }
+                    if f.band_beat[Band::ALL.iter().position(|x| *x == band).unwrap()] {
+                        dots
+                    } else {
+                        0
+                    }
                 }
             };
         }

@@ -20,7 +20,9 @@ fn crc8_long_division(bytes: &[u8]) -> u8 {
             }
         }
     }
-    bits[bits.len() - 8..].iter().fold(0, |acc, b| (acc << 1) | b)
+    bits[bits.len() - 8..]
+        .iter()
+        .fold(0, |acc, b| (acc << 1) | b)
 }
 
 fn decode_all(bytes: &[u8]) -> (Vec<Packet>, DecoderStats, usize) {
@@ -49,13 +51,19 @@ fn packet_layout_is_the_contract() {
     assert_eq!(&bytes[5..15], &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
     assert_eq!(bytes[15], crc8_long_division(&bytes[1..15]));
 
-    let down = Packet { kind: PacketType::AllDown, seq: 7, time_ms: 65535, frame }.encode();
+    let down = Packet {
+        kind: PacketType::AllDown,
+        seq: 7,
+        time_ms: 65535,
+        frame,
+    }
+    .encode();
     assert_eq!(&down[..5], &[0xA5, 0x02, 7, 0xFF, 0xFF]);
     assert_eq!(&down[5..15], &[0; 10], "cell bytes are zero for all-down");
     let keep = Packet::keep_alive(8, 0).encode();
     assert_eq!(keep[1], 0x03);
     assert_eq!(&keep[5..15], &[0; 10]);
-    assert!(PACKET_LEN <= 20, "fits one BLE write");
+    const { assert!(PACKET_LEN <= 20, "fits one BLE write") };
 }
 
 #[test]
@@ -86,7 +94,10 @@ fn resync_after_garbage_prefix_and_between_packets() {
     assert_eq!(stats.packets, 2);
     assert_eq!(stats.sequence_gaps, 0);
     // The invariant: every byte is accounted for.
-    assert_eq!(16 * stats.packets + stats.garbage_bytes + pending as u64, stream.len() as u64);
+    assert_eq!(
+        16 * stats.packets + stats.garbage_bytes + pending as u64,
+        stream.len() as u64
+    );
     assert_eq!(pending, 2, "the trailing 0xA5 0x01 wait for more bytes");
 }
 
@@ -121,7 +132,10 @@ fn sequence_gaps_across_u8_wrap() {
     assert_eq!(packets.len(), 7);
     assert_eq!(stats.sequence_gaps, 1 + 1 + 1 + 2);
     // Lost packets on the wire are counted: drop the middle one of three.
-    let s: Vec<u8> = [0u8, 2].iter().flat_map(|&q| Packet::all_down(q, 0).encode()).collect();
+    let s: Vec<u8> = [0u8, 2]
+        .iter()
+        .flat_map(|&q| Packet::all_down(q, 0).encode())
+        .collect();
     assert_eq!(decode_all(&s).1.sequence_gaps, 1);
 }
 
