@@ -47,8 +47,9 @@ pub enum GloveError {
     },
     /// The file is newer (or older) than this reader.
     #[error(
-        "{what} version {found} is not supported: this build of tactus reads version {supported}; \
-         upgrade tactus to read it"
+        "{what} version {found} is not supported: this build of tactus reads version \
+         {supported}{}",
+        upgrade_hint(*.found, *.supported)
     )]
     UnsupportedVersion {
         /// "pattern" or "features".
@@ -94,6 +95,14 @@ pub enum GloveError {
     /// A map file is not valid TOML or has unknown keys.
     #[error("map: {0}")]
     MapSyntax(String),
+}
+
+fn upgrade_hint(found: u64, supported: u64) -> &'static str {
+    if found > supported {
+        "; upgrade tactus to read it"
+    } else {
+        ""
+    }
 }
 
 impl GloveError {

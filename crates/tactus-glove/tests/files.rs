@@ -125,6 +125,17 @@ fn pattern_bad_cases() {
         "{e}"
     );
     assert!(e.to_string().contains("upgrade tactus"), "{e}");
+    let e = pattern_err(&with_key("version", Some(json!(0))));
+    assert!(
+        matches!(e, GloveError::UnsupportedVersion { found: 0, .. }),
+        "{e}"
+    );
+    assert!(!e.to_string().contains("upgrade"), "{e}");
+    let e = pattern_err(&with_key("version", Some(json!("1"))));
+    assert!(
+        matches!(&e, GloveError::InvalidField { field, .. } if field == "version"),
+        "{e}"
+    );
 
     let frames = |f: serde_json::Value| with_key("frames", Some(f));
     let e = pattern_err(&frames(json!(["00000000000000000000", "000"])));
