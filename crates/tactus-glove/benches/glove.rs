@@ -6,10 +6,11 @@ use tactus_glove::{BinFeatures, Decoder, Frame, GloveMap, Packet};
 
 fn benches(c: &mut Criterion) {
     let map = GloveMap::default();
-    let mut f = BinFeatures::default();
-    f.level = [0, 3, 8, 5];
-    f.note_onset = [false, true, false, true];
-    f.band_beat = [true, false, true, false];
+    let f = BinFeatures {
+        level: [0, 3, 8, 5],
+        note_onset: [false, true, false, true],
+        band_beat: [true, false, true, false],
+    };
     c.bench_function("render_bin_default_map", |b| {
         b.iter(|| map.render(black_box(&f), 8))
     });

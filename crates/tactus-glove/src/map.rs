@@ -146,7 +146,19 @@ impl GloveMap {
 
     /// Parses a map from TOML (see the module docs for the syntax).
     pub fn from_toml_str(s: &str) -> Result<GloveMap, GloveError> {
-        let raw: RawMap = toml::from_str(s).map_err(|e| GloveError::MapSyntax(e.to_string()))?;
+        let raw: RawMap = toml::from_str(s).map_err(|e| {
+            // One line: "line L, column C: message" (the default text spans several lines).
+            let message = e.message().trim().replace('\n', " ");
+            GloveError::MapSyntax(match e.span() {
+                Some(span) => {
+                    let before = &s[..span.start.min(s.len())];
+                    let line = before.matches('\n').count() + 1;
+                    let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+                    format!("line {line}, column {column}: {message}")
+                }
+                None => message,
+            })
+        })?;
         GloveMap::try_from(raw)
     }
 

@@ -164,7 +164,10 @@ fn unknown_keys_are_syntax_errors_naming_the_key() {
         ("[thumb]\ncell0 = { pich = \"bass\" }", "pich"),
     ] {
         match GloveMap::from_toml_str(text) {
-            Err(GloveError::MapSyntax(msg)) => assert!(msg.contains(key), "{msg}"),
+            Err(GloveError::MapSyntax(msg)) => {
+                assert!(msg.contains(key), "{msg}");
+                assert!(!msg.contains('\n'), "one line: {msg}");
+            }
             other => panic!("expected syntax error for {text:?}, got {other:?}"),
         }
     }
