@@ -18,7 +18,7 @@
 //! A map decides what the engine computes and how one bin's features become pins:
 //!
 //! ```
-//! use tactus_glove::{BinFeatures, Decoder, Finger, GloveMap, Packet, Stem, Band, Needs};
+//! use tactus_glove::{Band, BinFeatures, Decoder, Finger, GloveMap, Packet, Stem};
 //!
 //! // The default map (maps/default.toml): bass on the thumb, drums on index and middle, ...
 //! let map = GloveMap::default();
@@ -48,7 +48,6 @@
 //! let mut got = Vec::new();
 //! decoder.push(&bytes, &mut |p| got.push(p));
 //! assert_eq!(got, vec![Packet::pins(0, 100, frame)]);
-//! # let _ = Needs::default();
 //! ```
 //!
 //! Files: [`Pattern`] (`render -o`), [`Features`] (`render --features`) and maps are
