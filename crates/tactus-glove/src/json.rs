@@ -1,0 +1,110 @@
+//! Shared helpers for reading the versioned JSON files (pattern, features): parse to an
+//! object, check `format` and `version`, pull typed fields with errors that name the key.
+
+use serde::de::DeserializeOwned;
+use serde_json::{Map, Value};
+
+use crate::GloveError;
+
+pub(crate) type Object = Map<String, Value>;
+
+/// Parses `bytes` as one JSON object; empty input and syntax errors get their own errors.
+pub(crate) fn parse_object(bytes: &[u8], what: &'static str) -> Result<Object, GloveError> {
+    if bytes.iter().all(u8::is_ascii_whitespace) {
+        return Err(GloveError::Empty { what });
+    }
+    let value: Value = serde_json::from_slice(bytes).map_err(|e| GloveError::NotJson {
+        line: e.line(),
+        column: e.column(),
+        message: e.to_string(),
+    })?;
+    match value {
+        Value::Object(o) => Ok(o),
+        other => Err(GloveError::InvalidField {
+            field: "(document)".into(),
+            reason: format!("expected a JSON object, found {}", kind(&other)),
+        }),
+    }
+}
+
+/// Checks `format` (required or optional) and `version` (same) against this reader.
+pub(crate) fn check_header(
+    obj: &Object,
+    format: &'static str,
+    what: &'static str,
+    supported: u64,
+    required: bool,
+) -> Result<(), GloveError> {
+    match obj.get("format") {
+        None if required => return Err(GloveError::MissingField("format")),
+        None => {}
+        Some(Value::String(s)) if s == format => {}
+        Some(other) => {
+            return Err(GloveError::WrongFormat {
+                expected: format,
+                found: other.to_string(),
+            })
+        }
+    }
+    match obj.get("version") {
+        None if required => Err(GloveError::MissingField("version")),
+        None => Ok(()),
+        Some(v) => match v.as_u64() {
+            Some(found) if found == supported => Ok(()),
+            Some(found) => Err(GloveError::UnsupportedVersion {
+                what,
+                found,
+                supported,
+            }),
+            None => Err(GloveError::InvalidField {
+                field: "version".into(),
+                reason: format!("expected a whole number, found {v}"),
+            }),
+        },
+    }
+}
+
+/// A required field of type `T`.
+pub(crate) fn required<T: DeserializeOwned>(
+    obj: &Object,
+    key: &'static str,
+) -> Result<T, GloveError> {
+    let v = obj.get(key).ok_or(GloveError::MissingField(key))?;
+    typed(v, key)
+}
+
+/// An optional field of type `T` (absent or null = `None`).
+pub(crate) fn optional<T: DeserializeOwned>(
+    obj: &Object,
+    key: &'static str,
+) -> Result<Option<T>, GloveError> {
+    match obj.get(key) {
+        None | Some(Value::Null) => Ok(None),
+        Some(v) => typed(v, key).map(Some),
+    }
+}
+
+pub(crate) fn typed<T: DeserializeOwned>(v: &Value, field: &str) -> Result<T, GloveError> {
+    T::deserialize(v).map_err(|e| GloveError::InvalidField {
+        field: field.into(),
+        reason: e.to_string(),
+    })
+}
+
+pub(crate) fn kind(v: &Value) -> &'static str {
+    match v {
+        Value::Null => "null",
+        Value::Bool(_) => "a boolean",
+        Value::Number(_) => "a number",
+        Value::String(_) => "a string",
+        Value::Array(_) => "an array",
+        Value::Object(_) => "an object",
+    }
+}
+
+pub(crate) fn invalid(field: impl Into<String>, reason: impl Into<String>) -> GloveError {
+    GloveError::InvalidField {
+        field: field.into(),
+        reason: reason.into(),
+    }
+}
