@@ -436,6 +436,22 @@ fn offline_rejection_removes_octave_jumps() {
     assert_eq!(odd, [0.0, 0.0, 220.0, 0.0]);
 }
 
+#[test]
+fn values_on_a_fence_are_kept() {
+    // With k = 0 the fences are the quartiles themselves; here Q1 and Q3 are attained values
+    // (four copies each of MIDI 60 and 62, so h = 1.75 and 5.25 fall between equal neighbours):
+    // every value sits exactly on a fence and must survive; a value just outside must not.
+    let (a, b) = (tactus_dsp::semitones_to_hz(60.0), tactus_dsp::semitones_to_hz(62.0));
+    let mut f0 = vec![a, a, a, a, b, b, b, b];
+    assert_eq!(reject_outliers_offline(&mut f0, 0.0), 0);
+    assert_eq!(f0, vec![a, a, a, a, b, b, b, b]);
+    let mut t = SlidingTukey::new(8, 0.0, 8).unwrap();
+    let out: Vec<f32> = [a, a, a, a, b, b, b, b, a, b].iter().map(|&f| t.process(f)).collect();
+    assert_eq!(out[7..], [b, a, b]);
+    let mut f0 = vec![a, a, a, a, b, b, b, b, b * 1.001];
+    assert_eq!(reject_outliers_offline(&mut f0, 0.0), 1);
+}
+
 /// Naive sliding Tukey: keep the last W voiced semitone values, sort, numpy quartiles.
 fn naive_sliding(input: &[f32], w: usize, k: f32, min_count: usize) -> Vec<(f32, Option<f64>)> {
     let mut win: VecDeque<f32> = VecDeque::new();
