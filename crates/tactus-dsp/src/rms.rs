@@ -108,7 +108,9 @@ impl HopStage for Rms {
     type Out = f32;
 
     fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, f32)) {
-        self.non_finite += self.framer.push(input, |i, frame| emit(i, frame_rms_db(frame)));
+        self.non_finite += self
+            .framer
+            .push(input, |i, frame| emit(i, frame_rms_db(frame)));
     }
 
     fn finish(&mut self, emit: &mut dyn FnMut(usize, f32)) {

@@ -17,9 +17,7 @@ use tactus_dsp::hz_to_semitones;
 use tactus_dsp::rms::{
     frame_rms_db, gate_offline, Rms, StreamingGate, DEFAULT_FLOOR_DB, GATE_BELOW_DB, SILENCE_DB,
 };
-use tactus_dsp::tukey::{
-    fences, quartiles, reject_outliers_offline, SlidingTukey, TUKEY_K,
-};
+use tactus_dsp::tukey::{fences, quartiles, reject_outliers_offline, SlidingTukey, TUKEY_K};
 use tactus_dsp::HopStage;
 
 // ---------------------------------------------------------------------------------------------
@@ -100,7 +98,8 @@ fn naive_rms_db(x: &[f32], frame: usize, hop: usize) -> Vec<f32> {
     (0..x.len().div_ceil(hop))
         .map(|i| {
             let fr = &p[i * hop..i * hop + frame];
-            let ms: f64 = fr.iter().map(|&v| f64::from(v) * f64::from(v)).sum::<f64>() / frame as f64;
+            let ms: f64 =
+                fr.iter().map(|&v| f64::from(v) * f64::from(v)).sum::<f64>() / frame as f64;
             if ms > 0.0 {
                 ((10.0 * ms.log10()) as f32).max(-200.0)
             } else {
@@ -116,7 +115,11 @@ fn run_rms(x: &[f32], frame: usize, hop: usize, chunks: &[usize]) -> Vec<f32> {
     let mut rest = x;
     let mut k = 0;
     while !rest.is_empty() {
-        let c = if chunks.is_empty() { rest.len() } else { chunks[k % chunks.len()].max(1) };
+        let c = if chunks.is_empty() {
+            rest.len()
+        } else {
+            chunks[k % chunks.len()].max(1)
+        };
         let c = c.min(rest.len());
         r.process(&rest[..c], &mut |i, v| {
             assert_eq!(i, out.len());
@@ -164,9 +167,17 @@ fn rms_matches_naive_oracle() {
     let mut signals: Vec<(&str, Vec<f32>)> = vec![
         ("noise", noise(5000, 1)),
         ("silence", vec![0.0; 3000]),
-        ("+-8", (0..3000).map(|i| if i % 2 == 0 { 8.0 } else { -8.0 }).collect()),
+        (
+            "+-8",
+            (0..3000)
+                .map(|i| if i % 2 == 0 { 8.0 } else { -8.0 })
+                .collect(),
+        ),
         ("tiny 1e-38", vec![1e-38; 3000]),
-        ("sine", (0..4000).map(|i| (i as f32 * 0.05).sin() * 0.3).collect()),
+        (
+            "sine",
+            (0..4000).map(|i| (i as f32 * 0.05).sin() * 0.3).collect(),
+        ),
     ];
     let mut bad = noise(4000, 2);
     for i in (0..4000).step_by(97) {
@@ -180,7 +191,10 @@ fn rms_matches_naive_oracle() {
             assert_eq!(got.len(), want.len());
             for (i, (g, w)) in got.iter().zip(&want).enumerate() {
                 assert!(g.is_finite(), "{name} f{frame} h{hop} hop {i}: {g}");
-                assert!((g - w).abs() <= 1e-4, "{name} f{frame} h{hop} hop {i}: {g} vs {w}");
+                assert!(
+                    (g - w).abs() <= 1e-4,
+                    "{name} f{frame} h{hop} hop {i}: {g} vs {w}"
+                );
             }
         }
     }
@@ -190,23 +204,34 @@ fn rms_matches_naive_oracle() {
 fn rms_known_levels_and_floor() {
     // Interior frames of ±8 are exactly 20·log10(8) = 18.0618 dBFS; silence and 1e-38 (flushed
     // by sanitize) give the floor; a frame of NaN/Inf is treated as silence.
-    let eight: Vec<f32> = (0..4096).map(|i| if i % 2 == 0 { 8.0 } else { -8.0 }).collect();
+    let eight: Vec<f32> = (0..4096)
+        .map(|i| if i % 2 == 0 { 8.0 } else { -8.0 })
+        .collect();
     let v = run_rms(&eight, 256, 128, &[]);
     for &d in &v[2..v.len() - 2] {
         assert!((d - 18.061_8).abs() < 1e-3, "{d}");
     }
-    assert!(run_rms(&vec![0.0; 1000], 64, 32, &[]).iter().all(|&d| d == SILENCE_DB));
-    assert!(run_rms(&vec![1e-38; 1000], 64, 32, &[]).iter().all(|&d| d == SILENCE_DB));
+    assert!(run_rms(&vec![0.0; 1000], 64, 32, &[])
+        .iter()
+        .all(|&d| d == SILENCE_DB));
+    assert!(run_rms(&vec![1e-38; 1000], 64, 32, &[])
+        .iter()
+        .all(|&d| d == SILENCE_DB));
     let mut r = Rms::new(64, 32).unwrap();
     let mut out = Vec::new();
-    r.process(&[f32::NAN, f32::INFINITY, f32::NEG_INFINITY, f32::NAN], &mut |_, d| out.push(d));
+    r.process(
+        &[f32::NAN, f32::INFINITY, f32::NEG_INFINITY, f32::NAN],
+        &mut |_, d| out.push(d),
+    );
     r.finish(&mut |_, d| out.push(d));
     assert_eq!(out, vec![SILENCE_DB]);
     assert_eq!(r.non_finite_samples(), 4);
     r.reset();
     assert_eq!(r.non_finite_samples(), 0);
     // Full-scale sine over whole periods: −3.0103 dBFS.
-    let sine: Vec<f32> = (0..64).map(|i| (i as f32 * std::f32::consts::TAU / 16.0).sin()).collect();
+    let sine: Vec<f32> = (0..64)
+        .map(|i| (i as f32 * std::f32::consts::TAU / 16.0).sin())
+        .collect();
     assert!((frame_rms_db(&sine) + 3.0103).abs() < 1e-3);
     assert_eq!(frame_rms_db(&[]), SILENCE_DB);
 }
@@ -343,12 +368,18 @@ fn quartiles_match_numpy_documented_values() {
     // np.percentile([1, 2, 3, 4], [25, 75]) -> [1.75, 3.25]
     assert_eq!(quartiles(&mut [4.0, 1.0, 3.0, 2.0]), Some((1.75, 3.25)));
     // np.percentile([10, 7, 4, 3, 2, 1], [25, 75]) -> [2.25, 6.25]
-    assert_eq!(quartiles(&mut [10.0, 7.0, 4.0, 3.0, 2.0, 1.0]), Some((2.25, 6.25)));
+    assert_eq!(
+        quartiles(&mut [10.0, 7.0, 4.0, 3.0, 2.0, 1.0]),
+        Some((2.25, 6.25))
+    );
     // np.percentile([1, 2], [25, 75]) -> [1.25, 1.75]; a single value is both quartiles.
     assert_eq!(quartiles(&mut [2.0, 1.0]), Some((1.25, 1.75)));
     assert_eq!(quartiles(&mut [5.0]), Some((5.0, 5.0)));
     // Non-finite values are ignored; none left -> None.
-    assert_eq!(quartiles(&mut [f32::NAN, 4.0, 1.0, f32::INFINITY, 3.0, 2.0]), Some((1.75, 3.25)));
+    assert_eq!(
+        quartiles(&mut [f32::NAN, 4.0, 1.0, f32::INFINITY, 3.0, 2.0]),
+        Some((1.75, 3.25))
+    );
     assert_eq!(quartiles(&mut []), None);
     assert_eq!(quartiles(&mut [f32::NAN]), None);
     // Fences of [1, 2, 3, 4]: IQR 1.5 -> (1.75 - 2.25, 3.25 + 2.25).
@@ -441,12 +472,18 @@ fn values_on_a_fence_are_kept() {
     // With k = 0 the fences are the quartiles themselves; here Q1 and Q3 are attained values
     // (four copies each of MIDI 60 and 62, so h = 1.75 and 5.25 fall between equal neighbours):
     // every value sits exactly on a fence and must survive; a value just outside must not.
-    let (a, b) = (tactus_dsp::semitones_to_hz(60.0), tactus_dsp::semitones_to_hz(62.0));
+    let (a, b) = (
+        tactus_dsp::semitones_to_hz(60.0),
+        tactus_dsp::semitones_to_hz(62.0),
+    );
     let mut f0 = vec![a, a, a, a, b, b, b, b];
     assert_eq!(reject_outliers_offline(&mut f0, 0.0), 0);
     assert_eq!(f0, vec![a, a, a, a, b, b, b, b]);
     let mut t = SlidingTukey::new(8, 0.0, 8).unwrap();
-    let out: Vec<f32> = [a, a, a, a, b, b, b, b, a, b].iter().map(|&f| t.process(f)).collect();
+    let out: Vec<f32> = [a, a, a, a, b, b, b, b, a, b]
+        .iter()
+        .map(|&f| t.process(f))
+        .collect();
     assert_eq!(out[7..], [b, a, b]);
     let mut f0 = vec![a, a, a, a, b, b, b, b, b * 1.001];
     assert_eq!(reject_outliers_offline(&mut f0, 0.0), 1);
@@ -520,11 +557,15 @@ fn sliding_tukey_rejects_octave_jump_after_warmup() {
     // Hops alternating 220 / 247 Hz (2 semitones apart: IQR ≈ 2, fences ≈ 54 .. 62) then one
     // 880 Hz hop (+24 semitones): rejected. Before `min_count` voiced hops it passes through.
     let mut t = SlidingTukey::new(100, TUKEY_K, 20).unwrap();
-    let alt = |i: usize| if i % 2 == 0 { 220.0 } else { 247.0 };
+    let alt = |i: usize| if i.is_multiple_of(2) { 220.0 } else { 247.0 };
     for i in 0..18 {
         assert_eq!(t.process(alt(i)), alt(i));
     }
-    assert_eq!(t.process(880.0), 880.0, "19th voiced value: still warming up");
+    assert_eq!(
+        t.process(880.0),
+        880.0,
+        "19th voiced value: still warming up"
+    );
     assert!(t.fences().is_none());
     t.process(220.0);
     assert!(t.fences().is_some());
@@ -554,7 +595,11 @@ fn discretizer_semitones_by_hand() {
     // 141.42 Hz = 100·2^(6/12) is the edge between levels 2 and 3 (half-open: edge goes up).
     assert_eq!(d.level(141.40, r), 2);
     assert_eq!(d.level(141.44, r), 3);
-    assert_eq!(d.level(200.0, r), 5, "exactly 12 semitones = t 0.5 -> lower edge of level 5");
+    assert_eq!(
+        d.level(200.0, r),
+        5,
+        "exactly 12 semitones = t 0.5 -> lower edge of level 5"
+    );
     // Every level's centre, 100·2^((3j + 1.5)/12), lands in level j + 1.
     for j in 0..8 {
         let f = 100.0 * 2f32.powf((3.0 * j as f32 + 1.5) / 12.0);
@@ -594,7 +639,9 @@ fn discretizer_linear_hz_and_level_counts() {
     assert_eq!(d.level(399.0, (0.0, 400.0)), 8);
     assert!(Discretizer::new(0, Scale::Semitones).is_err());
     let one = Discretizer::new(1, Scale::Semitones).unwrap();
-    assert!([100.0f32, 250.0, 400.0].iter().all(|&f| one.level(f, r) == 1));
+    assert!([100.0f32, 250.0, 400.0]
+        .iter()
+        .all(|&f| one.level(f, r) == 1));
     let many = Discretizer::new(255, Scale::Semitones).unwrap();
     assert_eq!(many.level(399.99, r), 255);
     assert_eq!(many.level(100.0, r), 1);
@@ -669,8 +716,10 @@ fn naive_bins(levels: &[Option<u8>], hop: usize, bin: usize) -> Vec<u8> {
     let nbins = (n - 1) * hop / bin + 1;
     (0..nbins)
         .map(|b| {
-            let members: Vec<u8> =
-                (0..n).filter(|&i| i * hop / bin == b).map(|i| levels[i].unwrap_or(0)).collect();
+            let members: Vec<u8> = (0..n)
+                .filter(|&i| i * hop / bin == b)
+                .map(|i| levels[i].unwrap_or(0))
+                .collect();
             let mut voiced: Vec<u8> = members.iter().copied().filter(|&l| l > 0).collect();
             if voiced.len() * 2 > members.len() {
                 voiced.sort();
@@ -780,7 +829,10 @@ proptest! {
 #[test]
 fn binner_by_hand() {
     // 10 ms hops, 100 ms bins at 44.1 kHz: 10 hops per bin.
-    let levels = [3, 3, 5, 5, 0, 7, 5, 0, 3, 3, /* bin 1: 4 voiced of 10 */ 1, 0, 2, 0, 3, 0, 4, 0, 0, 0, /* partial: 2 of 3 */ 6, 2, 0];
+    let levels = [
+        3, 3, 5, 5, 0, 7, 5, 0, 3, 3, /* bin 1: 4 voiced of 10 */ 1, 0, 2, 0, 3, 0, 4, 0, 0,
+        0, /* partial: 2 of 3 */ 6, 2, 0,
+    ];
     // bin 0: voiced [3,3,5,5,7,5,3,3] (8 > 5) sorted 3,3,3,3,5,5,5,7 -> lower median 3
     assert_eq!(bin_levels(&levels, 441, 4410), vec![3, 0, 2]);
     // Bin not a multiple of the hop: hop 3, bin 4 -> bin of hop i is i*3/4: 0,0,1,2,3,3.
@@ -788,7 +840,10 @@ fn binner_by_hand() {
     assert_eq!(bin_levels(&[1, 2, 3, 4, 0, 6], 3, 4), vec![1, 3, 4, 0]);
     // Hop longer than the bin: empty bins are 0 / false.
     assert_eq!(bin_levels(&[4, 5], 10, 4), vec![4, 0, 5]);
-    assert_eq!(bin_beats(&[true, false, true], 10, 4), vec![true, false, false, false, false, true]);
+    assert_eq!(
+        bin_beats(&[true, false, true], 10, 4),
+        vec![true, false, false, false, false, true]
+    );
     assert_eq!(bin_levels(&[], 441, 4410), Vec::<u8>::new());
     assert_eq!(bin_levels(&[1], 0, 4410), Vec::<u8>::new());
     assert!(LevelBinner::new(0, 1).is_err() && BeatBinner::new(1, 0).is_err());
@@ -824,12 +879,18 @@ fn no_allocation_in_hot_paths() {
     let n = allocs_during(|| {
         let mut per_hop = |i: usize, db: f32| {
             let open = gate.process(db);
-            let f0 = if open { 100.0 + (i % 37) as f32 * 10.0 } else { 0.0 };
-            let f0 = tukey.process(if i % 29 == 0 { f0 * 4.0 } else { f0 });
+            let f0 = if open {
+                100.0 + (i % 37) as f32 * 10.0
+            } else {
+                0.0
+            };
+            let f0 = tukey.process(if i.is_multiple_of(29) { f0 * 4.0 } else { f0 });
             let r = range.update(f0).unwrap_or((0.0, 0.0));
             let level = disc.level(f0, r);
             lb.push(i, level, &mut |b, v| bins[b % 64] = v);
-            bb.push(i, i % 13 == 0 && open, &mut |b, v| beats[b % 64] = v);
+            bb.push(i, i.is_multiple_of(13) && open, &mut |b, v| {
+                beats[b % 64] = v
+            });
             hops += 1;
         };
         for c in x.chunks(300) {
