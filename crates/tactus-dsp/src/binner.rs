@@ -2,7 +2,7 @@
 //! are set to zero").
 //!
 //! **Assignment.** Hop `i` (time `i·hop_samples`) belongs to Bin `⌊i·hop_samples / bin_samples⌋`,
-//! in exact integer arithmetic (128-bit, no overflow), so bins need not be a multiple of the hop
+//! in exact integer arithmetic (64-bit, 128-bit if a product overflows), so bins need not be a multiple of the hop
 //! and no rounding drift accumulates. Bin `b` holds the hops `first(b) .. first(b + 1)` with
 //! `first(b) = ⌈b·bin_samples / hop_samples⌉`; when the hop is longer than the bin, some bins hold
 //! no hop at all and are emitted as 0 / `false`.
@@ -34,12 +34,28 @@ use crate::ConfigError;
 /// Which bins are complete given the hop indices seen: the integer clock shared by both binners.
 #[derive(Debug, Clone)]
 struct BinClock {
-    hop: u128,
-    bin: u128,
+    hop: u64,
+    bin: u64,
     /// Bin currently being filled.
     cur_bin: usize,
+    /// `first_hop(cur_bin + 1)`, cached so that most pushes need no division.
+    boundary: usize,
     /// One past the highest hop index pushed.
     next_hop: usize,
+}
+
+/// `⌊a·m / d⌋` (or `⌈…⌉`), exact: `u64` while the product fits, else `u128`.
+#[inline]
+fn mul_div(a: usize, m: u64, d: u64, ceil: bool) -> usize {
+    match (a as u64).checked_mul(m) {
+        Some(p) if ceil => p.div_ceil(d) as usize,
+        Some(p) => (p / d) as usize,
+        None => {
+            let p = a as u128 * u128::from(m);
+            let d = u128::from(d);
+            (if ceil { p.div_ceil(d) } else { p / d }) as usize
+        }
+    }
 }
 
 impl BinClock {
@@ -50,24 +66,27 @@ impl BinClock {
         if bin_samples == 0 {
             return Err(ConfigError::invalid("bin_samples", "must be at least 1"));
         }
-        Ok(BinClock {
-            hop: hop_samples as u128,
-            bin: bin_samples as u128,
+        let mut c = BinClock {
+            hop: hop_samples as u64,
+            bin: bin_samples as u64,
             cur_bin: 0,
+            boundary: 0,
             next_hop: 0,
-        })
+        };
+        c.reset();
+        Ok(c)
     }
 
     /// The bin of hop `i`.
     #[inline]
     fn bin_of(&self, i: usize) -> usize {
-        (i as u128 * self.hop / self.bin) as usize
+        mul_div(i, self.hop, self.bin, false)
     }
 
     /// The first hop of bin `b`: `⌈b·bin / hop⌉`.
     #[inline]
     fn first_hop(&self, b: usize) -> usize {
-        (b as u128 * self.bin).div_ceil(self.hop) as usize
+        mul_div(b, self.bin, self.hop, true)
     }
 
     /// Hops in bin `b` (all of them, whether pushed, skipped or empty).
@@ -76,8 +95,15 @@ impl BinClock {
         self.first_hop(b + 1) - self.first_hop(b)
     }
 
+    /// Moves on to bin `b`.
+    #[inline]
+    fn enter(&mut self, b: usize) {
+        self.cur_bin = b;
+        self.boundary = self.first_hop(b + 1);
+    }
+
     fn reset(&mut self) {
-        self.cur_bin = 0;
+        self.enter(0);
         self.next_hop = 0;
     }
 }
@@ -103,17 +129,22 @@ fn push_hop<A: BinAcc>(
     if i < clock.next_hop {
         return;
     }
-    let b = clock.bin_of(i);
-    while clock.cur_bin < b {
-        let total = clock.hops_in(clock.cur_bin);
-        emit(clock.cur_bin, acc.take(total));
-        clock.cur_bin += 1;
+    if i >= clock.boundary {
+        // Hop i lies in a later bin: close the current one and any (empty or skipped) between.
+        let b = clock.bin_of(i);
+        while clock.cur_bin < b {
+            let total = clock.hops_in(clock.cur_bin);
+            emit(clock.cur_bin, acc.take(total));
+            clock.cur_bin += 1;
+        }
+        clock.enter(b);
     }
     acc.add(v);
     clock.next_hop = i + 1;
-    if clock.next_hop == clock.first_hop(b + 1) {
+    if clock.next_hop == clock.boundary {
+        let b = clock.cur_bin;
         emit(b, acc.take(clock.hops_in(b)));
-        clock.cur_bin = b + 1;
+        clock.enter(b + 1);
     }
 }
 
@@ -122,7 +153,7 @@ fn finish_bins<A: BinAcc>(clock: &mut BinClock, acc: &mut A, emit: &mut dyn FnMu
     let first = clock.first_hop(clock.cur_bin);
     if clock.next_hop > first {
         emit(clock.cur_bin, acc.take(clock.next_hop - first));
-        clock.cur_bin += 1;
+        clock.enter(clock.cur_bin + 1);
     }
 }
 

@@ -847,6 +847,10 @@ fn binner_by_hand() {
     assert_eq!(bin_levels(&[], 441, 4410), Vec::<u8>::new());
     assert_eq!(bin_levels(&[1], 0, 4410), Vec::<u8>::new());
     assert!(LevelBinner::new(0, 1).is_err() && BeatBinner::new(1, 0).is_err());
+    // i·hop overflowing u64 still bins exactly (2^30 · 2^40 = 2^70).
+    let big = LevelBinner::new(1 << 40, 3 << 20).unwrap();
+    assert_eq!(big.bin_of(1 << 30), (1usize << 50) / 3);
+    assert_eq!(big.bin_of(7), (7usize << 40) / (3 << 20));
     // A repeated or backward index is ignored.
     let mut b = LevelBinner::new(1, 2).unwrap();
     let mut out = Vec::new();
