@@ -1,1 +1,152 @@
-//! (to be written)
+//! Pitch discretization: f0 in Hz → Level `0..=levels` (0 = unvoiced).
+//!
+//! **Algorithm** (the paper, §2: "eight discrete levels … relative to the maximum pitch";
+//! §4: "only the non-zero pitch ranges are considered"). The stem's non-zero pitch range
+//! `[lo, hi]` is cut into `levels` equal-width intervals and a voiced hop gets the 1-based index
+//! of the interval holding its pitch: `level = ⌊levels · t⌋ + 1`, clamped to `1..=levels`, where
+//! * [`Scale::Semitones`] (default, DESIGN.md): `t = log2(f0 / lo) / log2(hi / lo)`, i.e. equal
+//!   musical intervals (100–400 Hz with 8 levels: 3 semitones per level);
+//! * [`Scale::LinearHz`]: `t = (f0 − lo) / (hi − lo)`, equal widths in Hz (closer to the paper's
+//!   literal "percentile relative to the maximum pitch").
+//!
+//! Intervals are half-open, `[edge_j, edge_{j+1})`, so a pitch exactly on an inner edge belongs to
+//! the upper level, and `hi` itself to the top level. Computed in `f64`.
+//!
+//! **Special cases.** Unvoiced input (f0 ≤ 0, NaN or ±∞) → 0. Pitches outside the range are
+//! clamped to level 1 or `levels`. A degenerate range — `lo == hi`, a non-finite bound, or (in
+//! semitone mode) a bound ≤ 0 — maps every voiced pitch to **level 1**, the level `lo` itself
+//! gets in a proper range; a reversed range is swapped first.
+//!
+//! **Range.** Offline ([`range_offline`], paper-faithful): min and max of the track's voiced
+//! pitch, after the gate and Tukey's fences. Streaming ([`RunningRange`]): running min and max of
+//! the voiced pitches seen so far (it only widens; call `reset()` between songs).
+//!
+//! **Defaults.** [`DEFAULT_LEVELS`] = 8 (paper), semitone scale (DESIGN.md). **Latency:** none.
+
+use crate::ConfigError;
+
+/// The paper's number of pitch levels.
+pub const DEFAULT_LEVELS: u8 = 8;
+
+/// How the pitch range is cut into levels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Scale {
+    /// Equal musical intervals (log frequency). The default.
+    #[default]
+    Semitones,
+    /// Equal widths in Hz.
+    LinearHz,
+}
+
+/// Maps pitch to levels. See the module docs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Discretizer {
+    levels: u8,
+    scale: Scale,
+}
+
+impl Default for Discretizer {
+    /// 8 levels, semitone scale.
+    fn default() -> Self {
+        Discretizer {
+            levels: DEFAULT_LEVELS,
+            scale: Scale::Semitones,
+        }
+    }
+}
+
+impl Discretizer {
+    /// A discretizer with `levels` voiced levels (1..=255). Errors when `levels == 0`.
+    pub fn new(levels: u8, scale: Scale) -> Result<Self, ConfigError> {
+        if levels == 0 {
+            return Err(ConfigError::invalid("levels", "must be at least 1"));
+        }
+        Ok(Discretizer { levels, scale })
+    }
+
+    /// Number of voiced levels.
+    pub fn levels(&self) -> u8 {
+        self.levels
+    }
+
+    /// The scale.
+    pub fn scale(&self) -> Scale {
+        self.scale
+    }
+
+    /// Level of `f0_hz` within `range = (lo, hi)` in Hz: 0 when unvoiced, else `1..=levels`.
+    #[inline]
+    pub fn level(&self, f0_hz: f32, range: (f32, f32)) -> u8 {
+        if !(f0_hz.is_finite() && f0_hz > 0.0) {
+            return 0;
+        }
+        let (lo, hi) = if range.0 <= range.1 {
+            range
+        } else {
+            (range.1, range.0)
+        };
+        if !(lo.is_finite() && hi.is_finite()) || lo == hi {
+            return 1;
+        }
+        let (f, lo, hi) = (f64::from(f0_hz), f64::from(lo), f64::from(hi));
+        let t = match self.scale {
+            Scale::Semitones => {
+                if lo <= 0.0 {
+                    return 1;
+                }
+                (f / lo).log2() / (hi / lo).log2()
+            }
+            Scale::LinearHz => (f - lo) / (hi - lo),
+        };
+        let n = f64::from(self.levels);
+        // `t` is finite here (f, lo, hi finite, hi > lo); the clamp also covers t < 0 and t ≥ 1.
+        ((n * t).floor() + 1.0).clamp(1.0, n) as u8
+    }
+}
+
+/// Offline range: `(min, max)` of the voiced (finite, > 0) values, `None` if there are none.
+/// Does not allocate.
+pub fn range_offline(f0_hz: &[f32]) -> Option<(f32, f32)> {
+    let mut r = RunningRange::new();
+    let mut out = None;
+    for &f in f0_hz {
+        out = r.update(f);
+    }
+    out
+}
+
+/// Running min and max of the voiced pitches seen so far. Causal, allocation-free.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RunningRange {
+    range: Option<(f32, f32)>,
+}
+
+impl RunningRange {
+    /// An empty range.
+    pub fn new() -> Self {
+        RunningRange { range: None }
+    }
+
+    /// Feeds one hop's pitch (unvoiced values are ignored); returns the range so far,
+    /// `None` until a voiced value has arrived.
+    #[inline]
+    pub fn update(&mut self, f0_hz: f32) -> Option<(f32, f32)> {
+        if f0_hz.is_finite() && f0_hz > 0.0 {
+            self.range = Some(match self.range {
+                None => (f0_hz, f0_hz),
+                Some((lo, hi)) => (lo.min(f0_hz), hi.max(f0_hz)),
+            });
+        }
+        self.range
+    }
+
+    /// The range so far.
+    pub fn get(&self) -> Option<(f32, f32)> {
+        self.range
+    }
+
+    /// Back to empty.
+    pub fn reset(&mut self) {
+        self.range = None;
+    }
+}
