@@ -30,8 +30,8 @@
 //! **Processing.** Transposed direct form II per section, with `f64` coefficients and `f64`
 //! state; `f32` in and out. Non-finite input samples are replaced by 0 and counted
 //! ([`SosFilter::non_finite_count`]); inputs below [`FLUSH_BELOW`] are treated as 0 (see
-//! [`crate::sanitize`]). State values below `1e-60` in magnitude are flushed to 0, so a
-//! decaying tail never reaches f64 denormals (they would first affect the output around 1e-58,
+//! [`crate::sanitize`]). A section whose two state values are both below `1e-60` in
+//! magnitude is reset to 0, so a decaying tail never reaches f64 denormals (they would first affect the output around 1e-58,
 //! far below what an `f32` output can carry past the output flush at [`FLUSH_BELOW`]).
 //!
 //! ## The paper's drum bands, and clamping
@@ -90,12 +90,24 @@ pub struct Sos {
 
 impl Sos {
     /// This section's complex response at `z = e^{jω}`, `ω` in radians per sample.
+    ///
+    /// Both polynomials are expanded around the nearer of `z⁻¹ = ±1`, with `z⁻¹ ∓ 1`
+    /// computed from `sin(ω/2)` or `cos(ω/2)`: the Butterworth zeros sit exactly at `z = ±1`,
+    /// and the naive evaluation would lose all precision in the stop band next to them.
     pub fn response(&self, omega: f64) -> Complex64 {
-        let z1 = Complex64::from_polar(1.0, -omega);
-        let z2 = z1 * z1;
-        let num = self.b[0] + z1 * self.b[1] + z2 * self.b[2];
-        let den = self.a[0] + z1 * self.a[1] + z2 * self.a[2];
-        num / den
+        let half = Complex64::from_polar(1.0, -omega / 2.0);
+        let eval = |c: &[f64; 3]| {
+            if omega.cos() >= 0.0 {
+                // z⁻¹ = 1 + e, e = e^{-jω} − 1 = −2j sin(ω/2) e^{-jω/2}.
+                let e = half * Complex64::new(0.0, -2.0 * (omega / 2.0).sin());
+                (c[0] + c[1] + c[2]) + e * (c[1] + 2.0 * c[2]) + e * e * c[2]
+            } else {
+                // z⁻¹ = −1 + e, e = e^{-jω} + 1 = 2 cos(ω/2) e^{-jω/2}.
+                let e = half * (2.0 * (omega / 2.0).cos());
+                (c[0] - c[1] + c[2]) + e * (c[1] - 2.0 * c[2]) + e * e * c[2]
+            }
+        };
+        eval(&self.b) / eval(&self.a)
     }
 
     /// The section's poles (roots of `z² + a1 z + a2`); for a first-order section the second
@@ -387,10 +399,11 @@ impl SosFilter {
             let y = s.b[0] * v + st[0];
             let mut s1 = s.b[1] * v - s.a[1] * y + st[1];
             let mut s2 = s.b[2] * v - s.a[2] * y;
-            if s1.abs() < STATE_FLUSH {
+            // Flush the section's state only as a whole: zeroing one component alone would
+            // inject a perturbation that the nearly-parallel modes of a low-frequency section
+            // amplify into a limit cycle just above the threshold.
+            if s1.abs().max(s2.abs()) < STATE_FLUSH {
                 s1 = 0.0;
-            }
-            if s2.abs() < STATE_FLUSH {
                 s2 = 0.0;
             }
             *st = [s1, s2];
