@@ -42,7 +42,7 @@ impl MedianFilter {
     /// A median filter over `window` samples; `window` must be odd (so the median is one
     /// sample) and at least 1.
     pub fn new(window: usize) -> Result<Self, ConfigError> {
-        if window == 0 || window % 2 == 0 {
+        if window & 1 == 0 {
             return Err(ConfigError::invalid(
                 "window",
                 format!("{window} must be odd and at least 1"),
@@ -114,7 +114,11 @@ impl MedianFilter {
 /// Median of three by `total_cmp`.
 #[inline]
 fn median3(a: f32, b: f32, c: f32) -> f32 {
-    let (lo, hi) = if a.total_cmp(&b).is_le() { (a, b) } else { (b, a) };
+    let (lo, hi) = if a.total_cmp(&b).is_le() {
+        (a, b)
+    } else {
+        (b, a)
+    };
     if c.total_cmp(&lo).is_le() {
         lo
     } else if c.total_cmp(&hi).is_ge() {

@@ -189,12 +189,20 @@ pub fn butterworth(
             let low = matches!(response, Response::LowPass { .. });
             // Low-pass: s = wc p. High-pass: s = wc / p = wc conj(p) (|p| = 1).
             let map = |p: Complex64| if low { p * wc } else { p.conj() * wc };
-            let (zero, reference) = if low { (-1.0, 0.0) } else { (1.0, std::f64::consts::PI) };
+            let (zero, reference) = if low {
+                (-1.0, 0.0)
+            } else {
+                (1.0, std::f64::consts::PI)
+            };
             for p in proto_upper(order) {
                 sections.push(pair_section(map(p), [zero, zero], reference));
             }
             if odd {
-                sections.push(real_section(map(Complex64::new(-1.0, 0.0)).re, zero, reference));
+                sections.push(real_section(
+                    map(Complex64::new(-1.0, 0.0)).re,
+                    zero,
+                    reference,
+                ));
             }
         }
         Response::BandPass { low_hz, high_hz } => {
@@ -253,7 +261,11 @@ fn bilinear(s: Complex64) -> Complex64 {
 /// in the closed form that stays exact for tiny `s`.
 fn pair_denominator(s: Complex64) -> [f64; 3] {
     let m = (1.0 - s).norm_sqr();
-    [1.0, -2.0 * (1.0 - s.norm_sqr()) / m, (1.0 + s).norm_sqr() / m]
+    [
+        1.0,
+        -2.0 * (1.0 - s.norm_sqr()) / m,
+        (1.0 + s).norm_sqr() / m,
+    ]
 }
 
 /// A section with the pole pair from `s` and zeros at `z = zeros[0], zeros[1]` (real),
@@ -288,7 +300,7 @@ pub fn band_edges(band: Band, sample_rate: u32) -> Option<(f64, f64)> {
     let nyquist = f64::from(sample_rate) / 2.0;
     let limit = MAX_EDGE_FRACTION * nyquist;
     let (lo, hi) = band.edges_hz();
-    if !(lo < limit) {
+    if lo >= limit {
         None
     } else if hi < limit {
         Some((lo, hi))

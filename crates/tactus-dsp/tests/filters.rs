@@ -14,8 +14,8 @@ use std::f64::consts::PI;
 use proptest::prelude::*;
 use realfft::RealFftPlanner;
 use tactus_dsp::median::{median_centered, MedianFilter};
-use tactus_dsp::sos::{band_edges, band_response, butterworth, Response, Sos, SosFilter};
 use tactus_dsp::sanitize::sanitize;
+use tactus_dsp::sos::{band_edges, band_response, butterworth, Response, Sos, SosFilter};
 use tactus_dsp::{Band, ConfigError, SampleStage};
 
 // ---------------------------------------------------------------------------------------
@@ -303,7 +303,11 @@ fn fft_of_impulse_response_puts_band_edges_at_minus_3_db() {
                 let (lo, hi) = band_edges(b, fs).unwrap();
                 // At 44.1 and 48 kHz every band is a true band-pass.
                 assert!(hi < f64::from(fs) / 2.0, "{b:?}");
-                (b.name().to_string(), SosFilter::band(b, fs).unwrap(), vec![lo, hi])
+                (
+                    b.name().to_string(),
+                    SosFilter::band(b, fs).unwrap(),
+                    vec![lo, hi],
+                )
             })
             .collect();
         for hp in [30.0, 60.0] {
@@ -369,7 +373,10 @@ fn low_cutoffs_stay_stable_at_high_rates() {
             let energy = |s: &[f32]| s.iter().map(|&v| f64::from(v).powi(2)).sum::<f64>();
             let total = energy(&h);
             let tail = energy(&h[3 * n / 4..]);
-            assert!(total > 0.0 && tail <= 1e-20 * total, "{name} at {fs} Hz: tail {tail}");
+            assert!(
+                total > 0.0 && tail <= 1e-20 * total,
+                "{name} at {fs} Hz: tail {tail}"
+            );
             // The f64 state has decayed all the way to exact zero (flushed), not to denormals.
             assert!(filter.state().iter().flatten().all(|&v| v == 0.0));
             // The low-pass's DC gain survives the tiny cutoff: sum of the impulse response.
@@ -394,7 +401,11 @@ fn invalid_parameters_are_rejected() {
     bad(butterworth(4, lp(-5.0), 44100));
     bad(butterworth(4, lp(22050.0), 44100));
     bad(butterworth(4, lp(f64::NAN), 44100));
-    bad(butterworth(4, Response::HighPass { cutoff_hz: 30000.0 }, 44100));
+    bad(butterworth(
+        4,
+        Response::HighPass { cutoff_hz: 30000.0 },
+        44100,
+    ));
     let bp = |lo, hi| Response::BandPass {
         low_hz: lo,
         high_hz: hi,
@@ -453,7 +464,13 @@ fn naive_streaming_median(x: &[f32], w: usize) -> Vec<f32> {
     (0..x.len())
         .map(|i| {
             let mut win: Vec<f32> = (0..w)
-                .map(|k| if i + k >= w - 1 { x[i + k + 1 - w] } else { 0.0 })
+                .map(|k| {
+                    if i + k >= w - 1 {
+                        x[i + k + 1 - w]
+                    } else {
+                        0.0
+                    }
+                })
                 .collect();
             win.sort_by(f32::total_cmp);
             win[w / 2]
@@ -505,7 +522,11 @@ fn median_matches_sorting_oracle() {
             assert_same_bits(&got, &want, &format!("window {w}, seed {seed}"));
             let centred = median_centered(&x, w).unwrap();
             let want = naive_centered_median(&clean, w);
-            assert_same_bits(&centred, &want, &format!("centred, window {w}, seed {seed}"));
+            assert_same_bits(
+                &centred,
+                &want,
+                &format!("centred, window {w}, seed {seed}"),
+            );
         }
     }
     // scipy.signal.medfilt([1, 5, 2, 8, 3], 3), worked by hand: zero padding at both ends.
@@ -596,7 +617,11 @@ fn silence_dc_and_clipping() {
         // DC: every high-pass and band-pass has a zero at DC, so 1 s later nothing is left.
         f.reset();
         let y = run(&mut f, &vec![1.0; n]);
-        assert!(y[n - 100..].iter().all(|v| v.abs() < 1e-6), "{:?}", &y[n - 3..]);
+        assert!(
+            y[n - 100..].iter().all(|v| v.abs() < 1e-6),
+            "{:?}",
+            &y[n - 3..]
+        );
         // +-8 full-scale-and-beyond square-ish noise: finite and bounded by 8 * sum |h|.
         let h = impulse_response(&mut f, 2 * n);
         let l1: f64 = h.iter().map(|&v| f64::from(v).abs()).sum();
