@@ -30,7 +30,8 @@ pub const DEFAULT_WINDOW: usize = 3;
 #[derive(Clone, Debug)]
 pub struct MedianFilter {
     window: usize,
-    /// The window in arrival order; `ring[head]` is the oldest sample.
+    /// The window in arrival order; `ring[head]` is the oldest sample. (Window 3 uses only
+    /// `ring[0..2]`, the two previous samples.)
     ring: Vec<f32>,
     head: usize,
     /// The same samples, sorted by `total_cmp`.
@@ -67,22 +68,33 @@ impl MedianFilter {
         self.non_finite
     }
 
-    #[inline]
-    fn tick(&mut self, x: f32) -> f32 {
-        let (x, bad) = sanitize_sample(x);
-        self.non_finite += u64::from(bad);
+    /// Filters `block` in place, choosing the path once per block.
+    fn filter_block(&mut self, block: &mut [f32]) {
+        let mut bad = 0u64;
+        let mut clean = |x: f32| {
+            let (x, was_bad) = sanitize_sample(x);
+            bad += u64::from(was_bad);
+            x
+        };
         match self.window {
-            1 => x,
+            1 => block.iter_mut().for_each(|x| *x = clean(*x)),
             3 => {
-                // ring[head] is the oldest, then ring[head+1], ring[head+2].
-                let a = self.ring[(self.head + 1) % 3];
-                let b = self.ring[(self.head + 2) % 3];
-                self.ring[self.head] = x;
-                self.head = (self.head + 1) % 3;
-                median3(a, b, x)
+                // `ring[0]` and `ring[1]` hold the two previous samples, oldest first.
+                let (mut a, mut b) = (self.ring[0], self.ring[1]);
+                for x in block.iter_mut() {
+                    let c = clean(*x);
+                    *x = median3(a, b, c);
+                    (a, b) = (b, c);
+                }
+                (self.ring[0], self.ring[1]) = (a, b);
             }
-            _ => self.tick_sorted(x),
+            _ => {
+                for x in block.iter_mut() {
+                    *x = self.tick_sorted(clean(*x));
+                }
+            }
         }
+        self.non_finite += bad;
     }
 
     fn tick_sorted(&mut self, x: f32) -> f32 {
@@ -135,15 +147,12 @@ impl SampleStage for MedianFilter {
     /// If `output` is shorter than `input`.
     fn process(&mut self, input: &[f32], output: &mut [f32]) {
         let output = &mut output[..input.len()];
-        for (o, &x) in output.iter_mut().zip(input) {
-            *o = self.tick(x);
-        }
+        output.copy_from_slice(input);
+        self.filter_block(output);
     }
 
     fn process_inplace(&mut self, block: &mut [f32]) {
-        for x in block.iter_mut() {
-            *x = self.tick(*x);
-        }
+        self.filter_block(block);
     }
 
     fn reset(&mut self) {

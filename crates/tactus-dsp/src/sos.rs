@@ -402,32 +402,86 @@ impl SosFilter {
         (h.norm(), h.arg())
     }
 
-    #[inline]
-    fn tick(&mut self, x: f32) -> f32 {
-        let (x, bad) = sanitize_sample(x);
-        self.non_finite += u64::from(bad);
-        let mut v = f64::from(x);
-        for (s, st) in self.sections.iter().zip(self.state.iter_mut()) {
-            let y = s.b[0] * v + st[0];
-            let mut s1 = s.b[1] * v - s.a[1] * y + st[1];
-            let mut s2 = s.b[2] * v - s.a[2] * y;
-            // Flush the section's state only as a whole: zeroing one component alone would
-            // inject a perturbation that the nearly-parallel modes of a low-frequency section
-            // amplify into a limit cycle just above the threshold.
-            if s1.abs().max(s2.abs()) < STATE_FLUSH {
-                s1 = 0.0;
-                s2 = 0.0;
+    /// Filters `block` in place. Dispatches on the section count so that, for the usual
+    /// 1–6 sections, coefficients and state live in registers for the whole block; every
+    /// path performs the same arithmetic in the same order, so results are bit-identical.
+    fn filter_block(&mut self, block: &mut [f32]) {
+        match self.sections.len() {
+            1 => self.filter_fixed::<1>(block),
+            2 => self.filter_fixed::<2>(block),
+            3 => self.filter_fixed::<3>(block),
+            4 => self.filter_fixed::<4>(block),
+            5 => self.filter_fixed::<5>(block),
+            6 => self.filter_fixed::<6>(block),
+            _ => {
+                let mut bad = 0;
+                for x in block.iter_mut() {
+                    let mut v = input_sample(*x, &mut bad);
+                    for (s, st) in self.sections.iter().zip(self.state.iter_mut()) {
+                        v = step(s, st, v);
+                    }
+                    *x = output_sample(v);
+                }
+                self.non_finite += bad;
             }
-            *st = [s1, s2];
-            v = y;
-        }
-        let y = v as f32;
-        if y.abs() < FLUSH_BELOW {
-            0.0
-        } else {
-            y
         }
     }
+
+    fn filter_fixed<const N: usize>(&mut self, block: &mut [f32]) {
+        let mut secs = [Sos {
+            b: [0.0; 3],
+            a: [1.0, 0.0, 0.0],
+        }; N];
+        secs.copy_from_slice(&self.sections);
+        let mut state = [[0.0; 2]; N];
+        state.copy_from_slice(&self.state);
+        let mut bad = 0;
+        for x in block.iter_mut() {
+            let mut v = input_sample(*x, &mut bad);
+            for (s, st) in secs.iter().zip(state.iter_mut()) {
+                v = step(s, st, v);
+            }
+            *x = output_sample(v);
+        }
+        self.state.copy_from_slice(&state);
+        self.non_finite += bad;
+    }
+}
+
+/// Sanitized input sample as f64; counts non-finite samples in `bad`.
+#[inline(always)]
+fn input_sample(x: f32, bad: &mut u64) -> f64 {
+    let (x, was_bad) = sanitize_sample(x);
+    *bad += u64::from(was_bad);
+    f64::from(x)
+}
+
+/// f64 result to f32 output, flushing what is below [`FLUSH_BELOW`].
+#[inline(always)]
+fn output_sample(v: f64) -> f32 {
+    let y = v as f32;
+    if y.abs() < FLUSH_BELOW {
+        0.0
+    } else {
+        y
+    }
+}
+
+/// One transposed-direct-form-II step of section `s` with state `st`.
+#[inline(always)]
+fn step(s: &Sos, st: &mut [f64; 2], v: f64) -> f64 {
+    let y = s.b[0] * v + st[0];
+    let mut s1 = s.b[1] * v - s.a[1] * y + st[1];
+    let mut s2 = s.b[2] * v - s.a[2] * y;
+    // Flush the section's state only as a whole: zeroing one component alone would inject a
+    // perturbation that the nearly-parallel modes of a low-frequency section amplify into a
+    // limit cycle just above the threshold.
+    if s1.abs().max(s2.abs()) < STATE_FLUSH {
+        s1 = 0.0;
+        s2 = 0.0;
+    }
+    *st = [s1, s2];
+    y
 }
 
 impl SampleStage for SosFilter {
@@ -437,15 +491,12 @@ impl SampleStage for SosFilter {
     /// If `output` is shorter than `input`.
     fn process(&mut self, input: &[f32], output: &mut [f32]) {
         let output = &mut output[..input.len()];
-        for (o, &x) in output.iter_mut().zip(input) {
-            *o = self.tick(x);
-        }
+        output.copy_from_slice(input);
+        self.filter_block(output);
     }
 
     fn process_inplace(&mut self, block: &mut [f32]) {
-        for x in block.iter_mut() {
-            *x = self.tick(*x);
-        }
+        self.filter_block(block);
     }
 
     fn reset(&mut self) {
