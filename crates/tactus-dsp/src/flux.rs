@@ -11,9 +11,14 @@
 //!    and `M_{-1} = 0` (the stream is preceded by silence).
 //! 4. **Alignment.** A frame sees `frame / 2` samples into the future, so its flux rises
 //!    *before* the onset it reacts to. The flux of frame `t` is therefore reported at hop
-//!    `t + s` with `s = compensation_hops() = round(frame / (4 hop))`, so that the
-//!    flux peak of an impulse lands on the hop nearest the impulse (the first `s` hops
-//!    carry flux 0). This shift costs no latency: it lowers it (see below).
+//!    `t + s` (the first `s` hops carry flux 0), `s = compensation_hops()`:
+//!    `round(frame / (4 hop))` in look-ahead mode, where the flux *peak* of an impulse
+//!    comes when it is about `frame / 4` ahead of the frame centre (steepest part of the
+//!    window), and `round(3 frame / (8 hop))` in causal mode, where the *first hop above
+//!    threshold* comes earlier in the attack. Measured on clicks and drum hits at 44.1 kHz
+//!    the mean timing error is then within ±3 ms and the worst within ±5 ms in both modes
+//!    (see `tests/onsets.rs`). The shift costs no
+//!    latency: it lowers it (see below).
 //! 5. **Peak picking** on the aligned flux `f`. Hop `i` is an onset when
 //!    * `f[i] > mean(f[i - mean_before_hops ..= i + lookahead_hops]) + delta` (hops before
 //!      the stream and after its end count as 0), and
@@ -42,7 +47,7 @@
 //! | parameter | value | at 44.1 kHz |
 //! |---|---|---|
 //! | `frame` | largest power of two ≤ `sr / 40` | 1024 (23.2 ms) |
-//! | `hop` | `round(sr / 200)` | 220 (4.99 ms) |
+//! | `hop` | `floor(sr / 200)` | 220 (4.99 ms) |
 //! | `log_compression` | γ = 1000 | |
 //! | `delta` | 0.05 | |
 //! | `mean_before_hops` | 100 ms | 20 |
@@ -52,8 +57,9 @@
 //! # Latency
 //! `latency_samples() = max(1, frame - frame/2 + (lookahead_hops - s) · hop)`: hop `i`
 //! is emitted once its centre sample has arrived and the frame behind hop
-//! `i + lookahead_hops` is complete. At 44.1 kHz with the defaults (`s = 1`):
-//! causal mode 292 samples = **6.6 ms**, look-ahead mode 952 samples = **21.6 ms**.
+//! `i + lookahead_hops` is complete. At 44.1 kHz with the defaults: causal mode (`s = 2`)
+//! 512 - 2·220 = 72 samples = **1.6 ms**; look-ahead mode (`s = 1`, `L = 3`)
+//! 512 + 2·220 = 952 samples = **21.6 ms**.
 //!
 //! # Cost
 //! One real FFT of `frame` points, `frame/2 + 1` square roots and (with compression)
@@ -106,7 +112,7 @@ impl OnsetConfig {
     /// Low-latency defaults: causal peak picking on the rising edge.
     pub fn causal(sample_rate: u32) -> Self {
         let sr = sample_rate.max(1) as f64;
-        let hop = ((sr / 200.0).round() as usize).max(1);
+        let hop = ((sr / 200.0) as usize).max(1);
         let target = ((sr / 40.0) as usize).max(16);
         // Largest power of two not above `target`.
         let frame = 1usize << (usize::BITS - 1 - target.leading_zeros());
@@ -212,9 +218,11 @@ impl OnsetDetector {
         let window = hann.iter().map(|w| (w * norm) as f32).collect();
         let bins = n / 2 + 1;
         // The flux peak of an impulse comes about frame/4 samples before it (steepest part
-        // of the Hann window); never shift past the framer's own look-ahead.
+        // of the Hann window), the first hop above threshold about 3·frame/8 before it;
+        // never shift past the framer's own look-ahead.
         let framer_lat = framer.latency_samples();
-        let shift = ((n as f64 / (4.0 * cfg.hop as f64)).round() as usize).min((framer_lat - 1) / cfg.hop);
+        let ahead = if cfg.lookahead_hops == 0 { 3.0 * n as f64 / 8.0 } else { n as f64 / 4.0 };
+        let shift = ((ahead / cfg.hop as f64).round() as usize).min((framer_lat - 1) / cfg.hop);
         let ring_len = cfg.mean_before_hops + 2 * cfg.lookahead_hops + shift + 4;
         let core = Core {
             window,
