@@ -31,7 +31,8 @@ fn track(seconds: f64) -> Vec<f32> {
             let t = i as f32 / sr;
             let tb = (i % beat) as f32 / sr;
             let tone = 0.1 * (2.0 * std::f32::consts::PI * 220.0 * t).sin();
-            let hit = (-tb / 0.03).exp() * (0.3 * white + 0.5 * (2.0 * std::f32::consts::PI * 60.0 * tb).sin());
+            let hit = (-tb / 0.03).exp()
+                * (0.3 * white + 0.5 * (2.0 * std::f32::consts::PI * 60.0 * tb).sin());
             tone + hit
         })
         .collect()
@@ -41,7 +42,10 @@ fn blocks(c: &mut Criterion) {
     let x = track(1.0);
     let mut g = c.benchmark_group("onsets/block");
     g.throughput(Throughput::Elements(x.len() as u64));
-    for (mode, cfg) in [("causal", OnsetConfig::causal(SR)), ("lookahead", OnsetConfig::lookahead(SR))] {
+    for (mode, cfg) in [
+        ("causal", OnsetConfig::causal(SR)),
+        ("lookahead", OnsetConfig::lookahead(SR)),
+    ] {
         for block in [128usize, 256, 512] {
             let mut det = OnsetDetector::new(cfg.clone()).unwrap();
             g.bench_with_input(BenchmarkId::new(mode, block), &block, |b, &block| {
@@ -65,15 +69,25 @@ fn song(c: &mut Criterion) {
     let x = track(180.0);
     let mut g = c.benchmark_group("onsets/song_180s");
     g.sample_size(10);
-    let librosa_like = OnsetConfig { frame: 2048, hop: 512, ..OnsetConfig::lookahead(SR) };
-    let librosa_like = OnsetConfig { lookahead_hops: 1, mean_before_hops: 9, ..librosa_like };
+    let librosa_like = OnsetConfig {
+        frame: 2048,
+        hop: 512,
+        ..OnsetConfig::lookahead(SR)
+    };
+    let librosa_like = OnsetConfig {
+        lookahead_hops: 1,
+        mean_before_hops: 9,
+        ..librosa_like
+    };
     let configs = [
         ("frame2048_hop512", librosa_like),
         ("default_causal", OnsetConfig::causal(SR)),
         ("default_lookahead", OnsetConfig::lookahead(SR)),
     ];
     for (name, cfg) in configs {
-        g.bench_function(name, |b| b.iter(|| detect_onsets(black_box(&x), &cfg).len()));
+        g.bench_function(name, |b| {
+            b.iter(|| detect_onsets(black_box(&x), &cfg).len())
+        });
     }
     g.finish();
 }

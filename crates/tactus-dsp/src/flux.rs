@@ -159,20 +159,35 @@ impl OnsetConfig {
         }
         if let Some(g) = self.log_compression {
             if !(g.is_finite() && g > 0.0) {
-                return Err(ConfigError::invalid("log_compression", "gamma must be finite and positive"));
+                return Err(ConfigError::invalid(
+                    "log_compression",
+                    "gamma must be finite and positive",
+                ));
             }
         }
         if !(self.delta.is_finite() && self.delta > 0.0) {
-            return Err(ConfigError::invalid("delta", "must be finite and positive (it is the silence floor)"));
+            return Err(ConfigError::invalid(
+                "delta",
+                "must be finite and positive (it is the silence floor)",
+            ));
         }
         if !(self.min_interval_s.is_finite() && self.min_interval_s >= 0.0) {
-            return Err(ConfigError::invalid("min_interval_s", "must be finite and non-negative"));
+            return Err(ConfigError::invalid(
+                "min_interval_s",
+                "must be finite and non-negative",
+            ));
         }
         if self.mean_before_hops > MAX_WINDOW_HOPS {
-            return Err(ConfigError::invalid("mean_before_hops", format!("must be at most {MAX_WINDOW_HOPS}")));
+            return Err(ConfigError::invalid(
+                "mean_before_hops",
+                format!("must be at most {MAX_WINDOW_HOPS}"),
+            ));
         }
         if self.lookahead_hops > MAX_WINDOW_HOPS {
-            return Err(ConfigError::invalid("lookahead_hops", format!("must be at most {MAX_WINDOW_HOPS}")));
+            return Err(ConfigError::invalid(
+                "lookahead_hops",
+                format!("must be at most {MAX_WINDOW_HOPS}"),
+            ));
         }
         Ok(())
     }
@@ -234,7 +249,11 @@ impl OnsetDetector {
         // of the Hann window), the first hop above threshold about 3·frame/8 before it;
         // never shift past the framer's own look-ahead.
         let framer_lat = framer.latency_samples();
-        let ahead = if cfg.lookahead_hops == 0 { 3.0 * n as f64 / 8.0 } else { n as f64 / 4.0 };
+        let ahead = if cfg.lookahead_hops == 0 {
+            3.0 * n as f64 / 8.0
+        } else {
+            n as f64 / 4.0
+        };
         let shift = ((ahead / cfg.hop as f64).round() as usize).min((framer_lat - 1) / cfg.hop);
         let ring_len = cfg.mean_before_hops + 2 * cfg.lookahead_hops + shift + 4;
         let core = Core {
@@ -295,9 +314,9 @@ impl Core {
             *d = x * w;
         }
         // Cannot fail: every buffer came from the plan's own make_*_vec.
-        let _ = self
-            .fft
-            .process_with_scratch(&mut self.fft_in, &mut self.spectrum, &mut self.scratch);
+        let _ =
+            self.fft
+                .process_with_scratch(&mut self.fft_in, &mut self.spectrum, &mut self.scratch);
         for (m, c) in self.cur.iter_mut().zip(&self.spectrum) {
             // `min` also maps NaN (inf - inf inside the FFT of huge input) to the cap.
             *m = (c.re * c.re + c.im * c.im).sqrt().min(MAG_CAP);
