@@ -17,8 +17,7 @@
 //!    window), and `round(3 frame / (8 hop))` in causal mode, where the *first hop above
 //!    threshold* comes earlier in the attack. Measured on clicks and drum hits at 44.1 kHz
 //!    the mean timing error is then within ±4 ms and the worst within ±6 ms in both modes
-//!    (see `tests/onsets.rs`). The shift costs no
-//!    latency: it lowers it (see below).
+//!    (see `tests/onsets.rs`). The shift costs no latency: it lowers it (see below).
 //!    Frames that reach past the end of the stream (those completed by
 //!    [`HopStage::finish`] with zero padding) get flux 0: cutting a signal off is not an
 //!    onset. So an onset in the last `frame / 2` samples of a stream is not reported.
@@ -33,11 +32,12 @@
 //! # Scale of the flux
 //! Magnitudes are divided by `sqrt(Σ w²)`, so white noise of variance σ² has
 //! `E|X[k]|² = σ²` in every bin whatever the frame size, and the flux is *averaged* over
-//! bins rather than summed. A noise burst of RMS σ that starts from silence thus adds up
-//! (over the hops of its attack) to a total flux of about `E[c(|X|)]`, independent of
-//! `frame`; `delta` keeps its meaning when the frame size changes. (A single-sample click
-//! spreads its energy over the frame, so its per-bin magnitude does scale with
-//! `1/sqrt(frame)`.)
+//! bins rather than summed. A frame of silence followed by a frame of noise of RMS σ thus
+//! gives a flux of `E[c(|X|)]` (`sqrt(π)/2 · σ` for linear magnitude) for every frame size,
+//! and `delta` keeps its meaning when the frame size changes. (Not everything is
+//! invariant: a single-sample click spreads its energy over the frame, so its per-bin
+//! magnitude scales with `1/sqrt(frame)`; and the frame-to-frame fluctuation of steady
+//! noise, hence its flux, depends on the overlap `hop / frame`.)
 //!
 //! # Silence floor
 //! `delta` must be positive and is an absolute floor: a hop whose flux does not exceed
@@ -56,13 +56,14 @@
 //! | `log_compression` | γ = 1000 | |
 //! | `delta` | 0.15 | |
 //! | `mean_before_hops` | 100 ms | 20 |
-//! | `min_interval_s` | 0.05 (DESIGN.md) | 10.02 hops |
+//! | `min_interval_s` | 0.05 (DESIGN.md) | ≥ 11 hops (55 ms) |
 //! | `lookahead_hops` | 0 (causal), 15 ms (look-ahead) | 0 / 3 |
 //!
 //! # Latency
 //! `latency_samples() = max(1, frame - frame/2 + (lookahead_hops - s) · hop)`: hop `i`
 //! is emitted once its centre sample has arrived and the frame behind hop
-//! `i + lookahead_hops` is complete. At 44.1 kHz with the defaults: causal mode (`s = 2`)
+//! `i + lookahead_hops` is complete (the first `s` hops, which precede every frame, come
+//! out as soon as they exist). At 44.1 kHz with the defaults: causal mode (`s = 2`)
 //! 512 - 2·220 = 72 samples = **1.6 ms**; look-ahead mode (`s = 1`, `L = 3`)
 //! 512 + 2·220 = 952 samples = **21.6 ms**.
 //!
