@@ -2,7 +2,11 @@
 //! frequency estimator for speech and music", JASA 111(4), 2002), one estimate per hop.
 //!
 //! ## Algorithm (per frame of `N = frame` samples)
-//! * Integration window `W = N / 2`, lags `τ ∈ [0, N − W]`.
+//! * Integration window `W = N / 2`, lags `τ ∈ [0, τmax + 1]`. The analysed region is
+//!   `x = frame[a .. a + W + τmax + 1]`, with the offset `a` chosen so that the region is
+//!   centred on the frame centre for the mid-range lag `(τmin + τmax)/2` (as far as it fits).
+//!   YIN's window would otherwise sit in the first half of the frame, a quarter frame early
+//!   (≈ 10 ms at 2048/44.1 kHz), which biases fast pitch changes. See [`Yin::analysis_window`].
 //! * **Difference function** `d(τ) = Σ_{j<W} (x_j − x_{j+τ})²`, computed through the FFT as
 //!   `d(τ) = E(0) + E(τ) − 2 r(τ)`, with `E(τ) = Σ_{j=τ}^{τ+W−1} x_j²` (prefix sums, f64) and
 //!   the cross-correlation `r(τ) = Σ_{j<W} x_j x_{j+τ}` taken from one size-`N` real FFT of the
@@ -16,8 +20,8 @@
 //! * **Absolute threshold** (step 4): the first lag in `[τmin, τmax]` with `d' < threshold`,
 //!   followed downhill to its local minimum; if none dips below, the global minimum of `d'` in
 //!   the lag range. `τmin = ⌊sr / fmax⌋`, `τmax = ⌈sr / fmin⌉`.
-//! * **Parabolic interpolation** (step 5) of `d'` around the chosen lag (offset clamped to
-//!   ±1 lag); `f0 = sr / τ̂`.
+//! * **Parabolic interpolation** (step 5) of `d` (not `d'`, as the paper advises) around the
+//!   chosen lag (offset clamped to ±1 lag); `f0 = sr / τ̂`.
 //!
 //! ## Voicing (our choice)
 //! A frame is **unvoiced** when
@@ -189,8 +193,14 @@ pub(crate) struct YinCore {
     scratch: Vec<Complex<f32>>,
     corr: Vec<f32>,
     prefix: Vec<f64>,
+    /// First frame sample of the analysed region.
+    pub(crate) offset: usize,
+    /// Length of the analysed region, `W + τmax + 1`.
+    pub(crate) region: usize,
     /// `cmnd[τ]` for τ in `0..=tau_max + 1`.
     pub(crate) cmnd: Vec<f32>,
+    /// The difference function `d(τ)` of the normalized region, same range.
+    diff: Vec<f32>,
 }
 
 impl std::fmt::Debug for YinCore {
@@ -210,6 +220,10 @@ impl YinCore {
         let mut planner = RealFftPlanner::<f32>::new();
         let fwd = planner.plan_fft_forward(n);
         let inv = planner.plan_fft_inverse(n);
+        // Centre the analysed region on the frame centre for the mid-range lag, as far as
+        // the region `[offset, offset + W + τmax + 1)` still fits in the frame.
+        let max_offset = n - n / 2 - tau_max - 1;
+        let offset = (n / 4).saturating_sub((tau_min + tau_max) / 4).min(max_offset);
         let scratch_len = fwd.get_scratch_len().max(inv.get_scratch_len());
         Ok(YinCore {
             sample_rate: cfg.sample_rate as f32,
@@ -226,42 +240,49 @@ impl YinCore {
             scratch: vec![Complex::new(0.0, 0.0); scratch_len],
             corr: inv.make_output_vec(),
             prefix: vec![0.0; n + 1],
+            offset,
+            region: n / 2 + tau_max + 1,
             cmnd: vec![1.0; tau_max + 2],
+            diff: vec![0.0; tau_max + 2],
             fwd,
             inv,
         })
     }
 
-    /// Fills `self.cmnd[..=tau_max + 1]` from `frame` (its first `N` samples, zero-padded if
-    /// shorter; non-finite samples count as 0). Returns `false` for a silent frame (all zero
+    /// Fills `self.cmnd[..=tau_max + 1]` from the analysed region of `frame` (zero-padded if
+    /// `frame` is short; non-finite samples count as 0). Returns `false` for a silent frame (all zero
     /// or pure DC), in which case `cmnd` is all 1.
     pub(crate) fn analyse(&mut self, frame: &[f32]) -> bool {
         let n = self.frame;
         let w = self.win;
-        let len = frame.len().min(n);
+        let start = self.offset.min(frame.len());
+        let region = &frame[start..frame.len().min(self.offset + self.region)];
+        let len = region.len();
         let mut sum = 0.0f64;
         let mut peak = 0.0f32;
-        for (dst, &x) in self.buf_b[..len].iter_mut().zip(&frame[..len]) {
+        for (dst, &x) in self.buf_b[..len].iter_mut().zip(region) {
             let y = sanitize_sample(x).0;
             *dst = y;
             sum += y as f64;
             peak = peak.max(y.abs());
         }
-        self.buf_b[len..].fill(0.0);
-        let mean = (sum / n as f64) as f32;
+        self.buf_b[len..self.region].fill(0.0);
+        let mean = (sum / self.region as f64) as f32;
         let mut peak_res = 0.0f32;
-        for x in self.buf_b.iter_mut() {
+        for x in self.buf_b[..self.region].iter_mut() {
             *x -= mean;
             peak_res = peak_res.max(x.abs());
         }
+        self.buf_b[self.region..].fill(0.0);
         if peak == 0.0 || peak_res <= 1e-5 * peak {
             self.cmnd.fill(1.0);
+            self.diff.fill(0.0);
             return false;
         }
         let scale = 1.0 / peak_res;
         let mut acc = 0.0f64;
         self.prefix[0] = 0.0;
-        for (j, x) in self.buf_b.iter_mut().enumerate() {
+        for (j, x) in self.buf_b[..self.region].iter_mut().enumerate() {
             *x *= scale;
             acc += (*x as f64) * (*x as f64);
             self.prefix[j + 1] = acc;
@@ -292,10 +313,12 @@ impl YinCore {
         let e0 = self.prefix[w];
         let mut cum = 0.0f64;
         self.cmnd[0] = 1.0;
+        self.diff[0] = 0.0;
         for tau in 1..=self.tau_max + 1 {
             let e_tau = self.prefix[tau + w] - self.prefix[tau];
             let d = (e0 + e_tau - 2.0 * self.corr[tau] as f64 * norm).max(0.0);
             cum += d;
+            self.diff[tau] = d as f32;
             self.cmnd[tau] = if cum > 0.0 {
                 (d * tau as f64 / cum) as f32
             } else {
@@ -332,10 +355,12 @@ impl YinCore {
         best
     }
 
-    /// Parabolic interpolation of the CMND around integer lag `tau` (paper step 5):
-    /// the fractional lag of the parabola's vertex, offset clamped to ±1.
+    /// Parabolic interpolation around integer lag `tau` (paper step 5): the fractional lag of
+    /// the vertex of the parabola through `d(τ−1), d(τ), d(τ+1)`, offset clamped to ±1. As the
+    /// paper recommends, the raw difference function is used, not the CMND, whose `τ` factor
+    /// biases the vertex (by ~7 cents for an 11-sample period).
     pub(crate) fn refine_lag(&self, tau: usize) -> f32 {
-        let (a, b, c) = (self.cmnd[tau - 1], self.cmnd[tau], self.cmnd[tau + 1]);
+        let (a, b, c) = (self.diff[tau - 1], self.diff[tau], self.diff[tau + 1]);
         let den = a - 2.0 * b + c;
         let shift = if den > 0.0 {
             (0.5 * (a - c) / den).clamp(-1.0, 1.0)
@@ -394,6 +419,23 @@ impl Yin {
     /// The configuration in use.
     pub fn config(&self) -> &YinConfig {
         &self.cfg
+    }
+
+    /// The analysed part of each frame: `(start, window)`. The difference function uses
+    /// frame samples `[start, start + window + τmax + 1)` with integration window `window`
+    /// (= frame / 2). `start` centres the region on the frame centre for the mid-range lag.
+    pub fn analysis_window(&self) -> (usize, usize) {
+        (self.core.offset, self.core.win)
+    }
+
+    /// Lag range `(τmin, τmax)` in samples.
+    pub fn lag_range(&self) -> (usize, usize) {
+        (self.core.tau_min, self.core.tau_max)
+    }
+
+    /// The CMND `d'(τ)` for `τ = 0 ..= τmax + 1` of the last frame analysed (all 1 if silent).
+    pub fn cmnd(&self) -> &[f32] {
+        &self.core.cmnd
     }
 
     /// YIN on one frame (its first `frame` samples, zero-padded if shorter; non-finite samples
