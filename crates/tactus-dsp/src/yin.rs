@@ -97,6 +97,9 @@ pub struct YinConfig {
     pub voicing_ceiling: f32,
 }
 
+/// Relative floor under which the FFT difference function counts as exactly 0.
+const D_FLOOR: f64 = 1e-6;
+
 /// Largest frame accepted by [`Yin::new`] (2^20 samples), to bound memory.
 pub const MAX_FRAME: usize = 1 << 20;
 
@@ -316,7 +319,10 @@ impl YinCore {
         self.diff[0] = 0.0;
         for tau in 1..=self.tau_max + 1 {
             let e_tau = self.prefix[tau + w] - self.prefix[tau];
-            let d = (e0 + e_tau - 2.0 * self.corr[tau] as f64 * norm).max(0.0);
+            // Below 1e-6 of the energies, d is f32 FFT rounding noise (~1e-7 relative):
+            // call it 0, so that numerically constant stretches do not fake a dip.
+            let d = e0 + e_tau - 2.0 * self.corr[tau] as f64 * norm;
+            let d = if d > D_FLOOR * (e0 + e_tau) { d } else { 0.0 };
             cum += d;
             self.diff[tau] = d as f32;
             self.cmnd[tau] = if cum > 0.0 {
