@@ -14,7 +14,10 @@
 //! "window-sum normalisation"). Analysis → synthesis of unmodified frames is therefore an
 //! exact reconstruction (to float round-off) for every sample, edges included, for any
 //! `hop <= n_fft / 2` (a periodic Hann window is non-zero everywhere but at its first
-//! sample, which is always covered by the previous frame's centre).
+//! sample, which is always covered by the previous frame's centre). With `hop = n_fft/2`
+//! the last samples of a stream are covered only by the tail of the last window, so they
+//! are divided by a tiny window sum: exact for unmodified frames, but it amplifies changes
+//! made to the spectra. Use `hop <= n_fft/4` (the defaults) when masking.
 //!
 //! **Latency**: output sample `j` is final once the last frame that covers it has been
 //! added, i.e. after input sample `j + n_fft − 1` (at most) has arrived; frames that are
@@ -347,6 +350,6 @@ impl OverlapAdd {
 
 fn normalise(acc: &[f32], wsum: &[f32], out: &mut [f32]) {
     for ((o, &a), &w) in out.iter_mut().zip(acc).zip(wsum) {
-        *o = if w > 1e-6 { a / w } else { 0.0 };
+        *o = if w > 1e-30 { a / w } else { 0.0 };
     }
 }

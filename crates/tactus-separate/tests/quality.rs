@@ -4,7 +4,7 @@ mod common;
 use common::{idx, run_block, synthetic_mix};
 use tactus_separate::none::NoneSeparator;
 use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
-use tactus_separate::{sdr, Separator, Stem, StemSet};
+use tactus_separate::{sdr, Stem, StemSet};
 
 const SR: u32 = 44_100;
 
@@ -47,6 +47,6 @@ fn stems_sum_to_the_mono_mix() {
     println!("peak {peak:.3}, max |sum of stems - mix| = {max_err:.2e}");
     // The masks sum to 1 per bin and the STFT round trip is exact, so only f32 round-off
     // remains: ~1e-7 relative per operation, accumulated over a 2048-point FFT and four
-    // overlapping frames; 1e-5 of the peak is a comfortable bound (measured ~1e-6).
+    // overlapping frames; 1e-5 of the peak is a comfortable bound (measured 4.8e-7 on a peak of 1.9).
     assert!(max_err < 1e-5 * peak.max(1.0), "max error {max_err}");
 }
