@@ -20,14 +20,17 @@ fn song() -> (Vec<f32>, Vec<f32>) {
     let n = SR as usize * SECONDS;
     let mut state = 1u64;
     let mut noise = move || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
     };
     let mut left = Vec::with_capacity(n);
     let mut right = Vec::with_capacity(n);
     for i in 0..n {
         let t = i as f32 / SR as f32;
-        let tone = (std::f32::consts::TAU * 220.0 * t).sin() * 0.3 + (std::f32::consts::TAU * 55.0 * t).sin() * 0.3;
+        let tone = (std::f32::consts::TAU * 220.0 * t).sin() * 0.3
+            + (std::f32::consts::TAU * 55.0 * t).sin() * 0.3;
         let hit = (-(t % 0.5) / 0.05).exp() * noise() * 0.3;
         left.push(tone + hit + 0.1 * (std::f32::consts::TAU * 330.0 * t).sin());
         right.push(tone + hit);
@@ -52,8 +55,16 @@ fn bench(c: &mut Criterion) {
     group.throughput(Throughput::Elements(n as u64));
     let cases: [(&str, StemSet, bool); 4] = [
         ("spectral_all_stems", StemSet::all(), true),
-        ("spectral_bass_only", StemSet::default().with(Stem::Bass), true),
-        ("spectral_drums_only", StemSet::default().with(Stem::Drums), true),
+        (
+            "spectral_bass_only",
+            StemSet::default().with(Stem::Bass),
+            true,
+        ),
+        (
+            "spectral_drums_only",
+            StemSet::default().with(Stem::Drums),
+            true,
+        ),
         ("none_all_stems", StemSet::all(), false),
     ];
     for (name, stems, spectral) in cases {
@@ -67,8 +78,14 @@ fn bench(c: &mut Criterion) {
         let t0 = Instant::now();
         run(sep.as_mut(), &left, &right, &mut out);
         let secs = t0.elapsed().as_secs_f64();
-        println!("{name}: {:.3} s for {SECONDS} s of audio = {:.0}x real time", secs, SECONDS as f64 / secs);
-        group.bench_function(name, |b| b.iter(|| run(sep.as_mut(), &left, &right, &mut out)));
+        println!(
+            "{name}: {:.3} s for {SECONDS} s of audio = {:.0}x real time",
+            secs,
+            SECONDS as f64 / secs
+        );
+        group.bench_function(name, |b| {
+            b.iter(|| run(sep.as_mut(), &left, &right, &mut out))
+        });
     }
     group.finish();
 }

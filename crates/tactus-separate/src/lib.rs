@@ -246,7 +246,10 @@ mod tests {
         let s = StemSet::default().with(Stem::Vocals).with(Stem::Drums);
         assert!(s.contains(Stem::Vocals) && s.contains(Stem::Drums));
         assert!(!s.contains(Stem::Bass) && !s.contains(Stem::Other));
-        assert_eq!(s.iter().collect::<Vec<_>>(), vec![Stem::Drums, Stem::Vocals]);
+        assert_eq!(
+            s.iter().collect::<Vec<_>>(),
+            vec![Stem::Drums, Stem::Vocals]
+        );
         assert_eq!(s.len(), 2);
         assert!(StemSet::default().is_empty());
         assert_eq!(StemSet::all().iter().count(), 4);

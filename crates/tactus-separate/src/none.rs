@@ -46,7 +46,7 @@ impl Separator for NoneSeparator {
     fn process(&mut self, left: &[f32], right: &[f32], out: &mut StemOutput) {
         out.declare(self.stems);
         for (&l, &r) in left.iter().zip(right) {
-            let m = 0.5 * (sanitize_sample(l).0 + sanitize_sample(r).0);
+            let m = 0.5 * sanitize_sample(l).0 + 0.5 * sanitize_sample(r).0;
             for s in Stem::ALL {
                 if self.stems.contains(s) {
                     out.push(s, m);

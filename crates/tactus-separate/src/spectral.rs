@@ -38,6 +38,10 @@
 //! **Latency** = `n_fft − 1 + lookahead_frames · hop` samples (the STFT round trip plus
 //! the look-ahead): 4095 samples = 92.9 ms by default at 44.1 kHz.
 //!
+//! **Hygiene**: non-finite input samples become 0, samples below 1e-30 are flushed to 0
+//! (`tactus_dsp::sanitize`), and mid/side samples are clamped to ±1e9 so the output is
+//! always finite.
+//!
 //! **Allocation**: none after construction in `process` / `finish`, provided the caller
 //! reserved room in the [`StemOutput`] (input length + latency per stem).
 
@@ -90,6 +94,10 @@ impl Default for SpectralConfig {
 /// Samples per internal block when converting L/R to mid/side.
 const BLOCK: usize = 512;
 
+/// Mid and side samples are clamped to ±1e9 (180 dB above full scale): far beyond any
+/// real audio, low enough that an FFT sum and its square stay finite in `f32`.
+const INPUT_LIMIT: f32 = 1e9;
+
 /// Half the width, in octaves, of the raised-cosine band edges.
 const EDGE_HALF_OCTAVES: f32 = 0.25;
 
@@ -120,11 +128,15 @@ struct Core {
     centres: Vec<Vec<f32>>,
     /// Ring of the last `past + lookahead + 1` magnitude frames (`mag_hi` bins each).
     mags: Vec<Vec<f32>>,
+    /// Per bin `< hi`: the ring's values at that bin, kept sorted (`ring` values each), so
+    /// the time median is one look-up and each new frame costs one sorted replacement.
+    sorted: Vec<f32>,
+    /// Sliding sorted window for the frequency median (capacity `2·half + 1`).
+    fwin: Vec<f32>,
     bass_w: Vec<f32>,
     vocal_w: Vec<f32>,
     c_lo: f32,
     c_hi: f32,
-    median: Vec<f32>,
     /// Per stem (index = `stem_index`): the masked spectrum (empty when not requested).
     stem_spec: [Vec<Complex<f32>>; 4],
     /// Synthesis channel -> stem.
@@ -170,7 +182,11 @@ fn smoothstep(x: f32) -> f32 {
 
 impl SpectralSeparator {
     /// A spectral separator at `sample_rate` Hz that outputs `stems`.
-    pub fn new(sample_rate: u32, stems: StemSet, cfg: SpectralConfig) -> Result<Self, SeparateError> {
+    pub fn new(
+        sample_rate: u32,
+        stems: StemSet,
+        cfg: SpectralConfig,
+    ) -> Result<Self, SeparateError> {
         if sample_rate < 1000 {
             return Err(SeparateError::SampleRate(sample_rate));
         }
@@ -180,12 +196,17 @@ impl SpectralSeparator {
         if cfg.n_fft < 16 {
             return Err(ConfigError::invalid("n_fft", "must be at least 16").into());
         }
-        let stft = StftConfig { n_fft: cfg.n_fft, hop: cfg.hop };
+        let stft = StftConfig {
+            n_fft: cfg.n_fft,
+            hop: cfg.hop,
+        };
         stft.validate()?;
         let nyquist = sample_rate as f32 / 2.0;
         let finite_pos = |x: f32| x.is_finite() && x > 0.0;
         if !finite_pos(cfg.bass_crossover_hz) || cfg.bass_crossover_hz >= nyquist {
-            return Err(ConfigError::invalid("bass_crossover_hz", "must be in (0, Nyquist)").into());
+            return Err(
+                ConfigError::invalid("bass_crossover_hz", "must be in (0, Nyquist)").into(),
+            );
         }
         let (v_lo, v_hi) = cfg.vocal_band_hz;
         if !finite_pos(v_lo) || !finite_pos(v_hi) || v_lo >= v_hi {
@@ -193,10 +214,14 @@ impl SpectralSeparator {
         }
         let (full, none_db) = (cfg.centre_full_db, cfg.centre_zero_db);
         if !(full.is_finite() && none_db.is_finite() && full >= 0.0 && none_db > full) {
-            return Err(ConfigError::invalid("centre_zero_db", "must exceed centre_full_db >= 0").into());
+            return Err(
+                ConfigError::invalid("centre_zero_db", "must exceed centre_full_db >= 0").into(),
+            );
         }
         if cfg.past_frames + cfg.lookahead_frames > 256 || cfg.percussive_half_bins > 256 {
-            return Err(ConfigError::invalid("median", "windows are limited to 256 frames / bins").into());
+            return Err(
+                ConfigError::invalid("median", "windows are limited to 256 frames / bins").into(),
+            );
         }
 
         let bins = stft.bins();
@@ -215,7 +240,9 @@ impl SpectralSeparator {
         let half = cfg.percussive_half_bins;
         let mag_hi = (hi + half).min(bins);
         let bin_hz = |k: usize| k as f32 * sample_rate as f32 / cfg.n_fft as f32;
-        let bass_w: Vec<f32> = (0..bins).map(|k| falling_edge(bin_hz(k), cfg.bass_crossover_hz)).collect();
+        let bass_w: Vec<f32> = (0..bins)
+            .map(|k| falling_edge(bin_hz(k), cfg.bass_crossover_hz))
+            .collect();
         let vocal_w: Vec<f32> = (0..bins)
             .map(|k| {
                 let f = bin_hz(k);
@@ -231,7 +258,13 @@ impl SpectralSeparator {
             channel_stem[ch] = s;
             stem_channel[stem_index(s)] = ch;
         }
-        let spec_for = |s: Stem| if stems.contains(s) { vec![zero; bins] } else { Vec::new() };
+        let spec_for = |s: Stem| {
+            if stems.contains(s) {
+                vec![zero; bins]
+            } else {
+                Vec::new()
+            }
+        };
         let core = Core {
             stems,
             stereo,
@@ -240,14 +273,24 @@ impl SpectralSeparator {
             half,
             lookahead: cfg.lookahead_frames,
             mids: vec![vec![zero; bins]; cfg.lookahead_frames + 1],
-            centres: if stereo { vec![vec![1.0; bins]; cfg.lookahead_frames + 1] } else { Vec::new() },
+            centres: if stereo {
+                vec![vec![1.0; bins]; cfg.lookahead_frames + 1]
+            } else {
+                Vec::new()
+            },
             mags: vec![vec![0.0; mag_hi]; ring],
             bass_w,
             vocal_w,
             c_lo: centre_index(none_db),
             c_hi: centre_index(full),
-            median: vec![0.0; ring.max(2 * half + 1)],
-            stem_spec: [spec_for(Stem::Drums), spec_for(Stem::Bass), spec_for(Stem::Vocals), spec_for(Stem::Other)],
+            sorted: vec![0.0; hi * ring],
+            fwin: vec![0.0; 2 * half + 1],
+            stem_spec: [
+                spec_for(Stem::Drums),
+                spec_for(Stem::Bass),
+                spec_for(Stem::Vocals),
+                spec_for(Stem::Other),
+            ],
             channel_stem,
             stem_channel,
             synthesis: OverlapAdd::new(stft, stems.len())?,
@@ -275,16 +318,17 @@ impl Core {
         let slot = t % (self.lookahead + 1);
         let mid = &spectra[0];
         self.mids[slot].copy_from_slice(mid);
-        let ring = self.mags.len();
-        for (m, x) in self.mags[t % ring].iter_mut().zip(mid.iter()) {
-            *m = x.norm();
-        }
+        self.store_mags(t, Some(mid));
         if self.stereo {
             let side = &spectra[1];
             let (c_lo, span) = (self.c_lo, self.c_hi - self.c_lo);
             for ((w, m), s) in self.centres[slot][..self.hi].iter_mut().zip(mid).zip(side) {
                 let (pm, ps) = (m.norm_sqr(), s.norm_sqr());
-                let c = if pm + ps > 1e-30 { (pm - ps) / (pm + ps) } else { 1.0 };
+                let c = if pm + ps > 1e-30 {
+                    (pm - ps) / (pm + ps)
+                } else {
+                    1.0
+                };
                 *w = smoothstep((c - c_lo) / span);
             }
         }
@@ -295,10 +339,23 @@ impl Core {
 
     /// A silent frame `t` after the end of the stream (completes the look-ahead).
     fn on_virtual_frame(&mut self, t: usize, out: &mut StemOutput) {
-        let ring = self.mags.len();
-        self.mags[t % ring].fill(0.0);
+        self.store_mags(t, None);
         if t >= self.lookahead {
             self.synthesise(t - self.lookahead, out);
+        }
+    }
+
+    /// Writes the magnitudes of frame `t` (silence for `None`) into the ring, keeping the
+    /// per-bin sorted windows in step.
+    fn store_mags(&mut self, t: usize, spectrum: Option<&[Complex<f32>]>) {
+        let ring = self.mags.len();
+        let frame = &mut self.mags[t % ring];
+        for (k, m) in frame.iter_mut().enumerate() {
+            let new = spectrum.map_or(0.0, |x| x[k].norm());
+            if k < self.hi {
+                replace_sorted(&mut self.sorted[k * ring..(k + 1) * ring], *m, new);
+            }
+            *m = new;
         }
     }
 
@@ -307,28 +364,45 @@ impl Core {
         let ring = self.mags.len();
         let cur = ts % ring;
         let want = |s: Stem| self.stems.contains(s);
-        let (w_drums, w_bass, w_vocals, w_other) = (want(Stem::Drums), want(Stem::Bass), want(Stem::Vocals), want(Stem::Other));
+        let (w_drums, w_bass, w_vocals, w_other) = (
+            want(Stem::Drums),
+            want(Stem::Bass),
+            want(Stem::Vocals),
+            want(Stem::Other),
+        );
         let [sd, sb, sv, so] = &mut self.stem_spec;
         let mid = &self.mids[slot];
+        let frame = &self.mags[cur];
+        // Frequency window of bin 0: [0, min(mag_hi, half + 1)).
+        let mut flen = 0;
+        for &v in &frame[..(self.half + 1).min(self.mag_hi)] {
+            insert_sorted(&mut self.fwin, &mut flen, v);
+        }
         for k in 0..self.hi {
-            // Harmonic: median over time. The ring holds exactly frames ts-past..=ts+lookahead.
-            for (dst, frame) in self.median[..ring].iter_mut().zip(&self.mags) {
-                *dst = frame[k];
+            if k > 0 {
+                // Slide the window from bin k-1 to bin k (clipped at the edges).
+                if k > self.half {
+                    remove_sorted(&mut self.fwin, &mut flen, frame[k - 1 - self.half]);
+                }
+                if k + self.half < self.mag_hi {
+                    insert_sorted(&mut self.fwin, &mut flen, frame[k + self.half]);
+                }
             }
-            let h = median_of(&mut self.median[..ring]);
-            // Percussive: median over frequency (window clipped at the edges).
-            let lo = k.saturating_sub(self.half);
-            let hi = (k + self.half + 1).min(self.mag_hi);
-            let n = hi - lo;
-            self.median[..n].copy_from_slice(&self.mags[cur][lo..hi]);
-            let p = median_of(&mut self.median[..n]);
+            // Harmonic: median over time (the ring holds exactly frames
+            // ts-past..=ts+lookahead); percussive: median over frequency.
+            let h = self.sorted[k * ring + ring / 2];
+            let p = self.fwin[flen / 2];
             let (h2, p2) = (h * h, p * p);
             let den = h2 + p2;
             let perc = if den > 1e-30 { p2 / den } else { 0.0 };
             let harm = 1.0 - perc;
             let bass = harm * self.bass_w[k];
             let rest = harm - bass;
-            let centre = if self.stereo { self.centres[slot][k] } else { 1.0 };
+            let centre = if self.stereo {
+                self.centres[slot][k]
+            } else {
+                1.0
+            };
             let vocals = rest * self.vocal_w[k] * centre;
             let other = rest - vocals;
             let x = mid[k];
@@ -354,7 +428,8 @@ impl Core {
             }
         }
         let channel_stem = self.channel_stem;
-        self.synthesis.advance(|ch, samples| out.extend(channel_stem[ch], samples));
+        self.synthesis
+            .advance(|ch, samples| out.extend(channel_stem[ch], samples));
     }
 
     fn reset(&mut self) {
@@ -368,14 +443,43 @@ impl Core {
         for m in &mut self.mags {
             m.fill(0.0);
         }
+        self.sorted.fill(0.0);
         self.synthesis.reset();
     }
 }
 
-/// The median (upper median for even lengths) of a non-empty slice, which it reorders.
-fn median_of(v: &mut [f32]) -> f32 {
-    let mid = v.len() / 2;
-    *v.select_nth_unstable_by(mid, f32::total_cmp).1
+/// In the sorted slice `w`, replaces one element equal to `old` by `new`, keeping it sorted.
+/// Values are finite and non-negative magnitudes; `old` must be present (if it is not, the
+/// nearest larger element is replaced, and the slice still stays sorted).
+fn replace_sorted(w: &mut [f32], old: f32, new: f32) {
+    let mut i = w.partition_point(|&x| x < old).min(w.len() - 1);
+    if new > w[i] {
+        while i + 1 < w.len() && w[i + 1] < new {
+            w[i] = w[i + 1];
+            i += 1;
+        }
+    } else {
+        while i > 0 && w[i - 1] > new {
+            w[i] = w[i - 1];
+            i -= 1;
+        }
+    }
+    w[i] = new;
+}
+
+/// Inserts `v` into the sorted prefix `w[..*len]` (the caller guarantees room).
+fn insert_sorted(w: &mut [f32], len: &mut usize, v: f32) {
+    let i = w[..*len].partition_point(|&x| x < v);
+    w.copy_within(i..*len, i + 1);
+    w[i] = v;
+    *len += 1;
+}
+
+/// Removes one element equal to `v` from the sorted prefix `w[..*len]` (it is present).
+fn remove_sorted(w: &mut [f32], len: &mut usize, v: f32) {
+    let i = w[..*len].partition_point(|&x| x < v).min(*len - 1);
+    w.copy_within(i + 1..*len, i);
+    *len -= 1;
 }
 
 impl Separator for SpectralSeparator {
@@ -400,28 +504,37 @@ impl Separator for SpectralSeparator {
             let m = end - start;
             for (i, (&l, &r)) in left[start..end].iter().zip(&right[start..end]).enumerate() {
                 let (l, r) = (sanitize_sample(l).0, sanitize_sample(r).0);
-                // Halve first so that two large samples cannot overflow.
-                self.mid[i] = 0.5 * l + 0.5 * r;
-                self.side[i] = 0.5 * l - 0.5 * r;
+                // Halve first so that two large samples cannot overflow; clamp so that
+                // FFT sums and squared magnitudes stay finite.
+                self.mid[i] = (0.5 * l + 0.5 * r).clamp(-INPUT_LIMIT, INPUT_LIMIT);
+                self.side[i] = (0.5 * l - 0.5 * r).clamp(-INPUT_LIMIT, INPUT_LIMIT);
             }
             let core = &mut self.core;
             let channels: [&[f32]; 2] = [&self.mid[..m], &self.side[..m]];
-            let channels = if stereo { &channels[..] } else { &channels[..1] };
-            self.analysis.push(channels, |t, spectra| core.on_frame(t, spectra, out));
+            let channels = if stereo {
+                &channels[..]
+            } else {
+                &channels[..1]
+            };
+            self.analysis
+                .push(channels, |t, spectra| core.on_frame(t, spectra, out));
         }
     }
 
     fn finish(&mut self, out: &mut StemOutput) {
         out.declare(self.stems);
         let core = &mut self.core;
-        self.analysis.finish(|t, spectra| core.on_frame(t, spectra, out));
+        self.analysis
+            .finish(|t, spectra| core.on_frame(t, spectra, out));
         let frames = self.analysis.frames_emitted();
         for t in frames..frames + core.lookahead {
             core.on_virtual_frame(t, out);
         }
         let channel_stem = core.channel_stem;
         core.synthesis
-            .finish(self.analysis.samples_seen(), |ch, samples| out.extend(channel_stem[ch], samples));
+            .finish(self.analysis.samples_seen(), |ch, samples| {
+                out.extend(channel_stem[ch], samples)
+            });
     }
 
     fn reset(&mut self) {
@@ -446,6 +559,50 @@ mod tests {
         // 3 dB off-centre -> full weight, 10 dB -> none, centre -> 1.
         assert!((centre_index(0.0) - 1.0).abs() < 1e-6);
         assert!((centre_index(10.0) - 0.5750).abs() < 1e-3);
+    }
+
+    /// The incremental medians against sorting from scratch, on random windows.
+    #[test]
+    fn sorted_windows_match_a_full_sort() {
+        let mut state = 9u64;
+        let mut rnd = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            // Few distinct values, so duplicates are exercised.
+            ((state >> 59) as f32) * 0.5
+        };
+        let r = 7;
+        let mut ring = vec![0.0f32; r];
+        let mut sorted = vec![0.0f32; r];
+        for t in 0..500 {
+            let v = rnd();
+            replace_sorted(&mut sorted, ring[t % r], v);
+            ring[t % r] = v;
+            let mut oracle = ring.clone();
+            oracle.sort_by(f32::total_cmp);
+            assert_eq!(sorted, oracle, "t {t}");
+        }
+        let frame: Vec<f32> = (0..40).map(|_| rnd()).collect();
+        let (half, hi) = (3usize, 40usize);
+        let mut w = vec![0.0f32; 2 * half + 1];
+        let mut len = 0;
+        for &v in &frame[..half + 1] {
+            insert_sorted(&mut w, &mut len, v);
+        }
+        for k in 0..hi {
+            if k > 0 {
+                if k > half {
+                    remove_sorted(&mut w, &mut len, frame[k - 1 - half]);
+                }
+                if k + half < hi {
+                    insert_sorted(&mut w, &mut len, frame[k + half]);
+                }
+            }
+            let mut oracle = frame[k.saturating_sub(half)..(k + half + 1).min(hi)].to_vec();
+            oracle.sort_by(f32::total_cmp);
+            assert_eq!(&w[..len], &oracle[..], "bin {k}");
+        }
     }
 
     #[test]

@@ -45,8 +45,11 @@ pub struct StftConfig {
 impl StftConfig {
     /// Checks the shape.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        if self.n_fft < 4 || self.n_fft % 2 != 0 {
-            return Err(ConfigError::invalid("n_fft", format!("{} must be even and at least 4", self.n_fft)));
+        if self.n_fft < 4 || self.n_fft & 1 == 1 {
+            return Err(ConfigError::invalid(
+                "n_fft",
+                format!("{} must be even and at least 4", self.n_fft),
+            ));
         }
         if self.hop == 0 || self.hop > self.n_fft / 2 {
             return Err(ConfigError::invalid(
@@ -200,7 +203,11 @@ impl StftAnalysis {
                         *f = x * w;
                     }
                     // Lengths are fixed at construction, so this cannot fail.
-                    if self.fft.process_with_scratch(&mut self.frame, spec, &mut self.scratch).is_err() {
+                    if self
+                        .fft
+                        .process_with_scratch(&mut self.frame, spec, &mut self.scratch)
+                        .is_err()
+                    {
                         spec.fill(Complex::new(0.0, 0.0));
                     }
                 }
@@ -283,14 +290,20 @@ impl OverlapAdd {
     /// to in a frame contributes silence. Out-of-range channels and wrongly sized spectra
     /// are ignored.
     pub fn add(&mut self, channel: usize, spectrum: &mut [Complex<f32>]) {
-        let Some(acc) = self.acc.get_mut(channel) else { return };
+        let Some(acc) = self.acc.get_mut(channel) else {
+            return;
+        };
         if spectrum.len() != self.cfg.bins() {
             return;
         }
         // A real signal has real DC and Nyquist bins.
         spectrum[0].im = 0.0;
         spectrum[self.cfg.n_fft / 2].im = 0.0;
-        if self.ifft.process_with_scratch(spectrum, &mut self.time, &mut self.scratch).is_err() {
+        if self
+            .ifft
+            .process_with_scratch(spectrum, &mut self.time, &mut self.scratch)
+            .is_err()
+        {
             return;
         }
         let scale = 1.0 / self.cfg.n_fft as f32;
@@ -313,7 +326,11 @@ impl OverlapAdd {
         self.frames += 1;
         for (ch, acc) in self.acc.iter_mut().enumerate() {
             if skip < hop {
-                normalise(&acc[skip..hop], &self.wsum[skip..hop], &mut self.norm[..hop - skip]);
+                normalise(
+                    &acc[skip..hop],
+                    &self.wsum[skip..hop],
+                    &mut self.norm[..hop - skip],
+                );
                 emit(ch, &self.norm[..hop - skip]);
             }
             acc.copy_within(hop.., 0);
@@ -339,7 +356,11 @@ impl OverlapAdd {
             return;
         }
         for (ch, acc) in self.acc.iter_mut().enumerate() {
-            normalise(&acc[skip..end], &self.wsum[skip..end], &mut self.norm[..end - skip]);
+            normalise(
+                &acc[skip..end],
+                &self.wsum[skip..end],
+                &mut self.norm[..end - skip],
+            );
             emit(ch, &self.norm[..end - skip]);
             acc.fill(0.0);
         }

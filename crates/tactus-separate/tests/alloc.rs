@@ -50,7 +50,11 @@ const SR: u32 = 44_100;
 fn process_and_finish_do_not_allocate() {
     let mix = synthetic_mix(SR, 1.5, 5);
     let n = mix.left.len();
-    let sets = [StemSet::all(), StemSet::default().with(Stem::Bass), StemSet::default().with(Stem::Vocals)];
+    let sets = [
+        StemSet::all(),
+        StemSet::default().with(Stem::Bass),
+        StemSet::default().with(Stem::Vocals),
+    ];
     for set in sets {
         let mut seps: Vec<Box<dyn Separator>> = vec![
             Box::new(NoneSeparator::new(SR, set).unwrap()),
@@ -60,7 +64,11 @@ fn process_and_finish_do_not_allocate() {
             let mut out = StemOutput::with_capacity(set, n);
             let before = allocations();
             let mut pos = 0;
-            for (k, c) in [1usize, 7, 128, 513, 4096, 10_000].iter().cycle().enumerate() {
+            for (k, c) in [1usize, 7, 128, 513, 4096, 10_000]
+                .iter()
+                .cycle()
+                .enumerate()
+            {
                 if pos >= n || k > 1000 {
                     break;
                 }

@@ -19,7 +19,14 @@ fn backends(stems: StemSet) -> Vec<Box<dyn Separator>> {
             SpectralSeparator::new(
                 SR,
                 stems,
-                SpectralConfig { n_fft: 512, hop: 128, past_frames: 3, lookahead_frames: 1, percussive_half_bins: 3, ..Default::default() },
+                SpectralConfig {
+                    n_fft: 512,
+                    hop: 128,
+                    past_frames: 3,
+                    lookahead_frames: 1,
+                    percussive_half_bins: 3,
+                    ..Default::default()
+                },
             )
             .unwrap(),
         ),
@@ -29,14 +36,32 @@ fn backends(stems: StemSet) -> Vec<Box<dyn Separator>> {
 /// Every subset of the four stems except the empty one.
 fn all_subsets() -> Vec<StemSet> {
     (1u8..16)
-        .map(|bits| Stem::ALL.iter().enumerate().filter(|(i, _)| bits & (1 << i) != 0).map(|(_, &s)| s).collect())
+        .map(|bits| {
+            Stem::ALL
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| bits & (1 << i) != 0)
+                .map(|(_, &s)| s)
+                .collect()
+        })
         .collect()
 }
 
 #[test]
 fn output_length_equals_input_length() {
     let mix = synthetic_mix(SR, 0.5, 1);
-    for n in [0usize, 1, 2, 511, 512, 513, 2047, 2048, 5000, mix.left.len()] {
+    for n in [
+        0usize,
+        1,
+        2,
+        511,
+        512,
+        513,
+        2047,
+        2048,
+        5000,
+        mix.left.len(),
+    ] {
         for mut sep in backends(StemSet::all()) {
             let out = run_chunked(sep.as_mut(), &mix.left[..n], &mix.right[..n], &[700]);
             for s in Stem::ALL {
@@ -55,7 +80,9 @@ fn click_appears_at_its_input_sample_in_the_drums_stem() {
         for mut sep in backends(StemSet::default().with(Stem::Drums)) {
             let out = run_chunked(sep.as_mut(), &x, &x, &[1000]);
             let d = out.get(Stem::Drums);
-            let argmax = (0..n).max_by(|&a, &b| d[a].abs().total_cmp(&d[b].abs())).unwrap();
+            let argmax = (0..n)
+                .max_by(|&a, &b| d[a].abs().total_cmp(&d[b].abs()))
+                .unwrap();
             assert_eq!(argmax, j, "{}", sep.name());
             // A lone click is broadband and brief: HPSS must call most of it percussive.
             assert!(d[j] > 0.5, "{}: drums at the click = {}", sep.name(), d[j]);
@@ -85,7 +112,9 @@ fn mono_input_works() {
     let x: Vec<f32> = (0..n)
         .map(|i| {
             let t = i as f32 / SR as f32;
-            (1..=4).map(|h| 0.2 / h as f32 * (std::f32::consts::TAU * 330.0 * h as f32 * t).sin()).sum()
+            (1..=4)
+                .map(|h| 0.2 / h as f32 * (std::f32::consts::TAU * 330.0 * h as f32 * t).sin())
+                .sum()
         })
         .collect();
     for mut sep in backends(StemSet::all()) {
@@ -99,12 +128,26 @@ fn mono_input_works() {
     // bins cannot resolve 330 Hz partials, so it is not held to this).
     let mut sep = SpectralSeparator::new(SR, StemSet::all(), SpectralConfig::default()).unwrap();
     let out = run_block(&mut sep, &x, &x);
-    let e = |s: Stem| out.get(s)[4096..n - 4096].iter().map(|v| v * v).sum::<f32>();
+    let e = |s: Stem| {
+        out.get(s)[4096..n - 4096]
+            .iter()
+            .map(|v| v * v)
+            .sum::<f32>()
+    };
     let total: f32 = x[4096..n - 4096].iter().map(|v| v * v).sum();
     // A steady tone in the vocal band is harmonic and centred: nearly all vocals
     // (measured: 99.98 %).
-    assert!(e(Stem::Vocals) > 0.9 * total, "vocals {} of {}", e(Stem::Vocals), total);
-    assert!(e(Stem::Drums) < 0.01 * total && e(Stem::Other) < 0.01 * total && e(Stem::Bass) < 0.01 * total);
+    assert!(
+        e(Stem::Vocals) > 0.9 * total,
+        "vocals {} of {}",
+        e(Stem::Vocals),
+        total
+    );
+    assert!(
+        e(Stem::Drums) < 0.01 * total
+            && e(Stem::Other) < 0.01 * total
+            && e(Stem::Bass) < 0.01 * total
+    );
 }
 
 #[test]
@@ -116,7 +159,10 @@ fn only_the_requested_stems_are_present() {
             let out = run_chunked(sep.as_mut(), &mix.left, &mix.right, &[1000]);
             assert_eq!(out.present(), set, "{}", sep.name());
             for s in Stem::ALL {
-                assert_eq!(out.get(s).len(), if set.contains(s) { mix.left.len() } else { 0 });
+                assert_eq!(
+                    out.get(s).len(),
+                    if set.contains(s) { mix.left.len() } else { 0 }
+                );
             }
         }
     }
@@ -128,9 +174,15 @@ fn a_stem_does_not_depend_on_which_other_stems_were_requested() {
     let mut all = SpectralSeparator::new(SR, StemSet::all(), SpectralConfig::default()).unwrap();
     let reference = run_block(&mut all, &mix.left, &mix.right);
     for s in Stem::ALL {
-        let mut one = SpectralSeparator::new(SR, StemSet::default().with(s), SpectralConfig::default()).unwrap();
+        let mut one =
+            SpectralSeparator::new(SR, StemSet::default().with(s), SpectralConfig::default())
+                .unwrap();
         let got = run_block(&mut one, &mix.left, &mix.right);
-        let err = got.get(s).iter().zip(reference.get(s)).fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+        let err = got
+            .get(s)
+            .iter()
+            .zip(reference.get(s))
+            .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
         // Same masks, same bins; only the iFFT input differs by exact zeros above the
         // stem's top bin, so the results agree to f32 round-off.
         assert!(err < 1e-6, "{}: {err}", s.name());
@@ -154,7 +206,11 @@ fn streaming_lag_never_exceeds_the_stated_latency_and_reaches_it() {
         }
         // Fed one sample at a time the lag would reach `lat` exactly; in chunks of 37 it
         // comes within one chunk of it.
-        assert!(worst + 37 > lat, "{}: worst lag {worst}, stated {lat}", sep.name());
+        assert!(
+            worst + 37 > lat,
+            "{}: worst lag {worst}, stated {lat}",
+            sep.name()
+        );
     }
 }
 
@@ -165,16 +221,43 @@ fn constructors_reject_bad_parameters() {
     assert!(SpectralSeparator::new(SR, StemSet::default(), SpectralConfig::default()).is_err());
     assert!(SpectralSeparator::new(0, StemSet::all(), SpectralConfig::default()).is_err());
     let bad = [
-        SpectralConfig { n_fft: 1000, hop: 600, ..Default::default() },
-        SpectralConfig { n_fft: 8, hop: 2, ..Default::default() },
-        SpectralConfig { bass_crossover_hz: 30_000.0, ..Default::default() },
-        SpectralConfig { bass_crossover_hz: f32::NAN, ..Default::default() },
-        SpectralConfig { vocal_band_hz: (5000.0, 120.0), ..Default::default() },
-        SpectralConfig { centre_full_db: 10.0, centre_zero_db: 3.0, ..Default::default() },
-        SpectralConfig { past_frames: 1000, ..Default::default() },
+        SpectralConfig {
+            n_fft: 1000,
+            hop: 600,
+            ..Default::default()
+        },
+        SpectralConfig {
+            n_fft: 8,
+            hop: 2,
+            ..Default::default()
+        },
+        SpectralConfig {
+            bass_crossover_hz: 30_000.0,
+            ..Default::default()
+        },
+        SpectralConfig {
+            bass_crossover_hz: f32::NAN,
+            ..Default::default()
+        },
+        SpectralConfig {
+            vocal_band_hz: (5000.0, 120.0),
+            ..Default::default()
+        },
+        SpectralConfig {
+            centre_full_db: 10.0,
+            centre_zero_db: 3.0,
+            ..Default::default()
+        },
+        SpectralConfig {
+            past_frames: 1000,
+            ..Default::default()
+        },
     ];
     for cfg in bad {
-        assert!(SpectralSeparator::new(SR, StemSet::all(), cfg.clone()).is_err(), "{cfg:?}");
+        assert!(
+            SpectralSeparator::new(SR, StemSet::all(), cfg.clone()).is_err(),
+            "{cfg:?}"
+        );
     }
 }
 

@@ -19,7 +19,11 @@ fn backends() -> Vec<Box<dyn Separator>> {
 fn check(out: &StemOutput, n: usize, name: &str) {
     for s in Stem::ALL {
         assert_eq!(out.get(s).len(), n, "{name} {}", s.name());
-        assert!(out.get(s).iter().all(|v| v.is_finite()), "{name} {}: non-finite output", s.name());
+        assert!(
+            out.get(s).iter().all(|v| v.is_finite()),
+            "{name} {}: non-finite output",
+            s.name()
+        );
     }
 }
 
@@ -27,7 +31,11 @@ fn check(out: &StemOutput, n: usize, name: &str) {
 fn mix_error(sep: &dyn Separator, out: &StemOutput, mono: &[f32]) -> f32 {
     let mut err = 0.0f32;
     for (j, &m) in mono.iter().enumerate() {
-        let y = if sep.name() == "none" { out.get(Stem::Bass)[j] } else { Stem::ALL.iter().map(|&s| out.get(s)[j]).sum() };
+        let y = if sep.name() == "none" {
+            out.get(Stem::Bass)[j]
+        } else {
+            Stem::ALL.iter().map(|&s| out.get(s)[j]).sum()
+        };
         err = err.max((y - m).abs());
     }
     err
@@ -40,7 +48,12 @@ fn silence_gives_exact_silence() {
         let out = run_chunked(sep.as_mut(), &x, &x, &[999]);
         check(&out, x.len(), sep.name());
         for s in Stem::ALL {
-            assert!(out.get(s).iter().all(|&v| v == 0.0), "{} {}", sep.name(), s.name());
+            assert!(
+                out.get(s).iter().all(|&v| v == 0.0),
+                "{} {}",
+                sep.name(),
+                s.name()
+            );
         }
     }
 }
@@ -49,9 +62,17 @@ fn silence_gives_exact_silence() {
 fn full_scale_plus_minus_eight() {
     // A ±8 square wave on the left, ±8 noise on the right: far beyond [-1, 1].
     let mut rng = Lcg(1);
-    let left: Vec<f32> = (0..20_000).map(|i| if (i / 50) % 2 == 0 { 8.0 } else { -8.0 }).collect();
-    let right: Vec<f32> = (0..20_000).map(|_| if rng.next() > 0.0 { 8.0 } else { -8.0 }).collect();
-    let mono: Vec<f32> = left.iter().zip(&right).map(|(l, r)| 0.5 * l + 0.5 * r).collect();
+    let left: Vec<f32> = (0..20_000)
+        .map(|i| if (i / 50) % 2 == 0 { 8.0 } else { -8.0 })
+        .collect();
+    let right: Vec<f32> = (0..20_000)
+        .map(|_| if rng.next() > 0.0 { 8.0 } else { -8.0 })
+        .collect();
+    let mono: Vec<f32> = left
+        .iter()
+        .zip(&right)
+        .map(|(l, r)| 0.5 * l + 0.5 * r)
+        .collect();
     for mut sep in backends() {
         let out = run_chunked(sep.as_mut(), &left, &right, &[4096]);
         check(&out, left.len(), sep.name());
@@ -62,14 +83,32 @@ fn full_scale_plus_minus_eight() {
 }
 
 #[test]
+fn absurdly_large_input_stays_finite() {
+    let x: Vec<f32> = (0..10_000)
+        .map(|i| if (i / 7) % 2 == 0 { 3e38 } else { -3e38 })
+        .collect();
+    for mut sep in backends() {
+        let out = run_chunked(sep.as_mut(), &x, &x, &[1000]);
+        check(&out, x.len(), sep.name());
+    }
+}
+
+#[test]
 fn tiny_input_is_flushed_and_nan_free() {
-    let x: Vec<f32> = (0..10_000).map(|i| if i % 2 == 0 { 1e-38 } else { -1e-38 }).collect();
+    let x: Vec<f32> = (0..10_000)
+        .map(|i| if i % 2 == 0 { 1e-38 } else { -1e-38 })
+        .collect();
     for mut sep in backends() {
         let out = run_chunked(sep.as_mut(), &x, &x, &[512]);
         check(&out, x.len(), sep.name());
         // Below tactus_dsp's flush threshold (1e-30): treated as silence.
         for s in Stem::ALL {
-            assert!(out.get(s).iter().all(|&v| v == 0.0), "{} {}", sep.name(), s.name());
+            assert!(
+                out.get(s).iter().all(|&v| v == 0.0),
+                "{} {}",
+                sep.name(),
+                s.name()
+            );
         }
     }
 }
@@ -80,7 +119,11 @@ fn non_finite_input_reads_as_zero() {
     let clean: Vec<f32> = (0..12_000).map(|_| 0.5 * rng.next()).collect();
     let mut dirty = clean.clone();
     let mut zeroed = clean.clone();
-    for (k, bad) in [(100usize, f32::NAN), (5000, f32::INFINITY), (9000, f32::NEG_INFINITY)] {
+    for (k, bad) in [
+        (100usize, f32::NAN),
+        (5000, f32::INFINITY),
+        (9000, f32::NEG_INFINITY),
+    ] {
         dirty[k] = bad;
         zeroed[k] = 0.0;
     }
@@ -97,7 +140,12 @@ fn empty_and_one_sample_streams() {
     for mut sep in backends() {
         let out = run_chunked(sep.as_mut(), &[], &[], &[1]);
         check(&out, 0, sep.name());
-        assert_eq!(out.present(), StemSet::all(), "{}: stems declared even when empty", sep.name());
+        assert_eq!(
+            out.present(),
+            StemSet::all(),
+            "{}: stems declared even when empty",
+            sep.name()
+        );
         sep.reset();
         let out = run_chunked(sep.as_mut(), &[0.25], &[0.75], &[1]);
         check(&out, 1, sep.name());

@@ -11,7 +11,8 @@ const SR: u32 = 44_100;
 #[test]
 fn spectral_beats_the_mix_baseline_on_every_stem() {
     let mix = synthetic_mix(SR, 8.0, 7);
-    let mut spectral = SpectralSeparator::new(SR, StemSet::all(), SpectralConfig::default()).unwrap();
+    let mut spectral =
+        SpectralSeparator::new(SR, StemSet::all(), SpectralConfig::default()).unwrap();
     let est = run_block(&mut spectral, &mix.left, &mix.right);
     let mut none = NoneSeparator::new(SR, StemSet::all()).unwrap();
     let base = run_block(&mut none, &mix.left, &mix.right);
@@ -22,14 +23,25 @@ fn spectral_beats_the_mix_baseline_on_every_stem() {
         let a = sdr(reference, est.get(s));
         let b = sdr(reference, base.get(s));
         gains[idx(s)] = a - b;
-        println!("{:<8} {:>10.2} dB {:>13.2} dB {:>7.2} dB", s.name(), a, b, a - b);
+        println!(
+            "{:<8} {:>10.2} dB {:>13.2} dB {:>7.2} dB",
+            s.name(),
+            a,
+            b,
+            a - b
+        );
     }
     // Measured (default config, this mix): gains of 8.3 (drums), 6.0 (bass), 14.5 (vocals)
     // and 13.1 dB (other) over the mix. We require half of the smallest, 3 dB, on every
     // stem: robust to float and platform differences, yet a mask routed to the wrong stem
     // (e.g. vocals <-> other, or no HPSS) drives a gain negative and fails.
     for s in Stem::ALL {
-        assert!(gains[idx(s)] > 3.0, "{}: only {:.2} dB better than the mix", s.name(), gains[idx(s)]);
+        assert!(
+            gains[idx(s)] > 3.0,
+            "{}: only {:.2} dB better than the mix",
+            s.name(),
+            gains[idx(s)]
+        );
     }
 }
 

@@ -41,17 +41,39 @@ fn noise(n: usize, seed: u64) -> Vec<f32> {
     (0..n).map(|_| r.next()).collect()
 }
 
-const SHAPES: [(usize, usize); 8] = [(16, 4), (64, 16), (100, 30), (256, 64), (512, 128), (1024, 256), (2048, 512), (4096, 1024)];
+const SHAPES: [(usize, usize); 8] = [
+    (16, 4),
+    (64, 16),
+    (100, 30),
+    (256, 64),
+    (512, 128),
+    (1024, 256),
+    (2048, 512),
+    (4096, 1024),
+];
 
 #[test]
 fn perfect_reconstruction_for_many_shapes() {
     for &(n_fft, hop) in &SHAPES {
         let cfg = StftConfig { n_fft, hop };
-        for n in [0usize, 1, 2, hop - 1, hop, n_fft / 2 + 1, n_fft + 3, 3 * n_fft + 17, 20_000] {
+        for n in [
+            0usize,
+            1,
+            2,
+            hop - 1,
+            hop,
+            n_fft / 2 + 1,
+            n_fft + 3,
+            3 * n_fft + 17,
+            20_000,
+        ] {
             let x = noise(n, n as u64 + n_fft as u64);
             let (y, _) = roundtrip(&x, cfg, &[n.max(1)]);
             assert_eq!(y.len(), n, "n_fft {n_fft} hop {hop} n {n}");
-            let err = x.iter().zip(&y).fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+            let err = x
+                .iter()
+                .zip(&y)
+                .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
             // f32 FFT round trip of unit-amplitude noise: ~1e-7 · log2(n_fft) per sample.
             assert!(err < 1e-5, "n_fft {n_fft} hop {hop} n {n}: max error {err}");
         }
@@ -64,7 +86,10 @@ fn perfect_reconstruction_for_many_shapes() {
 #[test]
 fn half_overlap_reconstructs_with_a_looser_tail() {
     for n_fft in [64usize, 256, 1024] {
-        let cfg = StftConfig { n_fft, hop: n_fft / 2 };
+        let cfg = StftConfig {
+            n_fft,
+            hop: n_fft / 2,
+        };
         for n in [1usize, n_fft / 2 - 1, n_fft + 5, 10_000] {
             let x = noise(n, n as u64);
             let (y, _) = roundtrip(&x, cfg, &[333]);
@@ -72,7 +97,10 @@ fn half_overlap_reconstructs_with_a_looser_tail() {
             let tail = n.saturating_sub(n_fft / 4);
             for (j, (a, b)) in x.iter().zip(&y).enumerate() {
                 let tol = if j < tail { 1e-5 } else { 1e-3 };
-                assert!((a - b).abs() < tol, "n_fft {n_fft} n {n} sample {j}: {a} vs {b}");
+                assert!(
+                    (a - b).abs() < tol,
+                    "n_fft {n_fft} n {n} sample {j}: {a} vs {b}"
+                );
             }
         }
     }
@@ -92,12 +120,19 @@ fn frames_match_a_naive_dft_of_centred_windowed_frames() {
             let (mut re, mut im) = (0.0f64, 0.0f64);
             for (n, &wn) in w.iter().enumerate() {
                 let j = (i * 16 + n) as i64 - 32;
-                let s = if j >= 0 && (j as usize) < x.len() { x[j as usize] as f64 } else { 0.0 };
+                let s = if j >= 0 && (j as usize) < x.len() {
+                    x[j as usize] as f64
+                } else {
+                    0.0
+                };
                 let ph = -std::f64::consts::TAU * (k * n) as f64 / 64.0;
                 re += s * wn as f64 * ph.cos();
                 im += s * wn as f64 * ph.sin();
             }
-            assert!((got.re as f64 - re).abs() < 1e-4 && (got.im as f64 - im).abs() < 1e-4, "frame {i} bin {k}");
+            assert!(
+                (got.re as f64 - re).abs() < 1e-4 && (got.im as f64 - im).abs() < 1e-4,
+                "frame {i} bin {k}"
+            );
         }
     }
 }
@@ -105,8 +140,14 @@ fn frames_match_a_naive_dft_of_centred_windowed_frames() {
 #[test]
 fn invalid_shapes_are_rejected() {
     for (n_fft, hop) in [(0, 1), (3, 1), (15, 4), (64, 0), (64, 33)] {
-        assert!(StftAnalysis::new(StftConfig { n_fft, hop }, 1).is_err(), "{n_fft}/{hop}");
-        assert!(OverlapAdd::new(StftConfig { n_fft, hop }, 1).is_err(), "{n_fft}/{hop}");
+        assert!(
+            StftAnalysis::new(StftConfig { n_fft, hop }, 1).is_err(),
+            "{n_fft}/{hop}"
+        );
+        assert!(
+            OverlapAdd::new(StftConfig { n_fft, hop }, 1).is_err(),
+            "{n_fft}/{hop}"
+        );
     }
     assert!(StftAnalysis::new(StftConfig { n_fft: 64, hop: 16 }, 0).is_err());
 }

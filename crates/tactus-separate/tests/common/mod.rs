@@ -8,7 +8,10 @@ pub struct Lcg(pub u64);
 
 impl Lcg {
     pub fn next(&mut self) -> f32 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((self.0 >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
     }
 }
@@ -73,7 +76,8 @@ pub fn synthetic_mix(sr: u32, seconds: f32, seed: u64) -> Mix {
         let tb = t % beat;
         let kick_t = tb;
         // Phase of the sweep f(t) = 50 + 70·exp(-t/30 ms), integrated in closed form.
-        let kick_phase = std::f32::consts::TAU * (50.0 * kick_t + 70.0 * 0.03 * (1.0 - (-kick_t / 0.03).exp()));
+        let kick_phase =
+            std::f32::consts::TAU * (50.0 * kick_t + 70.0 * 0.03 * (1.0 - (-kick_t / 0.03).exp()));
         let mut d = 0.8 * (-kick_t / 0.12).exp() * kick_phase.sin();
         let snare_t = (t - beat / 2.0).rem_euclid(beat);
         let noise = rng.next();
@@ -88,7 +92,8 @@ pub fn synthetic_mix(sr: u32, seconds: f32, seed: u64) -> Mix {
         bass[i] = harmonic(pb, f0, 200.0, 8, 0.5) * ar(t - bi as f32 * beat, beat, 0.01, 0.03);
         // Vocals.
         let vi = t as usize;
-        let fv = vocal_notes[vi % vocal_notes.len()] * (1.0 + 0.03 * (std::f32::consts::TAU * 5.5 * t).sin());
+        let fv = vocal_notes[vi % vocal_notes.len()]
+            * (1.0 + 0.03 * (std::f32::consts::TAU * 5.5 * t).sin());
         pv += std::f64::consts::TAU * fv as f64 / sr as f64;
         vocals[i] = harmonic(pv, fv, 20_000.0, 6, 0.3) * ar(t - vi as f32, 1.0, 0.04, 0.05);
         // Other: two pads, changing every 2 s.
@@ -113,21 +118,47 @@ pub fn synthetic_mix(sr: u32, seconds: f32, seed: u64) -> Mix {
         other_l[i] = yl;
         other_r[i] = yr;
     }
-    let other: Vec<f32> = other_l.iter().zip(&other_r).map(|(l, r)| 0.5 * (l + r)).collect();
-    let left: Vec<f32> = (0..n).map(|i| drums[i] + bass[i] + vocals[i] + other_l[i]).collect();
-    let right: Vec<f32> = (0..n).map(|i| drums[i] + bass[i] + vocals[i] + other_r[i]).collect();
-    let mono = left.iter().zip(&right).map(|(l, r)| 0.5 * (l + r)).collect();
-    Mix { left, right, stems: [drums, bass, vocals, other], mono }
+    let other: Vec<f32> = other_l
+        .iter()
+        .zip(&other_r)
+        .map(|(l, r)| 0.5 * (l + r))
+        .collect();
+    let left: Vec<f32> = (0..n)
+        .map(|i| drums[i] + bass[i] + vocals[i] + other_l[i])
+        .collect();
+    let right: Vec<f32> = (0..n)
+        .map(|i| drums[i] + bass[i] + vocals[i] + other_r[i])
+        .collect();
+    let mono = left
+        .iter()
+        .zip(&right)
+        .map(|(l, r)| 0.5 * (l + r))
+        .collect();
+    Mix {
+        left,
+        right,
+        stems: [drums, bass, vocals, other],
+        mono,
+    }
 }
 
 /// Runs a whole stream through `sep` in chunks whose sizes cycle through `chunks`
 /// (0 entries are allowed and feed empty blocks), then finishes.
-pub fn run_chunked(sep: &mut dyn Separator, left: &[f32], right: &[f32], chunks: &[usize]) -> StemOutput {
+pub fn run_chunked(
+    sep: &mut dyn Separator,
+    left: &[f32],
+    right: &[f32],
+    chunks: &[usize],
+) -> StemOutput {
     let mut out = StemOutput::new();
     let mut pos = 0;
     let mut i = 0;
     while pos < left.len() {
-        let c = if chunks.is_empty() { left.len() } else { chunks[i % chunks.len()] };
+        let c = if chunks.is_empty() {
+            left.len()
+        } else {
+            chunks[i % chunks.len()]
+        };
         let end = (pos + c).min(left.len());
         sep.process(&left[pos..end], &right[pos..end], &mut out);
         pos = end;
