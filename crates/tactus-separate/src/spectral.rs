@@ -38,6 +38,12 @@
 //! **Latency** = `n_fft − 1 + lookahead_frames · hop` samples (the STFT round trip plus
 //! the look-ahead): 4095 samples = 92.9 ms by default at 44.1 kHz.
 //!
+//! **Measured** (synthetic 8 s stereo mix of `tests/quality.rs`, plain SDR): drums 0.6,
+//! bass 7.0, vocals 9.1, other 2.2 dB, i.e. 8.3 / 6.0 / 14.5 / 13.1 dB better than using
+//! the mix itself. The weak spot is drums: kick thumps are long low sines, which the time
+//! median calls harmonic, so they leak into bass. Speed (`benches/separate.rs`, 2 shared
+//! cores): about 70× real time for all four stems, about 750× for bass alone.
+//!
 //! **Hygiene**: non-finite input samples become 0, samples below 1e-30 are flushed to 0
 //! (`tactus_dsp::sanitize`), and mid/side samples are clamped to ±1e9 so the output is
 //! always finite.
