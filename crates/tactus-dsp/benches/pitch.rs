@@ -1,1 +1,115 @@
-fn main() {}
+//! Criterion benches for YIN and pYIN.
+//!
+//! * `yin_block/{128,256,512}` and `pyin_block/…`: streaming cost per block of a 44.1 kHz
+//!   vocal-range stage (70–1400 Hz, frame 2048, hop 441), in steady state.
+//! * `song_180s/yin` and `song_180s/pyin`: a 180 s, 44.1 kHz signal with frame 2048 and
+//!   hop 512 (50–2000 Hz, the "other" stem range), the configuration peers were measured
+//!   with (NOTES.md: aubio yinfft 0.54 s, aubio yinfast 0.83 s, librosa.yin 2.2 s).
+use std::hint::black_box;
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use tactus_dsp::pyin::{Pyin, PyinConfig};
+use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
+use tactus_dsp::HopStage;
+
+const SR: u32 = 44100;
+
+fn melody(n: usize) -> Vec<f32> {
+    // Notes changing every 0.25 s, three harmonics, a little noise (LCG).
+    let mut seed = 1u32;
+    let mut phase = 0.0f64;
+    (0..n)
+        .map(|i| {
+            let note = (i / (SR as usize / 4)) % 12;
+            let f0 = 110.0 * 2f64.powf(note as f64 / 12.0);
+            phase += std::f64::consts::TAU * f0 / SR as f64;
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let noise = (seed >> 8) as f64 / (1u32 << 24) as f64 - 0.5;
+            (0.5 * phase.sin()
+                + 0.3 * (2.0 * phase).sin()
+                + 0.2 * (3.0 * phase).sin()
+                + 0.02 * noise) as f32
+        })
+        .collect()
+}
+
+fn blocks(c: &mut Criterion) {
+    let x = melody(SR as usize * 4);
+    let mut g = c.benchmark_group("yin_block");
+    for block in [128usize, 256, 512] {
+        g.throughput(Throughput::Elements(block as u64));
+        let mut yin = Yin::new(YinConfig::new(SR, 70.0, 1400.0)).unwrap();
+        let mut pos = 0;
+        g.bench_with_input(BenchmarkId::from_parameter(block), &block, |b, &block| {
+            b.iter(|| {
+                if pos + block > x.len() {
+                    pos = 0;
+                }
+                let mut acc = 0.0f32;
+                yin.process(
+                    black_box(&x[pos..pos + block]),
+                    &mut |_, e: PitchEstimate| acc += e.f0_hz,
+                );
+                pos += block;
+                acc
+            })
+        });
+    }
+    g.finish();
+    let mut g = c.benchmark_group("pyin_block");
+    for block in [128usize, 256, 512] {
+        g.throughput(Throughput::Elements(block as u64));
+        let mut p = Pyin::new(PyinConfig::new(SR, 70.0, 1400.0)).unwrap();
+        let mut pos = 0;
+        g.bench_with_input(BenchmarkId::from_parameter(block), &block, |b, &block| {
+            b.iter(|| {
+                if pos + block > x.len() {
+                    pos = 0;
+                }
+                let mut acc = 0.0f32;
+                p.process(
+                    black_box(&x[pos..pos + block]),
+                    &mut |_, e: PitchEstimate| acc += e.f0_hz,
+                );
+                pos += block;
+                acc
+            })
+        });
+    }
+    g.finish();
+}
+
+fn song(c: &mut Criterion) {
+    let x = melody(SR as usize * 180);
+    let mut ycfg = YinConfig::new(SR, 50.0, 2000.0);
+    ycfg.frame = 2048;
+    ycfg.hop = 512;
+    let mut g = c.benchmark_group("song_180s");
+    g.sample_size(10);
+    let mut yin = Yin::new(ycfg.clone()).unwrap();
+    g.bench_function("yin", |b| {
+        b.iter(|| {
+            yin.reset();
+            let mut acc = 0.0f32;
+            yin.process(black_box(&x), &mut |_, e| acc += e.f0_hz);
+            yin.finish(&mut |_, e| acc += e.f0_hz);
+            acc
+        })
+    });
+    let mut pcfg = PyinConfig::new(SR, 50.0, 2000.0);
+    pcfg.yin = ycfg;
+    let mut p = Pyin::new(pcfg).unwrap();
+    g.bench_function("pyin", |b| {
+        b.iter(|| {
+            p.reset();
+            let mut acc = 0.0f32;
+            p.process(black_box(&x), &mut |_, e| acc += e.f0_hz);
+            p.finish(&mut |_, e| acc += e.f0_hz);
+            acc
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, blocks, song);
+criterion_main!(benches);

@@ -86,12 +86,20 @@ impl PyinConfig {
 
     fn n_bins(&self) -> Result<usize, ConfigError> {
         if !(1..=100).contains(&self.bins_per_semitone) {
-            return Err(ConfigError::invalid("bins_per_semitone", "must be in 1..=100"));
+            return Err(ConfigError::invalid(
+                "bins_per_semitone",
+                "must be in 1..=100",
+            ));
         }
-        let span = 12.0 * self.bins_per_semitone as f64 * (self.yin.fmax_hz as f64 / self.yin.fmin_hz as f64).log2();
+        let span = 12.0
+            * self.bins_per_semitone as f64
+            * (self.yin.fmax_hz as f64 / self.yin.fmin_hz as f64).log2();
         let m = span.floor() as usize + 1;
         if 2 * m > u16::MAX as usize {
-            return Err(ConfigError::invalid("bins_per_semitone", "too many pitch bins (2 × bins must fit u16)"));
+            return Err(ConfigError::invalid(
+                "bins_per_semitone",
+                "too many pitch bins (2 × bins must fit u16)",
+            ));
         }
         Ok(m)
     }
@@ -161,7 +169,10 @@ impl Tracker {
             return Err(ConfigError::invalid("no_dip_weight", "must be in [0, 1]"));
         }
         if cfg.max_jump_bins > n_bins {
-            return Err(ConfigError::invalid("max_jump_bins", "must not exceed the number of pitch bins"));
+            return Err(ConfigError::invalid(
+                "max_jump_bins",
+                "must not exceed the number of pitch bins",
+            ));
         }
         let ring = lag
             .checked_add(1)
@@ -221,7 +232,11 @@ impl Tracker {
 
     /// Prior mass of the thresholds `s` with `lo < s ≤ hi`.
     fn prior_between(&self, lo: f32, hi: f32) -> f32 {
-        let idx = |x: f32| ((x * N_THRESHOLDS as f32).floor().clamp(0.0, N_THRESHOLDS as f32)) as usize;
+        let idx = |x: f32| {
+            ((x * N_THRESHOLDS as f32)
+                .floor()
+                .clamp(0.0, N_THRESHOLDS as f32)) as usize
+        };
         let (i_lo, i_hi) = (idx(lo), idx(hi));
         if i_hi > i_lo {
             self.prior_cum[i_hi] - self.prior_cum[i_lo]
@@ -304,7 +319,11 @@ impl Tracker {
         let slot = t % self.ring;
         let m = self.n_bins;
         let silent = !self.core.analyse(frame);
-        let min_cmnd = if silent { 1.0 } else { self.extract_candidates().clamp(0.0, 1.0) };
+        let min_cmnd = if silent {
+            1.0
+        } else {
+            self.extract_candidates().clamp(0.0, 1.0)
+        };
         if silent {
             self.frame_cands.clear();
         }
@@ -365,10 +384,18 @@ impl Tracker {
                 }
                 // Into voiced bin k.
                 let (stay, switch) = (bv + self.l_stay, bu + self.l_switch);
-                let (sv, pv) = if stay >= switch { (stay, av) } else { (switch, m + au) };
+                let (sv, pv) = if stay >= switch {
+                    (stay, av)
+                } else {
+                    (switch, m + au)
+                };
                 // Into unvoiced bin k.
                 let (stay, switch) = (bu + self.l_stay, bv + self.l_switch);
-                let (su, pu) = if stay >= switch { (stay, m + au) } else { (switch, av) };
+                let (su, pu) = if stay >= switch {
+                    (stay, m + au)
+                } else {
+                    (switch, av)
+                };
                 self.next[k] = sv + self.obs_voiced[k];
                 self.next[m + k] = su + l_unvoiced;
                 bp[k] = pv as u16;
@@ -437,7 +464,8 @@ impl Tracker {
         if info.silent || state >= self.n_bins {
             return unvoiced;
         }
-        let cands = &self.cands[slot * CANDIDATES_PER_HOP..slot * CANDIDATES_PER_HOP + info.n_cands];
+        let cands =
+            &self.cands[slot * CANDIDATES_PER_HOP..slot * CANDIDATES_PER_HOP + info.n_cands];
         let mut pick: Option<&Candidate> = None;
         for c in cands {
             let d = (c.bin as usize).abs_diff(state);
@@ -485,7 +513,11 @@ impl Pyin {
     pub fn new(cfg: PyinConfig) -> Result<Pyin, ConfigError> {
         let tracker = Tracker::new(&cfg, cfg.lag_hops)?;
         let framer = Framer::new(cfg.yin.frame, cfg.yin.hop)?;
-        Ok(Pyin { cfg, framer, tracker })
+        Ok(Pyin {
+            cfg,
+            framer,
+            tracker,
+        })
     }
 
     /// The configuration in use.

@@ -109,7 +109,9 @@ impl YinConfig {
     /// Never panics; invalid inputs are reported by [`Yin::new`].
     pub fn new(sample_rate: u32, fmin_hz: f32, fmax_hz: f32) -> Self {
         let lag = if fmin_hz.is_finite() && fmin_hz > 0.0 {
-            (sample_rate as f64 / fmin_hz as f64).ceil().clamp(1.0, MAX_FRAME as f64) as usize
+            (sample_rate as f64 / fmin_hz as f64)
+                .ceil()
+                .clamp(1.0, MAX_FRAME as f64) as usize
         } else {
             512
         };
@@ -136,7 +138,10 @@ impl YinConfig {
             return Err(ConfigError::invalid("fmin_hz", "must be finite and > 0"));
         }
         if !(self.fmax_hz.is_finite() && self.fmax_hz > self.fmin_hz) {
-            return Err(ConfigError::invalid("fmax_hz", "must be finite and > fmin_hz"));
+            return Err(ConfigError::invalid(
+                "fmax_hz",
+                "must be finite and > fmin_hz",
+            ));
         }
         let tau_min = (sr / self.fmax_hz as f64).floor();
         if tau_min < 2.0 {
@@ -171,7 +176,10 @@ impl YinConfig {
             return Err(ConfigError::invalid("threshold", "must be in (0, 1]"));
         }
         if !(self.voicing_ceiling.is_finite() && self.voicing_ceiling > 0.0) {
-            return Err(ConfigError::invalid("voicing_ceiling", "must be finite and > 0"));
+            return Err(ConfigError::invalid(
+                "voicing_ceiling",
+                "must be finite and > 0",
+            ));
         }
         Ok((tau_min as usize, tau_max as usize))
     }
@@ -226,7 +234,9 @@ impl YinCore {
         // Centre the analysed region on the frame centre for the mid-range lag, as far as
         // the region `[offset, offset + W + τmax + 1)` still fits in the frame.
         let max_offset = n - n / 2 - tau_max - 1;
-        let offset = (n / 4).saturating_sub((tau_min + tau_max) / 4).min(max_offset);
+        let offset = (n / 4)
+            .saturating_sub((tau_min + tau_max) / 4)
+            .min(max_offset);
         let scratch_len = fwd.get_scratch_len().max(inv.get_scratch_len());
         Ok(YinCore {
             sample_rate: cfg.sample_rate as f32,
@@ -261,22 +271,24 @@ impl YinCore {
         let start = self.offset.min(frame.len());
         let region = &frame[start..frame.len().min(self.offset + self.region)];
         let len = region.len();
-        let mut sum = 0.0f64;
-        let mut peak = 0.0f32;
-        for (dst, &x) in self.buf_b[..len].iter_mut().zip(region) {
+        // Any constant may be removed (d is offset-invariant), so an f32 mean is enough.
+        let mut sum = [0.0f32; 8];
+        let mut peak = [0.0f32; 8];
+        for (k, (dst, &x)) in self.buf_b[..len].iter_mut().zip(region).enumerate() {
             let y = sanitize_sample(x).0;
             *dst = y;
-            sum += y as f64;
-            peak = peak.max(y.abs());
+            sum[k % 8] += y;
+            peak[k % 8] = peak[k % 8].max(y.abs());
         }
-        self.buf_b[len..self.region].fill(0.0);
-        let mean = (sum / self.region as f64) as f32;
-        let mut peak_res = 0.0f32;
-        for x in self.buf_b[..self.region].iter_mut() {
+        let peak = peak.iter().fold(0.0f32, |a, &b| a.max(b));
+        self.buf_b[len..].fill(0.0);
+        let mean = sum.iter().sum::<f32>() / self.region as f32;
+        let mut lanes = [0.0f32; 8];
+        for (k, x) in self.buf_b[..self.region].iter_mut().enumerate() {
             *x -= mean;
-            peak_res = peak_res.max(x.abs());
+            lanes[k % 8] = lanes[k % 8].max(x.abs());
         }
-        self.buf_b[self.region..].fill(0.0);
+        let peak_res = lanes.iter().fold(0.0f32, |a, &b| a.max(b));
         if peak == 0.0 || peak_res <= 1e-5 * peak {
             self.cmnd.fill(1.0);
             self.diff.fill(0.0);
@@ -304,7 +316,7 @@ impl YinCore {
         }
         // DC and Nyquist bins of a product of real spectra are real; make it exact.
         self.spec_b[0].im = 0.0;
-        if n % 2 == 0 {
+        if n.is_multiple_of(2) {
             if let Some(last) = self.spec_b.last_mut() {
                 last.im = 0.0;
             }
@@ -314,19 +326,31 @@ impl YinCore {
             .expect("YIN inverse FFT: buffer lengths fixed at construction");
         let norm = 1.0 / n as f64;
         let e0 = self.prefix[w];
-        let mut cum = 0.0f64;
-        self.cmnd[0] = 1.0;
+        let hi = self.tau_max + 1;
+        // Three passes so that only the running sum is serial: d (vectorizable), the
+        // cumulative sum of d (serial, stored over `prefix`, no longer needed), then the CMND.
         self.diff[0] = 0.0;
-        for tau in 1..=self.tau_max + 1 {
+        for tau in 1..=hi {
             let e_tau = self.prefix[tau + w] - self.prefix[tau];
             // Below 1e-6 of the energies, d is f32 FFT rounding noise (~1e-7 relative):
             // call it 0, so that numerically constant stretches do not fake a dip.
             let d = e0 + e_tau - 2.0 * self.corr[tau] as f64 * norm;
-            let d = if d > D_FLOOR * (e0 + e_tau) { d } else { 0.0 };
-            cum += d;
-            self.diff[tau] = d as f32;
+            self.diff[tau] = if d > D_FLOOR * (e0 + e_tau) {
+                d as f32
+            } else {
+                0.0
+            };
+        }
+        let mut cum = 0.0f64;
+        for tau in 1..=hi {
+            cum += self.diff[tau] as f64;
+            self.prefix[tau] = cum;
+        }
+        self.cmnd[0] = 1.0;
+        for tau in 1..=hi {
+            let cum = self.prefix[tau];
             self.cmnd[tau] = if cum > 0.0 {
-                (d * tau as f64 / cum) as f32
+                (self.diff[tau] as f64 * tau as f64 / cum) as f32
             } else {
                 1.0
             };
