@@ -205,11 +205,11 @@ fn run(cli: Cli) -> Result<()> {
                 eprintln!("tactus: warning: {w}");
             }
             if let Some(p) = &output {
-                let json = out.pattern.to_json_string();
+                let json = out.pattern.to_json_string()?;
                 write_atomic(p, |w| w.write_all(json.as_bytes())).with_context(|| format!("writing {}", p.display()))?;
             }
             if let Some(p) = &features {
-                let json = out.features.to_json_string();
+                let json = out.features.to_json_string()?;
                 write_atomic(p, |w| w.write_all(json.as_bytes())).with_context(|| format!("writing {}", p.display()))?;
             }
             if let Some(p) = &plot {

@@ -261,7 +261,9 @@ impl Engine {
                     SpectralSeparator::new(cfg.sample_rate, separated, SpectralConfig::default())
                         .map_err(|e| EngineError::Config(e.to_string()))?,
                 ),
-                SeparatorChoice::None => Box::new(NoneSeparator::new(cfg.sample_rate, separated)),
+                SeparatorChoice::None => Box::new(
+                    NoneSeparator::new(cfg.sample_rate, separated).map_err(|e| EngineError::Config(e.to_string()))?,
+                ),
             })
         };
         Ok(Engine {

@@ -34,7 +34,7 @@ pub enum EngineError {
     #[error("configuration: {0}")]
     Config(String),
     /// Reading a file failed.
-    #[error("{}: {1}", .0.display())]
+    #[error("{path}: {source}", path = .0.display(), source = .1)]
     Io(PathBuf, std::io::Error),
 }
 

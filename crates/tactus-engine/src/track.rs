@@ -133,7 +133,8 @@ impl PitchTrack {
         let tracker: Box<dyn HopStage<Out = PitchEstimate>> = match method {
             PitchMethod::Yin => Box::new(Yin::new(yc)?),
             PitchMethod::Pyin => {
-                let mut pc = PyinConfig::new(yc);
+                let mut pc = PyinConfig::new(geo.sample_rate, fmin_hz, fmax_hz);
+                pc.yin = yc;
                 pc.lag_hops = PYIN_LAG_HOPS;
                 Box::new(Pyin::new(pc)?)
             }
@@ -147,8 +148,8 @@ impl PitchTrack {
             raw_f0: Vec::new(),
             raw_rms: Vec::new(),
             next: 0,
-            gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s),
-            tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT),
+            gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s)?,
+            tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?,
             range: RunningRange::new(),
             disc: Discretizer::new(geo.levels, Scale::Semitones)?,
             binner: LevelBinner::new(hop, geo.bin_samples)?,
@@ -282,7 +283,7 @@ impl OnsetTrack {
             raw_onset: Vec::new(),
             raw_rms: Vec::new(),
             next: 0,
-            gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s),
+            gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s)?,
             binner: BeatBinner::new(hop, geo.bin_samples)?,
             onsets: Vec::new(),
             bins: Vec::new(),
