@@ -110,6 +110,10 @@ pub struct OnsetConfig {
     /// 0 = causal (rising edge); `L > 0` = the peak must be a local maximum over ±`L` hops,
     /// and the local mean also covers the `L` hops ahead.
     pub lookahead_hops: usize,
+    /// Only bins inside `[low_hz, high_hz]` contribute to the flux (and to its average),
+    /// so a band-passed drum signal is not diluted by hundreds of empty bins. `None` = all
+    /// bins. At least one bin is always kept.
+    pub band_hz: Option<(f32, f32)>,
 }
 
 /// Magnitudes saturate here (input beyond about ±1e27), so the flux stays finite.
@@ -138,6 +142,7 @@ impl OnsetConfig {
             mean_before_hops: ((0.1 * sr / hop as f64).round() as usize).max(1),
             min_interval_s: 0.05,
             lookahead_hops: 0,
+            band_hz: None,
         }
     }
 
@@ -149,7 +154,32 @@ impl OnsetConfig {
         cfg
     }
 
+    /// The same detector restricted to the bins of `[low_hz, high_hz]`.
+    pub fn with_band(mut self, low_hz: f32, high_hz: f32) -> Self {
+        self.band_hz = Some((low_hz, high_hz));
+        self
+    }
+
+    /// The half-open range of STFT bins that contribute to the flux.
+    pub fn bin_range(&self) -> (usize, usize) {
+        let bins = self.frame / 2 + 1;
+        match self.band_hz {
+            None => (0, bins),
+            Some((lo, hi)) => {
+                let per_bin = self.sample_rate.max(1) as f32 / self.frame.max(1) as f32;
+                let a = ((lo / per_bin).floor().max(0.0) as usize).min(bins - 1);
+                let b = ((hi / per_bin).ceil().max(0.0) as usize + 1).clamp(a + 1, bins);
+                (a, b)
+            }
+        }
+    }
+
     fn validate(&self) -> Result<(), ConfigError> {
+        if let Some((lo, hi)) = self.band_hz {
+            if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && lo < hi) {
+                return Err(ConfigError::invalid("band_hz", "needs 0 <= low < high"));
+            }
+        }
         if self.sample_rate == 0 {
             return Err(ConfigError::invalid("sample_rate", "must be positive"));
         }
@@ -213,6 +243,9 @@ struct Core {
     /// Compressed magnitudes of the previous frame.
     prev: Vec<f32>,
     cur: Vec<f32>,
+    /// Bins `lo..hi` contribute to the flux.
+    lo: usize,
+    hi: usize,
     gamma: Option<f32>,
     delta: f32,
     mean_before: usize,
@@ -246,7 +279,8 @@ impl OnsetDetector {
             .collect();
         let norm = 1.0 / hann.iter().map(|w| w * w).sum::<f64>().sqrt();
         let window = hann.iter().map(|w| (w * norm) as f32).collect();
-        let bins = n / 2 + 1;
+        let (lo, hi) = cfg.bin_range();
+        let bins = hi - lo;
         // The flux peak of an impulse comes about frame/4 samples before it (steepest part
         // of the Hann window), the first hop above threshold about 3·frame/8 before it;
         // never shift past the framer's own look-ahead.
@@ -266,6 +300,8 @@ impl OnsetDetector {
             fft,
             prev: vec![0.0; bins],
             cur: vec![0.0; bins],
+            lo,
+            hi,
             gamma: cfg.log_compression,
             delta: cfg.delta,
             mean_before: cfg.mean_before_hops,
@@ -319,7 +355,7 @@ impl Core {
         let _ =
             self.fft
                 .process_with_scratch(&mut self.fft_in, &mut self.spectrum, &mut self.scratch);
-        for (m, c) in self.cur.iter_mut().zip(&self.spectrum) {
+        for (m, c) in self.cur.iter_mut().zip(&self.spectrum[self.lo..self.hi]) {
             // `min` also maps NaN (inf - inf inside the FFT of huge input) to the cap.
             *m = (c.re * c.re + c.im * c.im).sqrt().min(MAG_CAP);
         }

@@ -109,20 +109,21 @@ impl StemChain {
             (Some(m), Some((lo, hi))) => Some(PitchTrack::new(geo, lo, hi, m)?),
             _ => None,
         };
-        let notes = if notes { Some(OnsetTrack::new(geo)?) } else { None };
+        let notes = if notes { Some(OnsetTrack::new(geo, None)?) } else { None };
         let mut chains = Vec::new();
         for &band in bands {
-            match SosFilter::band(band, geo.sample_rate) {
-                Ok(filter) => chains.push(BandChain {
+            let edges = tactus_dsp::sos::band_edges(band, geo.sample_rate);
+            match (SosFilter::band(band, geo.sample_rate), edges) {
+                (Ok(filter), Some((lo, hi))) => chains.push(BandChain {
                     band,
                     filter,
-                    track: OnsetTrack::new(geo)?,
+                    track: OnsetTrack::new(geo, Some((lo as f32, hi as f32)))?,
                     scratch: Vec::with_capacity(PARALLEL_MIN_BLOCK * 4),
                     t_filter: Duration::ZERO,
                     t_onsets: Duration::ZERO,
                 }),
                 // A band above Nyquist (e.g. cymbals at 8 kHz) is skipped; it stays silent.
-                Err(_) => continue,
+                _ => continue,
             }
         }
         Ok(StemChain {

@@ -266,12 +266,14 @@ pub struct OnsetTrack {
 }
 
 impl OnsetTrack {
-    /// An onset track with the causal (streaming) or look-ahead (offline) detector.
-    pub fn new(geo: Geometry) -> Result<Self, ConfigError> {
-        let cfg = match geo.mode {
+    /// An onset track with the causal (streaming) or look-ahead (offline) detector, its
+    /// flux restricted to `band_hz` when given (a drum band's own bins).
+    pub fn new(geo: Geometry, band_hz: Option<(f32, f32)>) -> Result<Self, ConfigError> {
+        let mut cfg = match geo.mode {
             Mode::Streaming => OnsetConfig::causal(geo.sample_rate),
             Mode::Offline => OnsetConfig::lookahead(geo.sample_rate),
         };
+        cfg.band_hz = band_hz;
         let hop = cfg.hop;
         let frame = cfg.frame;
         let hop_s = hop as f32 / geo.sample_rate as f32;
