@@ -96,8 +96,19 @@ pub struct VirtualGlove {
 }
 
 impl VirtualGlove {
-    /// A glove with all pins down; `log` (if any) is created/truncated now.
+    /// A glove with all pins down whose clock starts now; `log` (if any) is
+    /// created/truncated now.
     pub fn new(log: Option<&Path>, rise_ms: f64) -> Result<VirtualGlove, TransportError> {
+        VirtualGlove::with_epoch(log, rise_ms, Instant::now())
+    }
+
+    /// Like [`VirtualGlove::new`], with arrival times measured from `epoch` (e.g. the start
+    /// of the player's [`WallClock`](crate::WallClock), to compare send and arrival times).
+    pub fn with_epoch(
+        log: Option<&Path>,
+        rise_ms: f64,
+        epoch: Instant,
+    ) -> Result<VirtualGlove, TransportError> {
         let log = match log {
             Some(p) => {
                 let f = File::create(p).map_err(|source| TransportError::File {
@@ -110,7 +121,7 @@ impl VirtualGlove {
         };
         Ok(VirtualGlove {
             decoder: Decoder::new(),
-            start: Instant::now(),
+            start: epoch,
             rise_ms,
             commanded: Frame::DOWN,
             up_since: [0.0; PINS],
@@ -293,6 +304,8 @@ pub struct EmulatorOptions {
     pub poll: Duration,
     /// Pin rise time in ms. Default [`RISE_MS`].
     pub rise_ms: f64,
+    /// Time zero of the arrival times; `None` = when the emulator starts.
+    pub epoch: Option<Instant>,
 }
 
 impl Default for EmulatorOptions {
@@ -302,6 +315,7 @@ impl Default for EmulatorOptions {
             gone_timeout: Duration::from_secs(2),
             poll: Duration::from_millis(20),
             rise_ms: RISE_MS,
+            epoch: None,
         }
     }
 }
@@ -326,7 +340,8 @@ pub fn run_emulator_on_port(
     opts: &EmulatorOptions,
 ) -> Result<EmulatorReport, TransportError> {
     let name = path.to_string_lossy().into_owned();
-    let mut glove = VirtualGlove::new(log, opts.rise_ms)?;
+    let mut glove =
+        VirtualGlove::with_epoch(log, opts.rise_ms, opts.epoch.unwrap_or_else(Instant::now))?;
     let mut port = Some(open_port(&name, opts.poll).map_err(|e| TransportError::Serial {
         path: name.clone(),
         reason: e.to_string(),

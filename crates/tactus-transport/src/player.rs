@@ -52,6 +52,11 @@ impl WallClock {
             start: Instant::now(),
         }
     }
+
+    /// A clock whose time 0 is `start`.
+    pub fn starting_at(start: Instant) -> WallClock {
+        WallClock { start }
+    }
 }
 
 impl Default for WallClock {

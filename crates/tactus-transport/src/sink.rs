@@ -173,7 +173,8 @@ impl SinkHandle {
             }
         };
         if let Some(s) = state {
-            if mb.state.replace(s).is_some() {
+            // A pending all-down replaced by another all-down loses nothing.
+            if mb.state.replace(s).is_some_and(|old| old != s || s != StateCmd::AllDown) {
                 lock(&self.shared.stats).dropped += 1;
             }
         }
@@ -384,11 +385,16 @@ fn run_sink(
             (mb.state.take(), ka, mb.stop)
         };
         if let Some(c) = cmd {
-            if dirty {
-                lock(&shared.stats).dropped += 1;
+            // An all-down right after a delivered all-down changes nothing on the glove
+            // (e.g. the player's final all-down followed by close()): not re-sent.
+            let redundant = !dirty && c == StateCmd::AllDown && current == Some(StateCmd::AllDown);
+            if !redundant {
+                if dirty {
+                    lock(&shared.stats).dropped += 1;
+                }
+                current = Some(c);
+                dirty = true;
             }
-            current = Some(c);
-            dirty = true;
         }
         let now = Instant::now();
         if stop && !stop_seen {
