@@ -21,7 +21,9 @@
 use std::time::Duration;
 
 use btleplug::api::bleuuid::uuid_from_u16;
-use btleplug::api::{Central, Characteristic, Manager as _, Peripheral as _, ScanFilter, WriteType};
+use btleplug::api::{
+    Central, Characteristic, Manager as _, Peripheral as _, ScanFilter, WriteType,
+};
 use btleplug::platform::{Adapter, Manager, Peripheral};
 use tactus_glove::protocol::PACKET_LEN;
 use tactus_glove::Packet;
@@ -77,7 +79,11 @@ fn matches(target: &BleTarget, d: &BleDevice) -> bool {
     }
 }
 
-async fn find(adapter: &Adapter, target: &BleTarget, timeout: Duration) -> Result<Peripheral, String> {
+async fn find(
+    adapter: &Adapter,
+    target: &BleTarget,
+    timeout: Duration,
+) -> Result<Peripheral, String> {
     adapter
         .start_scan(ScanFilter::default())
         .await
@@ -111,12 +117,19 @@ async fn find(adapter: &Adapter, target: &BleTarget, timeout: Duration) -> Resul
         format!(
             "{what} found within {:.1} s (seen: {})",
             timeout.as_secs_f64(),
-            if seen.is_empty() { "none".to_string() } else { seen.join(", ") }
+            if seen.is_empty() {
+                "none".to_string()
+            } else {
+                seen.join(", ")
+            }
         )
     })
 }
 
-async fn connect(target: &BleTarget, timeout: Duration) -> Result<(Peripheral, Characteristic), String> {
+async fn connect(
+    target: &BleTarget,
+    timeout: Duration,
+) -> Result<(Peripheral, Characteristic), String> {
     let adapter = first_adapter().await?;
     let p = find(&adapter, target, timeout).await?;
     if !p.is_connected().await.unwrap_or(false) {
@@ -142,7 +155,10 @@ pub(crate) struct BleLink {
 }
 
 impl BleLink {
-    pub(crate) fn new(target: BleTarget, scan_timeout: Duration) -> Result<BleLink, TransportError> {
+    pub(crate) fn new(
+        target: BleTarget,
+        scan_timeout: Duration,
+    ) -> Result<BleLink, TransportError> {
         Ok(BleLink {
             target,
             scan_timeout,
@@ -170,8 +186,11 @@ impl Link for BleLink {
         let (p, ch) = self.conn.as_ref().ok_or("not connected")?;
         self.rt
             .block_on(async {
-                tokio::time::timeout(WRITE_TIMEOUT, p.write(ch, bytes, WriteType::WithoutResponse))
-                    .await
+                tokio::time::timeout(
+                    WRITE_TIMEOUT,
+                    p.write(ch, bytes, WriteType::WithoutResponse),
+                )
+                .await
             })
             .map_err(|_| "BLE write timed out".to_string())?
             .map_err(|e| format!("BLE write: {e}"))

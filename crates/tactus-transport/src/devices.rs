@@ -68,7 +68,11 @@ pub fn devices_report(ble_timeout: Duration) -> String {
                     out,
                     "  --glove ble:{target}   {}{}",
                     d.address,
-                    if d.glove_service { "  [service 0xFFE0]" } else { "" }
+                    if d.glove_service {
+                        "  [service 0xFFE0]"
+                    } else {
+                        ""
+                    }
                 );
             }
         }

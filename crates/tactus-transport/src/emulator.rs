@@ -342,16 +342,16 @@ pub fn run_emulator_on_port(
     let name = path.to_string_lossy().into_owned();
     let mut glove =
         VirtualGlove::with_epoch(log, opts.rise_ms, opts.epoch.unwrap_or_else(Instant::now))?;
-    let mut port = Some(open_port(&name, opts.poll).map_err(|e| TransportError::Serial {
-        path: name.clone(),
-        reason: e.to_string(),
-    })?);
+    let mut port = Some(
+        open_port(&name, opts.poll).map_err(|e| TransportError::Serial {
+            path: name.clone(),
+            reason: e.to_string(),
+        })?,
+    );
     let started = Instant::now();
     let mut gone_since: Option<Instant> = None;
     let mut buf = [0u8; 1024];
-    while !stop.load(Ordering::Relaxed)
-        && opts.max_duration.is_none_or(|d| started.elapsed() < d)
-    {
+    while !stop.load(Ordering::Relaxed) && opts.max_duration.is_none_or(|d| started.elapsed() < d) {
         match &mut port {
             Some(p) => match p.read(&mut buf) {
                 Ok(n) if n > 0 => glove.push_now(&buf[..n]),

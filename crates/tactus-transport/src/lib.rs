@@ -56,7 +56,7 @@ pub mod spec;
 pub use devices::{devices_report, list_ble_devices, BleDevice};
 pub use emulator::{run_emulator_on_port, EmulatorOptions, EmulatorReport, VirtualGlove};
 pub use error::TransportError;
-pub use player::{play_frames, Clock, PlayReport, PlayStatus, WallClock};
+pub use player::{lead_ms, play_frames, Clock, PlayReport, PlayStatus, WallClock};
 pub use serial::{list_serial_ports, SerialPortEntry};
 pub use sink::{open_sink, SinkCommand, SinkHandle, SinkOptions, SinkStats};
 pub use spec::{SinkSpec, DEFAULT_BAUD};

@@ -12,7 +12,7 @@
 //! (USB vendor/product details); without it, it scans `/sys/class/tty` (Linux), which needs
 //! no system library. Pseudo-terminals are never listed: give their path explicitly.
 
-use std::io::Write;
+use std::io::Write as _;
 use std::time::Duration;
 
 use tactus_glove::protocol::PACKET_LEN;
@@ -52,8 +52,10 @@ impl Link for SerialLink {
 
     fn write(&mut self, _: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), String> {
         let port = self.port.as_mut().ok_or("port not open")?;
+        // No flush(): on a tty it is tcdrain(), which waits for the far end (on a pty, for
+        // socat to be scheduled) and would stall the sink; write() hands the 16 bytes to the
+        // kernel, which is all latest-state sending needs.
         port.write_all(bytes)
-            .and_then(|()| port.flush())
             .map_err(|e| format!("{}: {e}", self.path))
     }
 

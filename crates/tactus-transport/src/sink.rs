@@ -174,7 +174,11 @@ impl SinkHandle {
         };
         if let Some(s) = state {
             // A pending all-down replaced by another all-down loses nothing.
-            if mb.state.replace(s).is_some_and(|old| old != s || s != StateCmd::AllDown) {
+            if mb
+                .state
+                .replace(s)
+                .is_some_and(|old| old != s || s != StateCmd::AllDown)
+            {
                 lock(&self.shared.stats).dropped += 1;
             }
         }
@@ -254,10 +258,9 @@ pub fn open_sink(spec: &SinkSpec, opts: &SinkOptions) -> Result<SinkHandle, Tran
             Box::new(crate::serial::SerialLink::new(path.clone(), *baud))
         }
         #[cfg(feature = "ble")]
-        SinkSpec::Ble(target) => Box::new(crate::ble::BleLink::new(
-            target.clone(),
-            opts.scan_timeout,
-        )?),
+        SinkSpec::Ble(target) => {
+            Box::new(crate::ble::BleLink::new(target.clone(), opts.scan_timeout)?)
+        }
         #[cfg(not(feature = "ble"))]
         SinkSpec::Ble(_) => {
             return Err(TransportError::NotBuilt {

@@ -95,13 +95,18 @@ impl FromStr for SinkSpec {
             "ble" => match rest {
                 None => Ok(SinkSpec::Ble(BleTarget::Any)),
                 Some("") => Err(bad(s, "empty device name after `ble:`")),
-                Some(t) if is_address(t) => Ok(SinkSpec::Ble(BleTarget::Address(t.to_ascii_uppercase()))),
+                Some(t) if is_address(t) => {
+                    Ok(SinkSpec::Ble(BleTarget::Address(t.to_ascii_uppercase())))
+                }
                 Some(t) => Ok(SinkSpec::Ble(BleTarget::Name(t.to_string()))),
             },
             "serial" => {
                 let rest = match rest {
                     None | Some("") => {
-                        return Err(bad(s, "`serial:` needs a device path, e.g. serial:/dev/ttyUSB0"))
+                        return Err(bad(
+                            s,
+                            "`serial:` needs a device path, e.g. serial:/dev/ttyUSB0",
+                        ))
                     }
                     Some(r) => r,
                 };
@@ -155,25 +160,40 @@ mod tests {
         let cases: &[(&str, SinkSpec)] = &[
             ("null", SinkSpec::Null),
             ("emulator", SinkSpec::Emulator(None)),
-            ("emulator:a.jsonl", SinkSpec::Emulator(Some("a.jsonl".into()))),
+            (
+                "emulator:a.jsonl",
+                SinkSpec::Emulator(Some("a.jsonl".into())),
+            ),
             ("file:/tmp/x.jsonl", SinkSpec::File("/tmp/x.jsonl".into())),
             ("ble", SinkSpec::Ble(BleTarget::Any)),
-            ("ble:HMP-Glove", SinkSpec::Ble(BleTarget::Name("HMP-Glove".into()))),
+            (
+                "ble:HMP-Glove",
+                SinkSpec::Ble(BleTarget::Name("HMP-Glove".into())),
+            ),
             (
                 "ble:aa:bb:cc:dd:ee:0f",
                 SinkSpec::Ble(BleTarget::Address("AA:BB:CC:DD:EE:0F".into())),
             ),
             (
                 "serial:/dev/ttyUSB0",
-                SinkSpec::Serial { path: "/dev/ttyUSB0".into(), baud: 115_200 },
+                SinkSpec::Serial {
+                    path: "/dev/ttyUSB0".into(),
+                    baud: 115_200,
+                },
             ),
             (
                 "serial:/dev/ttyUSB0@9600",
-                SinkSpec::Serial { path: "/dev/ttyUSB0".into(), baud: 9600 },
+                SinkSpec::Serial {
+                    path: "/dev/ttyUSB0".into(),
+                    baud: 9600,
+                },
             ),
             (
                 "serial:/tmp/a@b/tty",
-                SinkSpec::Serial { path: "/tmp/a@b/tty".into(), baud: 115_200 },
+                SinkSpec::Serial {
+                    path: "/tmp/a@b/tty".into(),
+                    baud: 115_200,
+                },
             ),
         ];
         for (text, want) in cases {

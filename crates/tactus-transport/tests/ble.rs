@@ -61,7 +61,10 @@ impl Drop for Procs {
 fn wait_for(what: &str, mut ok: impl FnMut() -> bool) {
     let t0 = Instant::now();
     while !ok() {
-        assert!(t0.elapsed() < Duration::from_secs(10), "{what} did not come up");
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "{what} did not come up"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
 }
@@ -82,7 +85,12 @@ fn writes(log: &Path) -> Vec<Vec<u8>> {
         .filter_map(|l| {
             let rest = &l[l.find(" WriteValue [")? + " WriteValue [".len()..];
             let inner = &rest[..rest.find(']')?];
-            Some(inner.split(", ").map(|x| x.trim().parse::<u8>().unwrap()).collect())
+            Some(
+                inner
+                    .split(", ")
+                    .map(|x| x.trim().parse::<u8>().unwrap())
+                    .collect(),
+            )
         })
         .collect()
 }
@@ -141,7 +149,9 @@ fn ble_sink_writes_exact_packets_in_order() {
         .expect("glove listed");
     assert_eq!(glove.address, "AA:BB:CC:DD:EE:01");
     assert!(glove.glove_service);
-    assert!(devices.iter().any(|d| d.name.as_deref() == Some("Other-Thing")));
+    assert!(devices
+        .iter()
+        .any(|d| d.name.as_deref() == Some("Other-Thing")));
 
     let opts = SinkOptions {
         keep_alive: None,
@@ -157,7 +167,10 @@ fn ble_sink_writes_exact_packets_in_order() {
         .err()
         .expect("no such device")
         .to_string();
-    assert!(err.contains("No-Such-Glove") && err.contains("HMP-Glove"), "{err}");
+    assert!(
+        err.contains("No-Such-Glove") && err.contains("HMP-Glove"),
+        "{err}"
+    );
 
     let spec: SinkSpec = "ble:HMP-Glove".parse().unwrap();
     let sink = open_sink(&spec, &opts).unwrap();
@@ -188,5 +201,8 @@ fn ble_sink_writes_exact_packets_in_order() {
     let last: [u8; 16] = got.last().unwrap().as_slice().try_into().unwrap();
     assert_eq!(Packet::decode(&last).unwrap().frame, Frame::DOWN);
     let text = std::fs::read_to_string(&log).unwrap();
-    assert!(text.contains("\"type\": \"command\""), "write without response: {text}");
+    assert!(
+        text.contains("\"type\": \"command\""),
+        "write without response: {text}"
+    );
 }

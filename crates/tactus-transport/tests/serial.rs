@@ -97,7 +97,12 @@ fn serial_end_to_end_every_frame_in_order() {
     let mut expected = 0u64;
     let mut prev = Frame::DOWN;
     for f in frames.iter().chain([Frame::DOWN].iter()) {
-        expected += prev.0.iter().zip(f.0.iter()).map(|(a, b)| (a ^ b).count_ones() as u64).sum::<u64>();
+        expected += prev
+            .0
+            .iter()
+            .zip(f.0.iter())
+            .map(|(a, b)| (a ^ b).count_ones() as u64)
+            .sum::<u64>();
         prev = *f;
     }
     assert_eq!(got.actuations, expected);

@@ -67,7 +67,10 @@ impl PtyPair {
         self.child = Some(child);
         let t0 = Instant::now();
         while !(self.a().exists() && self.b().exists()) {
-            assert!(t0.elapsed() < Duration::from_secs(5), "socat links did not appear");
+            assert!(
+                t0.elapsed() < Duration::from_secs(5),
+                "socat links did not appear"
+            );
             std::thread::sleep(Duration::from_millis(5));
         }
     }
@@ -95,7 +98,10 @@ pub fn pattern(n: usize) -> Vec<Frame> {
             let mut f = [0u8; 10];
             for (i, b) in f.iter_mut().enumerate() {
                 // A different byte per cell and frame; frame k is unique through cell 0.
-                *b = (k as u8).wrapping_mul(37).wrapping_add((i as u8).wrapping_mul(11)) ^ (k >> 8) as u8;
+                *b = (k as u8)
+                    .wrapping_mul(37)
+                    .wrapping_add((i as u8).wrapping_mul(11))
+                    ^ (k >> 8) as u8;
             }
             Frame(f)
         })
