@@ -205,4 +205,57 @@ fn ble_sink_writes_exact_packets_in_order() {
         text.contains("\"type\": \"command\""),
         "write without response: {text}"
     );
+
+    // Reconnect: make WriteValue fail (the link drops), then work again. The sink marks the
+    // link down, reconnects (scan, connect, discover) and sends the current state.
+    let sink = open_sink(&spec, &opts).unwrap();
+    let set_write = |code: &str| {
+        let script = format!(
+            "import dbus\nbus = dbus.SystemBus()\n\
+             ch = bus.get_object('org.bluez', '/org/bluez/hci0/dev_AA_BB_CC_DD_EE_01/service0010/char0011')\n\
+             dbus.Interface(ch, 'org.freedesktop.DBus.Mock').AddMethod(\
+             'org.bluez.GattCharacteristic1', 'WriteValue', 'aya{{sv}}', '', {code:?})\nprint('ok')"
+        );
+        let out = Command::new(PYTHON).args(["-c", &script]).output().unwrap();
+        assert!(
+            String::from_utf8_lossy(&out.stdout).contains("ok"),
+            "{out:?}"
+        );
+    };
+    sink.send_frame(frames[0], 0);
+    wait_for("first write", || sink.stats().frames_sent == 1);
+    set_write("raise dbus.exceptions.DBusException('gone', name='org.bluez.Error.NotConnected')");
+    sink.send_frame(frames[1], 25);
+    wait_for("the write error", || sink.stats().errors >= 1);
+    for (k, f) in frames.iter().enumerate().take(6).skip(2) {
+        sink.send_frame(*f, k as u32 * 25);
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    set_write("");
+    wait_for("reconnect and resend", || {
+        let st = sink.stats();
+        st.reconnects >= 1 && st.frames_sent >= 2
+    });
+    let stats = sink.close();
+    assert!(stats.reconnects >= 1, "{stats:?}");
+    assert!(
+        stats
+            .last_error
+            .as_deref()
+            .is_some_and(|e| e.contains("gone")),
+        "{stats:?}"
+    );
+    // The state after the reconnect is the newest frame (5), then all-down; frames 1-4 were
+    // superseded or failed, never replayed as a backlog.
+    let got = writes(&log);
+    let tail: Vec<Packet> = got[got.len() - 2..]
+        .iter()
+        .map(|b| Packet::decode(b.as_slice().try_into().unwrap()).unwrap())
+        .collect();
+    assert_eq!(
+        tail[0].frame, frames[5],
+        "current state resent after reconnect"
+    );
+    assert_eq!(tail[1].kind, tactus_glove::PacketType::AllDown);
+    eprintln!("ble reconnect: {stats:?}");
 }
