@@ -13,7 +13,7 @@
 //! | [`sink`] | [`SinkHandle`], [`SinkCommand`], [`SinkStats`], reconnect with exponential backoff |
 //! | [`serial`] | the UART sink ([`serialport`], no DTR/RTS/CTS), [`list_serial_ports`] |
 //! | `ble` | the BLE sink (feature `ble`: btleplug over BlueZ/D-Bus), [`list_ble_devices`] |
-//! | [`file`] | the JSON Lines recorder sink |
+//! | [`file`](mod@file) | the JSON Lines recorder sink |
 //! | [`emulator`] | [`VirtualGlove`]: decoder + 50 ms pin-rise model + actuation log; [`run_emulator_on_port`] |
 //! | [`player`] | [`play_frames`]: clocked, early sending with a [`Clock`] and Ctrl-C safety |
 //! | [`devices`] | [`devices_report`]: what `tactus devices` prints |
