@@ -409,7 +409,8 @@ fn run_sink(
             match link.connect() {
                 Ok(()) => {
                     up = true;
-                    backoff = opts.backoff_min;
+                    // The backoff is reset by the next successful write, not here, so a link
+                    // that connects but cannot be written is not hammered every 50 ms.
                     // Whatever was on the wire before may be lost: resend the current state.
                     dirty = current.is_some();
                     let mut st = lock(&shared.stats);
@@ -445,6 +446,7 @@ fn run_sink(
             if let Some(packet) = packet {
                 match link.write(&packet, &packet.encode()) {
                     Ok(()) => {
+                        backoff = opts.backoff_min;
                         seq = seq.wrapping_add(1);
                         last_write = Instant::now();
                         if packet.kind != tactus_glove::PacketType::KeepAlive {
