@@ -1,0 +1,84 @@
+//! Device discovery for `tactus devices`: serial ports and BLE devices, each degrading to a
+//! one-line note when its subsystem is missing or not built in.
+
+use std::fmt::Write as _;
+use std::time::Duration;
+
+use crate::serial::list_serial_ports;
+use crate::TransportError;
+
+/// A Bluetooth LE device seen in a scan.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BleDevice {
+    /// Advertised name, if any.
+    pub name: Option<String>,
+    /// Address, `AA:BB:CC:DD:EE:FF`.
+    pub address: String,
+    /// Whether it advertises the glove's service 0xFFE0.
+    pub glove_service: bool,
+}
+
+/// Scans for Bluetooth LE devices for `timeout` (feature `ble`).
+///
+/// Errors: no BlueZ on the system D-Bus, no adapter, or built without the `ble` feature.
+pub fn list_ble_devices(timeout: Duration) -> Result<Vec<BleDevice>, TransportError> {
+    #[cfg(feature = "ble")]
+    {
+        crate::ble::scan(timeout)
+    }
+    #[cfg(not(feature = "ble"))]
+    {
+        let _ = timeout;
+        Err(TransportError::NotBuilt {
+            what: "BLE scanning",
+            feature: "ble",
+        })
+    }
+}
+
+/// The text `tactus devices` prints: serial ports, then BLE devices (scanning for
+/// `ble_timeout`), each with the `--glove` spec that selects it, or a note why none can be
+/// listed.
+pub fn devices_report(ble_timeout: Duration) -> String {
+    let mut out = String::new();
+    out.push_str("Serial ports:\n");
+    match list_serial_ports() {
+        Ok(ports) if ports.is_empty() => {
+            out.push_str("  (none found; pseudo-terminals are never listed, pass serial:PATH)\n")
+        }
+        Ok(ports) => {
+            for p in ports {
+                let _ = writeln!(out, "  --glove serial:{}   {}", p.path, p.description);
+            }
+        }
+        Err(e) => {
+            let _ = writeln!(out, "  (cannot list: {e})");
+        }
+    }
+    if !cfg!(feature = "udev") {
+        out.push_str("  note: built without the `udev` feature: sysfs scan, no USB details\n");
+    }
+    out.push_str("Bluetooth LE devices:\n");
+    match list_ble_devices(ble_timeout) {
+        Ok(devs) if devs.is_empty() => out.push_str("  (none seen)\n"),
+        Ok(devs) => {
+            for d in devs {
+                let target = d.name.clone().unwrap_or_else(|| d.address.clone());
+                let _ = writeln!(
+                    out,
+                    "  --glove ble:{target}   {}{}",
+                    d.address,
+                    if d.glove_service {
+                        "  [service 0xFFE0]"
+                    } else {
+                        ""
+                    }
+                );
+            }
+        }
+        Err(e) => {
+            let _ = writeln!(out, "  (unavailable: {e})");
+        }
+    }
+    out
+}
