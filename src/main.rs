@@ -2,6 +2,8 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
@@ -11,10 +13,15 @@ use tactus_engine::render::{render, RenderRequest};
 use tactus_engine::{EngineConfig, Mode, PitchMethod, SeparatorChoice};
 use tactus_glove::{write_atomic, GloveMap};
 
+mod play;
 mod plot;
 
 #[derive(Parser)]
-#[command(name = "tactus", version, about = "Turns music into touch: songs to haptic glove patterns")]
+#[command(
+    name = "tactus",
+    version,
+    about = "Turns music into touch: songs to haptic glove patterns"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -40,6 +47,32 @@ enum PitchArg {
     Pyin,
 }
 
+/// Settings shared by `render` and `play`: how the song becomes glove frames.
+#[derive(clap::Args)]
+struct EngineArgs {
+    /// Source separator.
+    #[arg(long, value_enum, default_value = "spectral")]
+    separator: SepArg,
+    /// ONNX model for --separator htdemucs|spleeter.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Supply a stem and skip separating it: NAME=PATH, NAME in drums, bass, vocals, other.
+    #[arg(long = "stem", value_name = "NAME=PATH")]
+    stems: Vec<String>,
+    /// Bin length in milliseconds (default: 100 for render, as in the paper; 25 for play).
+    #[arg(long)]
+    bin_ms: Option<u32>,
+    /// Pitch levels per melodic stem.
+    #[arg(long, default_value_t = 8)]
+    levels: u8,
+    /// Glove map (TOML); the default is the paper's map.
+    #[arg(long)]
+    map: Option<PathBuf>,
+    /// Pitch tracker.
+    #[arg(long, value_enum, default_value = "pyin")]
+    pitch: PitchArg,
+}
+
 #[derive(Subcommand)]
 enum Cmd {
     /// Render a song to a glove pattern (and optionally features and a plot).
@@ -55,33 +88,60 @@ enum Cmd {
         /// Plot to write (.svg).
         #[arg(long)]
         plot: Option<PathBuf>,
-        /// Source separator.
-        #[arg(long, value_enum, default_value = "spectral")]
-        separator: SepArg,
-        /// ONNX model for --separator htdemucs|spleeter.
-        #[arg(long)]
-        model: Option<PathBuf>,
-        /// Supply a stem and skip separating it: NAME=PATH, NAME in drums, bass, vocals, other.
-        #[arg(long = "stem", value_name = "NAME=PATH")]
-        stems: Vec<String>,
-        /// Bin length in milliseconds.
-        #[arg(long, default_value_t = 100)]
-        bin_ms: u32,
-        /// Pitch levels per melodic stem.
-        #[arg(long, default_value_t = 8)]
-        levels: u8,
-        /// Glove map (TOML); the default is the paper's map.
-        #[arg(long)]
-        map: Option<PathBuf>,
+        #[command(flatten)]
+        engine: EngineArgs,
         /// Statistics: offline (whole track, paper) or streaming (causal, as live).
         #[arg(long, value_enum, default_value = "offline")]
         mode: ModeArg,
-        /// Pitch tracker.
-        #[arg(long, value_enum, default_value = "pyin")]
-        pitch: PitchArg,
         /// Print which stages ran, what each cost, and the latency budget.
         #[arg(short, long)]
         verbose: bool,
+    },
+    /// Stream a song (rendered frame by frame as it plays) or a pattern file to a glove.
+    Play {
+        /// A song, or a pattern file (.json) from `tactus render`.
+        input: PathBuf,
+        /// Where the frames go: serial:PATH[@BAUD] | ble[:NAME|ADDRESS] | file:LOG.jsonl | emulator[:LOG.jsonl] | null
+        #[arg(long)]
+        glove: String,
+        /// Send frames this much earlier (positive) or later (negative), on top of the
+        /// 50 ms pin rise and the link latency.
+        #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
+        offset_ms: i64,
+        /// Time frames on the wall clock (this build has no audio output, so this is the only clock).
+        #[arg(long)]
+        no_audio: bool,
+        #[command(flatten)]
+        engine: EngineArgs,
+    },
+    /// Run a virtual glove on a serial port or pty: decode, check, log every actuation.
+    Emulate {
+        /// The port (e.g. the other end of a socat pty pair).
+        #[arg(long)]
+        port: PathBuf,
+        /// Actuation log (JSON Lines).
+        #[arg(long)]
+        log: Option<PathBuf>,
+        /// Stop after this many seconds (default: until Ctrl-C or the writer goes away).
+        #[arg(long)]
+        duration: Option<f64>,
+    },
+    /// List serial ports and BLE devices.
+    Devices {
+        /// Seconds to scan for BLE devices.
+        #[arg(long, default_value_t = 3.0)]
+        ble_scan_s: f64,
+    },
+    /// Score a features file against ground truth (a corpus song folder or truth.json).
+    Eval {
+        /// Features file from `tactus render --features`.
+        features: PathBuf,
+        /// Folder with truth.json, or the truth file itself.
+        #[arg(long)]
+        truth: PathBuf,
+        /// Also write the report as JSON.
+        #[arg(long)]
+        json: Option<PathBuf>,
     },
 }
 
@@ -101,8 +161,9 @@ fn parse_stem(s: &str) -> Result<(Stem, PathBuf)> {
     let (name, path) = s
         .split_once('=')
         .ok_or_else(|| anyhow!("--stem {s:?}: expected NAME=PATH"))?;
-    let stem = Stem::from_name(name)
-        .ok_or_else(|| anyhow!("--stem {s:?}: unknown stem {name:?} (drums, bass, vocals, other)"))?;
+    let stem = Stem::from_name(name).ok_or_else(|| {
+        anyhow!("--stem {s:?}: unknown stem {name:?} (drums, bass, vocals, other)")
+    })?;
     Ok((stem, PathBuf::from(path)))
 }
 
@@ -115,47 +176,132 @@ fn check_writable(path: &Path) -> Result<()> {
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        bail!("{}: the directory {} does not exist", path.display(), dir.display());
+        bail!(
+            "{}: the directory {} does not exist",
+            path.display(),
+            dir.display()
+        );
     }
     Ok(())
 }
 
+fn engine_config(
+    e: &EngineArgs,
+    mode: Mode,
+    default_bin_ms: u32,
+) -> Result<(EngineConfig, Vec<(Stem, PathBuf)>)> {
+    let separator = match e.separator {
+        SepArg::Spectral => SeparatorChoice::Spectral,
+        SepArg::None => SeparatorChoice::None,
+        SepArg::Htdemucs | SepArg::Spleeter => bail!(
+            "the ONNX separators are not part of this build yet; use --separator spectral (default) or none{}",
+            e.model.as_ref().map(|m| format!(" (model {} not loaded)", m.display())).unwrap_or_default()
+        ),
+    };
+    let map = match &e.map {
+        Some(p) => GloveMap::from_path(p).with_context(|| format!("--map {}", p.display()))?,
+        None => GloveMap::default(),
+    };
+    if e.levels == 0 {
+        bail!("--levels must be at least 1");
+    }
+    let bin_ms = e.bin_ms.unwrap_or(default_bin_ms);
+    if bin_ms == 0 {
+        bail!("--bin-ms must be at least 1");
+    }
+    let stems = e
+        .stems
+        .iter()
+        .map(|s| parse_stem(s))
+        .collect::<Result<Vec<_>>>()?;
+    let cfg = EngineConfig {
+        bin_ms,
+        levels: e.levels,
+        mode,
+        pitch: match e.pitch {
+            PitchArg::Yin => PitchMethod::Yin,
+            PitchArg::Pyin => PitchMethod::Pyin,
+        },
+        map,
+        separator,
+        ..EngineConfig::default()
+    };
+    Ok((cfg, stems))
+}
+
+fn stop_flag() -> Arc<AtomicBool> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    // A second handler cannot be installed; then Ctrl-C simply ends the process.
+    let _ = ctrlc::set_handler(move || s.store(true, Ordering::SeqCst));
+    stop
+}
+
 fn run(cli: Cli) -> Result<()> {
     match cli.cmd {
+        Cmd::Play {
+            input,
+            glove,
+            offset_ms,
+            no_audio,
+            engine,
+        } => play::run(&input, &glove, offset_ms, no_audio, &engine),
+        Cmd::Emulate {
+            port,
+            log,
+            duration,
+        } => play::emulate(&port, log.as_deref(), duration),
+        Cmd::Devices { ble_scan_s } => {
+            print!(
+                "{}",
+                tactus_transport::devices_report(std::time::Duration::from_secs_f64(
+                    ble_scan_s.max(0.0)
+                ))
+            );
+            Ok(())
+        }
+        Cmd::Eval {
+            features,
+            truth,
+            json,
+        } => {
+            let truth_path = if truth.is_dir() {
+                truth.join("truth.json")
+            } else {
+                truth
+            };
+            let t = std::fs::read_to_string(&truth_path)
+                .with_context(|| format!("reading {}", truth_path.display()))?;
+            let t = tactus_eval::Truth::from_json_str(&t)
+                .with_context(|| truth_path.display().to_string())?;
+            let f = std::fs::read_to_string(&features)
+                .with_context(|| format!("reading {}", features.display()))?;
+            let f = tactus_eval::FeaturesLike::from_json_str(&f)
+                .with_context(|| features.display().to_string())?;
+            let report = tactus_eval::evaluate(&f, &t);
+            print!("{}", report.to_markdown());
+            if let Some(p) = &json {
+                check_writable(p)?;
+                let j = report.to_json();
+                write_atomic(p, |w| w.write_all(j.as_bytes()))
+                    .with_context(|| format!("writing {}", p.display()))?;
+            }
+            Ok(())
+        }
         Cmd::Render {
             input,
             output,
             features,
             plot,
-            separator,
-            model,
-            stems,
-            bin_ms,
-            levels,
-            map,
+            engine,
             mode,
-            pitch,
             verbose,
         } => {
-            let separator = match separator {
-                SepArg::Spectral => SeparatorChoice::Spectral,
-                SepArg::None => SeparatorChoice::None,
-                SepArg::Htdemucs | SepArg::Spleeter => bail!(
-                    "the ONNX separators are not part of this build yet; use --separator spectral (default) or none{}",
-                    model.map(|m| format!(" (model {} not loaded)", m.display())).unwrap_or_default()
-                ),
+            let mode = match mode {
+                ModeArg::Offline => Mode::Offline,
+                ModeArg::Streaming => Mode::Streaming,
             };
-            let map = match &map {
-                Some(p) => GloveMap::from_path(p).with_context(|| format!("--map {}", p.display()))?,
-                None => GloveMap::default(),
-            };
-            if levels == 0 {
-                bail!("--levels must be at least 1");
-            }
-            if bin_ms == 0 {
-                bail!("--bin-ms must be at least 1");
-            }
-            let stems = stems.iter().map(|s| parse_stem(s)).collect::<Result<Vec<_>>>()?;
+            let (config, stems) = engine_config(&engine, mode, 100)?;
             for p in [&output, &features, &plot].into_iter().flatten() {
                 check_writable(p)?;
             }
@@ -165,27 +311,15 @@ fn run(cli: Cli) -> Result<()> {
             let req = RenderRequest {
                 input: input.clone(),
                 stems,
-                config: EngineConfig {
-                    bin_ms,
-                    levels,
-                    mode: match mode {
-                        ModeArg::Offline => Mode::Offline,
-                        ModeArg::Streaming => Mode::Streaming,
-                    },
-                    pitch: match pitch {
-                        PitchArg::Yin => PitchMethod::Yin,
-                        PitchArg::Pyin => PitchMethod::Pyin,
-                    },
-                    map,
-                    separator,
-                    ..EngineConfig::default()
-                },
+                config,
             };
             let bar = if std::io::stderr().is_terminal() {
                 let b = indicatif::ProgressBar::new(1000);
                 b.set_style(
-                    indicatif::ProgressStyle::with_template("{spinner} {msg} [{bar:40}] {percent}% {elapsed}")
-                        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+                    indicatif::ProgressStyle::with_template(
+                        "{spinner} {msg} [{bar:40}] {percent}% {elapsed}",
+                    )
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
                 );
                 b.set_message(input.display().to_string());
                 Some(b)
@@ -206,15 +340,18 @@ fn run(cli: Cli) -> Result<()> {
             }
             if let Some(p) = &output {
                 let json = out.pattern.to_json_string()?;
-                write_atomic(p, |w| w.write_all(json.as_bytes())).with_context(|| format!("writing {}", p.display()))?;
+                write_atomic(p, |w| w.write_all(json.as_bytes()))
+                    .with_context(|| format!("writing {}", p.display()))?;
             }
             if let Some(p) = &features {
                 let json = out.features.to_json_string()?;
-                write_atomic(p, |w| w.write_all(json.as_bytes())).with_context(|| format!("writing {}", p.display()))?;
+                write_atomic(p, |w| w.write_all(json.as_bytes()))
+                    .with_context(|| format!("writing {}", p.display()))?;
             }
             if let Some(p) = &plot {
                 let svg = plot::render_svg(&out.pattern, &out.features);
-                write_atomic(p, |w| w.write_all(svg.as_bytes())).with_context(|| format!("writing {}", p.display()))?;
+                write_atomic(p, |w| w.write_all(svg.as_bytes()))
+                    .with_context(|| format!("writing {}", p.display()))?;
             }
             if verbose {
                 eprintln!(
@@ -222,9 +359,18 @@ fn run(cli: Cli) -> Result<()> {
                     input.display(),
                     out.duration_s,
                     out.separator.unwrap_or("none needed"),
-                    out.stems.iter().map(|s| s.name()).collect::<Vec<_>>().join(", ")
+                    out.stems
+                        .iter()
+                        .map(|s| s.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 );
-                let total = out.times.stages.last().map(|t| t.1.as_secs_f64()).unwrap_or(0.0);
+                let total = out
+                    .times
+                    .stages
+                    .last()
+                    .map(|t| t.1.as_secs_f64())
+                    .unwrap_or(0.0);
                 for (name, t) in &out.times.stages {
                     eprintln!("  {:<36} {:>9.3} s", name, t.as_secs_f64());
                 }

@@ -20,15 +20,25 @@ const GAP: f64 = 26.0;
 
 /// Accepts `.svg`; anything else is a clear error.
 pub fn check_extension(path: &Path) -> Result<()> {
-    match path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()) {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+    {
         Some(e) if e == "svg" => Ok(()),
-        Some(e) if e == "png" => bail!("--plot {}: PNG output is not built in yet; use .svg", path.display()),
+        Some(e) if e == "png" => bail!(
+            "--plot {}: PNG output is not built in yet; use .svg",
+            path.display()
+        ),
         _ => bail!("--plot {}: the plot must end in .svg", path.display()),
     }
 }
 
 fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }
 
 /// Draws the plot.
@@ -60,25 +70,73 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
 
     // Pitch panels.
     for (stem, hz) in &f.pitch_hz {
-        let voiced: Vec<f64> = hz.iter().filter(|&&v| v > 0.0).map(|&v| 69.0 + 12.0 * (v as f64 / 440.0).log2()).collect();
-        let (lo, hi) = voiced.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
-        let (lo, hi) = if voiced.is_empty() { (40.0, 80.0) } else { (lo.floor() - 1.0, hi.ceil() + 1.0) };
+        let voiced: Vec<f64> = hz
+            .iter()
+            .filter(|&&v| v > 0.0)
+            .map(|&v| 69.0 + 12.0 * (v as f64 / 440.0).log2())
+            .collect();
+        let (lo, hi) = voiced
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        let (lo, hi) = if voiced.is_empty() {
+            (40.0, 80.0)
+        } else {
+            (lo.floor() - 1.0, hi.ceil() + 1.0)
+        };
         let y_of = |st: f64| y + PITCH_H - PITCH_H * (st - lo) / (hi - lo).max(1.0);
-        let _ = writeln!(s, r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{PITCH_H}" fill="#fafafa" stroke="#ccc"/>"##);
-        let _ = writeln!(s, r#"<text x="8" y="{}" font-size="13">{}</text>"#, y + 16.0, esc(stem));
-        let _ = writeln!(s, r##"<text x="8" y="{}" fill="#1f77b4">pitch (st)</text>"##, y + 32.0);
-        let _ = writeln!(s, r##"<text x="8" y="{}" fill="#d62728">level 0–{}</text>"##, y + 46.0, pattern.levels);
-        let _ = writeln!(s, r#"<text x="{}" y="{}">{:.0}</text>"#, LEFT - 28.0, y + 10.0, hi);
-        let _ = writeln!(s, r#"<text x="{}" y="{}">{:.0}</text>"#, LEFT - 28.0, y + PITCH_H, lo);
+        let _ = writeln!(
+            s,
+            r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{PITCH_H}" fill="#fafafa" stroke="#ccc"/>"##
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="8" y="{}" font-size="13">{}</text>"#,
+            y + 16.0,
+            esc(stem)
+        );
+        let _ = writeln!(
+            s,
+            r##"<text x="8" y="{}" fill="#1f77b4">pitch (st)</text>"##,
+            y + 32.0
+        );
+        let _ = writeln!(
+            s,
+            r##"<text x="8" y="{}" fill="#d62728">level 0–{}</text>"##,
+            y + 46.0,
+            pattern.levels
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="{}">{:.0}</text>"#,
+            LEFT - 28.0,
+            y + 10.0,
+            hi
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="{}">{:.0}</text>"#,
+            LEFT - 28.0,
+            y + PITCH_H,
+            lo
+        );
         // levels as a step line scaled to the panel
         if let Some(levels) = f.levels.get(stem) {
             let mut d = String::new();
             let lv_y = |l: u8| y + PITCH_H - PITCH_H * l as f64 / pattern.levels.max(1) as f64;
             for (k, &l) in levels.iter().enumerate() {
                 let (x0, x1) = (x_of(k as f64 * bin_s), x_of((k + 1) as f64 * bin_s));
-                let _ = write!(d, "{}{x0:.1},{:.1} L{x1:.1},{:.1} ", if k == 0 { "M" } else { "L" }, lv_y(l), lv_y(l));
+                let _ = write!(
+                    d,
+                    "{}{x0:.1},{:.1} L{x1:.1},{:.1} ",
+                    if k == 0 { "M" } else { "L" },
+                    lv_y(l),
+                    lv_y(l)
+                );
             }
-            let _ = writeln!(s, r##"<path d="{d}" fill="none" stroke="#d62728" stroke-width="1" opacity="0.7"/>"##);
+            let _ = writeln!(
+                s,
+                r##"<path d="{d}" fill="none" stroke="#d62728" stroke-width="1" opacity="0.7"/>"##
+            );
         }
         // pitch contour as short segments between consecutive voiced hops
         let mut d = String::new();
@@ -86,24 +144,45 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
         for (i, &v) in hz.iter().enumerate() {
             if v > 0.0 {
                 let st = 69.0 + 12.0 * (v as f64 / 440.0).log2();
-                let _ = write!(d, "{}{:.1},{:.1} ", if prev { "L" } else { "M" }, x_of(i as f64 * f.hop_s), y_of(st));
+                let _ = write!(
+                    d,
+                    "{}{:.1},{:.1} ",
+                    if prev { "L" } else { "M" },
+                    x_of(i as f64 * f.hop_s),
+                    y_of(st)
+                );
                 prev = true;
             } else {
                 prev = false;
             }
         }
-        let _ = writeln!(s, r##"<path d="{d}" fill="none" stroke="#1f77b4" stroke-width="1.2"/>"##);
+        let _ = writeln!(
+            s,
+            r##"<path d="{d}" fill="none" stroke="#1f77b4" stroke-width="1.2"/>"##
+        );
         y += PITCH_H + GAP;
     }
 
     // Band rasters.
     for (band, beats) in &f.beats {
-        let _ = writeln!(s, r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{BAND_H}" fill="#fafafa" stroke="#ccc"/>"##);
-        let _ = writeln!(s, r#"<text x="8" y="{}" font-size="12">{}</text>"#, y + 18.0, esc(band));
+        let _ = writeln!(
+            s,
+            r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{BAND_H}" fill="#fafafa" stroke="#ccc"/>"##
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="8" y="{}" font-size="12">{}</text>"#,
+            y + 18.0,
+            esc(band)
+        );
         for (k, &b) in beats.iter().enumerate() {
             if b != 0 {
                 let (x0, x1) = (x_of(k as f64 * bin_s), x_of((k + 1) as f64 * bin_s));
-                let _ = writeln!(s, r##"<rect x="{x0:.1}" y="{y}" width="{:.2}" height="{BAND_H}" fill="#ff7f0e" opacity="0.35"/>"##, (x1 - x0).max(0.5));
+                let _ = writeln!(
+                    s,
+                    r##"<rect x="{x0:.1}" y="{y}" width="{:.2}" height="{BAND_H}" fill="#ff7f0e" opacity="0.35"/>"##,
+                    (x1 - x0).max(0.5)
+                );
             }
         }
         if let Some(on) = f.onsets_s.get(band) {
@@ -119,12 +198,28 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
 
     // Piano roll of the 80 dots.
     y += GAP - 6.0;
-    let _ = writeln!(s, r#"<text x="{LEFT}" y="{}" font-size="13">glove pins (finger / cell / dot 1–8)</text>"#, y - 6.0);
-    let _ = writeln!(s, r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{roll_h}" fill="#fafafa" stroke="#ccc"/>"##);
+    let _ = writeln!(
+        s,
+        r#"<text x="{LEFT}" y="{}" font-size="13">glove pins (finger / cell / dot 1–8)</text>"#,
+        y - 6.0
+    );
+    let _ = writeln!(
+        s,
+        r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{roll_h}" fill="#fafafa" stroke="#ccc"/>"##
+    );
     for (fi, finger) in Finger::ALL.iter().enumerate() {
         let fy = y + fi as f64 * 16.0 * DOT_H;
-        let _ = writeln!(s, r#"<text x="8" y="{}">{}</text>"#, fy + 8.0 * DOT_H + 4.0, finger.name());
-        let _ = writeln!(s, r##"<line x1="{LEFT}" y1="{fy}" x2="{}" y2="{fy}" stroke="#999"/>"##, W - RIGHT);
+        let _ = writeln!(
+            s,
+            r#"<text x="8" y="{}">{}</text>"#,
+            fy + 8.0 * DOT_H + 4.0,
+            finger.name()
+        );
+        let _ = writeln!(
+            s,
+            r##"<line x1="{LEFT}" y1="{fy}" x2="{}" y2="{fy}" stroke="#999"/>"##,
+            W - RIGHT
+        );
     }
     let colors = ["#8c564b", "#2ca02c", "#9467bd", "#1f77b4", "#e377c2"];
     for row in 0..80usize {
@@ -138,7 +233,12 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
                 (true, None) => run = Some(k),
                 (false, Some(k0)) => {
                     let (x0, x1) = (x_of(k0 as f64 * bin_s), x_of(k as f64 * bin_s));
-                    let _ = writeln!(s, r#"<rect x="{x0:.1}" y="{ry:.1}" width="{:.2}" height="{:.1}" fill="{color}"/>"#, (x1 - x0).max(0.5), DOT_H - 0.8);
+                    let _ = writeln!(
+                        s,
+                        r#"<rect x="{x0:.1}" y="{ry:.1}" width="{:.2}" height="{:.1}" fill="{color}"/>"#,
+                        (x1 - x0).max(0.5),
+                        DOT_H - 0.8
+                    );
                     run = None;
                 }
                 _ => {}
@@ -147,10 +247,17 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
     }
     y += roll_h + 18.0;
     // time axis
-    let step = [1.0, 2.0, 5.0, 10.0, 15.0, 30.0, 60.0].into_iter().find(|st| duration / st <= 12.0).unwrap_or(120.0);
+    let step = [1.0, 2.0, 5.0, 10.0, 15.0, 30.0, 60.0]
+        .into_iter()
+        .find(|st| duration / st <= 12.0)
+        .unwrap_or(120.0);
     let mut t = 0.0;
     while t <= duration + 1e-9 {
-        let _ = writeln!(s, r#"<text x="{:.1}" y="{y}" text-anchor="middle">{t:.0} s</text>"#, x_of(t));
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.1}" y="{y}" text-anchor="middle">{t:.0} s</text>"#,
+            x_of(t)
+        );
         t += step;
     }
     s.push_str("</svg>\n");

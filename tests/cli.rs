@@ -75,7 +75,8 @@ fn renders_pattern_features_and_plot() {
         plot.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let pat: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let pat: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     assert_eq!(pat["format"], "tactus-pattern");
     assert_eq!(pat["version"], 1);
     assert_eq!(pat["bin_ms"], 100);
@@ -91,7 +92,8 @@ fn renders_pattern_features_and_plot() {
         })
         .sum();
     assert!(raised > 40, "the glove barely moves: {raised} raised cells");
-    let f: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&feat).unwrap()).unwrap();
+    let f: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&feat).unwrap()).unwrap();
     assert!((f["hop_s"].as_f64().unwrap() - 0.01).abs() < 1e-9);
     assert_eq!(f["levels"]["bass"].as_array().unwrap().len(), 40);
     let kicks = f["onsets_s"]["kick"].as_array().unwrap();
@@ -115,7 +117,10 @@ fn assert_clean_failure(o: &Output, needle: &str, out: &Path) {
     assert!(!o.status.success(), "should fail");
     let e = stderr(o);
     assert_eq!(e.trim_end().lines().count(), 1, "one line on stderr: {e:?}");
-    assert!(e.to_lowercase().contains(&needle.to_lowercase()), "{e:?} should mention {needle:?}");
+    assert!(
+        e.to_lowercase().contains(&needle.to_lowercase()),
+        "{e:?} should mention {needle:?}"
+    );
     assert!(!out.exists(), "no partial output");
     let dir = out.parent().unwrap();
     let leftovers: Vec<_> = std::fs::read_dir(dir)
@@ -130,7 +135,12 @@ fn assert_clean_failure(o: &Output, needle: &str, out: &Path) {
 fn missing_file() {
     let d = tmp();
     let out = p(d.path(), "o.json");
-    let o = tactus(&["render", p(d.path(), "nope.mp3").to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let o = tactus(&[
+        "render",
+        p(d.path(), "nope.mp3").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_clean_failure(&o, "nope.mp3", &out);
 }
 
@@ -169,7 +179,12 @@ fn unwritable_output_keeps_nothing() {
     let song = p(d.path(), "song.wav");
     write_song(&song, 0.5, 44_100, false);
     let out = p(d.path(), "no/such/dir/o.json");
-    let o = tactus(&["render", song.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let o = tactus(&[
+        "render",
+        song.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(!o.status.success());
     assert_eq!(stderr(&o).trim_end().lines().count(), 1);
     assert!(stderr(&o).contains("does not exist"), "{}", stderr(&o));
@@ -180,7 +195,12 @@ fn existing_output_survives_a_failed_render() {
     let d = tmp();
     let out = p(d.path(), "o.json");
     std::fs::write(&out, "precious").unwrap();
-    let o = tactus(&["render", p(d.path(), "missing.wav").to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let o = tactus(&[
+        "render",
+        p(d.path(), "missing.wav").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(!o.status.success());
     assert_eq!(std::fs::read_to_string(&out).unwrap(), "precious");
 }
@@ -221,5 +241,8 @@ fn supplied_stems_skip_separation_and_length_mismatch_warns() {
     assert!(o.status.success(), "{}", stderr(&o));
     let e = stderr(&o);
     assert!(e.contains("padded"), "length mismatch should warn: {e}");
-    assert!(e.contains("separator none needed"), "no separator should run: {e}");
+    assert!(
+        e.contains("separator none needed"),
+        "no separator should run: {e}"
+    );
 }

@@ -128,7 +128,10 @@ impl Framer {
                 self.buf_start = next_start;
             }
             let take = (cap - self.len).min(input.len());
-            for (dst, &x) in self.buf[self.len..self.len + take].iter_mut().zip(&input[..take]) {
+            for (dst, &x) in self.buf[self.len..self.len + take]
+                .iter_mut()
+                .zip(&input[..take])
+            {
                 let (y, was_bad) = sanitize_sample(x);
                 *dst = y;
                 bad += was_bad as usize;
@@ -190,7 +193,11 @@ mod tests {
             for n in [0usize, 1, 2, 7, 63, 64, 65, 1000] {
                 let want = naive(&x[..n], frame, hop);
                 for chunk in [1usize, 2, 3, 17, 64, 1000] {
-                    assert_eq!(chunked(&x[..n], frame, hop, chunk), want, "f{frame} h{hop} n{n} c{chunk}");
+                    assert_eq!(
+                        chunked(&x[..n], frame, hop, chunk),
+                        want,
+                        "f{frame} h{hop} n{n} c{chunk}"
+                    );
                 }
             }
         }
@@ -212,7 +219,9 @@ mod tests {
     #[test]
     fn counts_non_finite() {
         let mut f = Framer::new(4, 2).unwrap();
-        let n = f.push(&[1.0, f32::NAN, f32::INFINITY, 2.0], |_, fr| assert!(fr.iter().all(|v| v.is_finite())));
+        let n = f.push(&[1.0, f32::NAN, f32::INFINITY, 2.0], |_, fr| {
+            assert!(fr.iter().all(|v| v.is_finite()))
+        });
         assert_eq!(n, 2);
     }
 }

@@ -34,7 +34,15 @@ mod tests {
 
     #[test]
     fn replaces_and_counts_non_finite() {
-        let mut v = [1.0, f32::NAN, -8.0, f32::INFINITY, f32::NEG_INFINITY, 1e-38, 0.5];
+        let mut v = [
+            1.0,
+            f32::NAN,
+            -8.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            1e-38,
+            0.5,
+        ];
         assert_eq!(sanitize(&mut v), 3);
         assert_eq!(v, [1.0, 0.0, -8.0, 0.0, 0.0, 0.0, 0.5]);
     }

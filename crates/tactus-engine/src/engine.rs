@@ -103,13 +103,27 @@ struct StemChain {
 }
 
 impl StemChain {
-    fn new(stem: Stem, geo: Geometry, pitch: Option<PitchMethod>, notes: bool, bands: &[Band]) -> Result<Self, EngineError> {
-        let hp = if matches!(stem, Stem::Bass | Stem::Drums) { 30.0 } else { 60.0 };
+    fn new(
+        stem: Stem,
+        geo: Geometry,
+        pitch: Option<PitchMethod>,
+        notes: bool,
+        bands: &[Band],
+    ) -> Result<Self, EngineError> {
+        let hp = if matches!(stem, Stem::Bass | Stem::Drums) {
+            30.0
+        } else {
+            60.0
+        };
         let pitch = match (pitch, stem.pitch_range_hz()) {
             (Some(m), Some((lo, hi))) => Some(PitchTrack::new(geo, lo, hi, m)?),
             _ => None,
         };
-        let notes = if notes { Some(OnsetTrack::new(geo, None)?) } else { None };
+        let notes = if notes {
+            Some(OnsetTrack::new(geo, None)?)
+        } else {
+            None
+        };
         let mut chains = Vec::new();
         for &band in bands {
             let edges = tactus_dsp::sos::band_edges(band, geo.sample_rate);
@@ -230,7 +244,9 @@ impl Engine {
     /// Builds the stages the map needs.
     pub fn new(cfg: EngineConfig) -> Result<Engine, EngineError> {
         if cfg.bin_ms == 0 {
-            return Err(EngineError::Config("bin length must be at least 1 ms".into()));
+            return Err(EngineError::Config(
+                "bin length must be at least 1 ms".into(),
+            ));
         }
         if cfg.levels == 0 {
             return Err(EngineError::Config("levels must be at least 1".into()));
@@ -248,7 +264,11 @@ impl Engine {
         for stem in cfg.map.stems() {
             let pitch = needs.pitch.contains(&stem).then_some(cfg.pitch);
             let notes = needs.note_onsets.contains(&stem);
-            let bands: Vec<Band> = if stem == Stem::Drums { needs.bands.clone() } else { Vec::new() };
+            let bands: Vec<Band> = if stem == Stem::Drums {
+                needs.bands.clone()
+            } else {
+                Vec::new()
+            };
             chains.push(StemChain::new(stem, geo, pitch, notes, &bands)?);
             if !cfg.supplied.contains(stem) {
                 separated = separated.with(stem);
@@ -263,7 +283,8 @@ impl Engine {
                         .map_err(|e| EngineError::Config(e.to_string()))?,
                 ),
                 SeparatorChoice::None => Box::new(
-                    NoneSeparator::new(cfg.sample_rate, separated).map_err(|e| EngineError::Config(e.to_string()))?,
+                    NoneSeparator::new(cfg.sample_rate, separated)
+                        .map_err(|e| EngineError::Config(e.to_string()))?,
                 ),
             })
         };
@@ -461,9 +482,20 @@ impl Engine {
         if let Some(s) = &self.separator {
             v.push((format!("separator ({})", s.name()), ms(s.latency_samples())));
         }
-        let feat = self.chains.iter().map(|c| c.latency_samples()).max().unwrap_or(0);
-        v.push(("features (denoise, pitch/onset look-ahead)".into(), ms(feat)));
-        v.push((format!("bin ({} ms)", self.cfg.bin_ms), ms(self.geo.bin_samples)));
+        let feat = self
+            .chains
+            .iter()
+            .map(|c| c.latency_samples())
+            .max()
+            .unwrap_or(0);
+        v.push((
+            "features (denoise, pitch/onset look-ahead)".into(),
+            ms(feat),
+        ));
+        v.push((
+            format!("bin ({} ms)", self.cfg.bin_ms),
+            ms(self.geo.bin_samples),
+        ));
         v
     }
 
@@ -471,20 +503,24 @@ impl Engine {
     pub fn stage_times(&self) -> StageTimes {
         let mut st = StageTimes::default();
         if let Some(s) = &self.separator {
-            st.stages.push((format!("separate ({})", s.name()), self.t_separate));
+            st.stages
+                .push((format!("separate ({})", s.name()), self.t_separate));
         }
         for c in &self.chains {
             let n = c.stem.name();
             st.stages.push((format!("{n}: denoise"), c.t_denoise));
             if c.pitch.is_some() {
-                st.stages.push((format!("{n}: pitch + gate + levels"), c.t_pitch));
+                st.stages
+                    .push((format!("{n}: pitch + gate + levels"), c.t_pitch));
             }
             if c.notes.is_some() {
                 st.stages.push((format!("{n}: note onsets"), c.t_notes));
             }
             for b in &c.bands {
-                st.stages.push((format!("{n}/{}: band-pass", b.band.name()), b.t_filter));
-                st.stages.push((format!("{n}/{}: onsets", b.band.name()), b.t_onsets));
+                st.stages
+                    .push((format!("{n}/{}: band-pass", b.band.name()), b.t_filter));
+                st.stages
+                    .push((format!("{n}/{}: onsets", b.band.name()), b.t_onsets));
             }
         }
         st

@@ -57,12 +57,26 @@ struct SuppliedStem {
     buf: Vec<f32>,
 }
 
-fn load_stem(stem: Stem, path: &Path, rate: u32, warnings: &mut Vec<String>) -> Result<SuppliedStem, EngineError> {
+fn load_stem(
+    stem: Stem,
+    path: &Path,
+    rate: u32,
+    warnings: &mut Vec<String>,
+) -> Result<SuppliedStem, EngineError> {
     let d = crate::source::decode_all(path)?;
     if d.non_finite > 0 {
-        warnings.push(format!("{}: {} NaN/Inf samples replaced by 0", path.display(), d.non_finite));
+        warnings.push(format!(
+            "{}: {} NaN/Inf samples replaced by 0",
+            path.display(),
+            d.non_finite
+        ));
     }
-    let mono: Vec<f32> = d.left.iter().zip(&d.right).map(|(l, r)| 0.5 * (l + r)).collect();
+    let mono: Vec<f32> = d
+        .left
+        .iter()
+        .zip(&d.right)
+        .map(|(l, r)| 0.5 * (l + r))
+        .collect();
     let samples = if d.info.sample_rate == rate {
         mono
     } else {
@@ -94,7 +108,21 @@ impl SuppliedStem {
 }
 
 /// Renders a song. `progress(fraction)` is called after every block when the duration is known.
-pub fn render(req: &RenderRequest, progress: &mut dyn FnMut(f64)) -> Result<RenderOutput, EngineError> {
+pub fn render(
+    req: &RenderRequest,
+    progress: &mut dyn FnMut(f64),
+) -> Result<RenderOutput, EngineError> {
+    render_with(req, progress, &mut |_, _| {})
+}
+
+/// [`render`], also handing every glove frame to `on_frame(bin, frame)` as soon as it is
+/// final: in `streaming` mode while the song is still being decoded (what `tactus play`
+/// uses), in `offline` mode all at the end.
+pub fn render_with(
+    req: &RenderRequest,
+    progress: &mut dyn FnMut(f64),
+    on_frame: &mut dyn FnMut(usize, tactus_glove::Frame),
+) -> Result<RenderOutput, EngineError> {
     let t_all = Instant::now();
     let mut warnings = Vec::new();
     let mut source = AudioSource::open(&req.input)?;
@@ -126,6 +154,7 @@ pub fn render(req: &RenderRequest, progress: &mut dyn FnMut(f64)) -> Result<Rend
     let mut frames_in: u64 = 0;
     let total = info.frames.unwrap_or(0);
     let mut ended = false;
+    let mut delivered = 0usize;
     while !ended {
         let t = Instant::now();
         let n = source.read_block(&mut left, &mut right)?;
@@ -157,6 +186,13 @@ pub fn render(req: &RenderRequest, progress: &mut dyn FnMut(f64)) -> Result<Rend
         feed(&mut engine, &out[0][..len], &out[1][..len], &mut supplied);
         out[0].clear();
         out[1].clear();
+        if req.config.mode == crate::Mode::Streaming {
+            let ready = engine.ready_bins();
+            while delivered < ready {
+                on_frame(delivered, engine.frame(delivered));
+                delivered += 1;
+            }
+        }
         if total > 0 {
             progress((frames_in as f64 / total as f64).min(1.0));
         }
@@ -187,13 +223,20 @@ pub fn render(req: &RenderRequest, progress: &mut dyn FnMut(f64)) -> Result<Rend
                 s.stem.name(),
                 diff.unsigned_abs() as f64 / rate as f64,
                 if diff > 0 { "longer" } else { "shorter" },
-                if diff > 0 { "trimmed" } else { "padded with silence" }
+                if diff > 0 {
+                    "trimmed"
+                } else {
+                    "padded with silence"
+                }
             ));
         }
     }
 
     let duration_s = n as f64 / rate as f64;
     let frames = engine.frames();
+    for (k, f) in frames.iter().enumerate().skip(delivered) {
+        on_frame(k, *f);
+    }
     let pattern = Pattern {
         source: SourceInfo {
             path: req.input.display().to_string(),
@@ -226,6 +269,9 @@ fn feed(engine: &mut Engine, l: &[f32], r: &[f32], supplied: &mut [SuppliedStem]
     for s in supplied.iter_mut() {
         s.next(l.len());
     }
-    let views: Vec<(Stem, &[f32])> = supplied.iter().map(|s| (s.stem, s.buf.as_slice())).collect();
+    let views: Vec<(Stem, &[f32])> = supplied
+        .iter()
+        .map(|s| (s.stem, s.buf.as_slice()))
+        .collect();
     engine.process(l, r, &views);
 }

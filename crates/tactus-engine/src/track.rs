@@ -126,7 +126,12 @@ pub struct PitchTrack {
 
 impl PitchTrack {
     /// A pitch track searching `[fmin_hz, fmax_hz]`.
-    pub fn new(geo: Geometry, fmin_hz: f32, fmax_hz: f32, method: PitchMethod) -> Result<Self, ConfigError> {
+    pub fn new(
+        geo: Geometry,
+        fmin_hz: f32,
+        fmax_hz: f32,
+        method: PitchMethod,
+    ) -> Result<Self, ConfigError> {
         let yc = YinConfig::new(geo.sample_rate, fmin_hz, fmax_hz);
         let hop = yc.hop;
         let frame = yc.frame;
@@ -166,13 +171,16 @@ impl PitchTrack {
 
     /// Input samples of look-ahead this track needs before hop `i` is final.
     pub fn latency_samples(&self) -> usize {
-        self.tracker.latency_samples().max(self.rms.latency_samples())
+        self.tracker
+            .latency_samples()
+            .max(self.rms.latency_samples())
     }
 
     /// Feeds a block of the (denoised) stem.
     pub fn process(&mut self, block: &[f32]) {
         let raw_f0 = &mut self.raw_f0;
-        self.tracker.process(block, &mut |_, e| raw_f0.push(e.f0_hz));
+        self.tracker
+            .process(block, &mut |_, e| raw_f0.push(e.f0_hz));
         let raw_rms = &mut self.raw_rms;
         self.rms.process(block, &mut |_, r| raw_rms.push(r));
         self.post_streaming();
@@ -218,7 +226,9 @@ impl PitchTrack {
         let n = self.raw_f0.len().min(self.raw_rms.len());
         let mut open = vec![false; n];
         gate_offline(&self.raw_rms[..n], GATE_BELOW_DB, &mut open);
-        let mut f0: Vec<f32> = (0..n).map(|i| if open[i] { self.raw_f0[i] } else { 0.0 }).collect();
+        let mut f0: Vec<f32> = (0..n)
+            .map(|i| if open[i] { self.raw_f0[i] } else { 0.0 })
+            .collect();
         reject_outliers_offline(&mut f0, TUKEY_K);
         let levels: Vec<u8> = match range_offline(&f0) {
             Some(r) => f0.iter().map(|&f| self.disc.level(f, r)).collect(),
@@ -305,7 +315,8 @@ impl OnsetTrack {
     /// Feeds a block.
     pub fn process(&mut self, block: &[f32]) {
         let raw = &mut self.raw_onset;
-        self.det.process(block, &mut |_, f: OnsetFrame| raw.push(f.onset));
+        self.det
+            .process(block, &mut |_, f: OnsetFrame| raw.push(f.onset));
         let raw_rms = &mut self.raw_rms;
         self.rms.process(block, &mut |_, r| raw_rms.push(r));
         self.post_streaming();
