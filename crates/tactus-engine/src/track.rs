@@ -16,7 +16,7 @@ use tactus_dsp::flux::{OnsetConfig, OnsetDetector, OnsetFrame};
 use tactus_dsp::median::MedianFilter;
 use tactus_dsp::pyin::{Pyin, PyinConfig};
 use tactus_dsp::rms::{gate_offline, Rms, StreamingGate, GATE_BELOW_DB};
-use tactus_dsp::sos::SosFilter;
+use tactus_dsp::sos::{Response, SosFilter};
 use tactus_dsp::tukey::{reject_outliers_offline, SlidingTukey, TUKEY_K};
 use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
 use tactus_dsp::{ConfigError, HopStage, SampleStage};
@@ -99,8 +99,78 @@ impl Denoise {
     }
 }
 
+/// Anti-aliased integer decimation in front of a pitch tracker: a stem whose highest
+/// pitch is 400 Hz does not need 44.1 kHz. The rate after decimation keeps 10 ms hops
+/// whole (`rate / factor` divisible by 100) and stays at least 7 × fmax, where YIN keeps
+/// its ≤ 5 cent accuracy (tactus-dsp's pitch tests hold to sr/8 for sines).
+/// An order-8 Butterworth low-pass at 0.4 × the new rate removes what would alias.
+pub struct Decimator {
+    lp: SosFilter,
+    factor: usize,
+    /// Input samples to skip before the next kept one.
+    skip: usize,
+    scratch: Vec<f32>,
+    out: Vec<f32>,
+}
+
+impl Decimator {
+    /// The largest factor that keeps `rate / factor` ≥ 7·fmax with whole 10 ms hops.
+    pub fn factor_for(rate: u32, fmax_hz: f32) -> usize {
+        (1..=32usize)
+            .rev()
+            .find(|&f| {
+                rate as usize % f == 0 && (rate as usize / f) % 100 == 0 && (rate as usize / f) as f32 >= 7.0 * fmax_hz
+            })
+            .unwrap_or(1)
+    }
+
+    /// A decimator by `factor` for input at `rate`.
+    pub fn new(rate: u32, factor: usize) -> Result<Self, ConfigError> {
+        let out_rate = rate as f64 / factor as f64;
+        let lp = SosFilter::butterworth(8, Response::LowPass { cutoff_hz: 0.4 * out_rate }, rate)?;
+        Ok(Decimator {
+            lp,
+            factor,
+            skip: 0,
+            scratch: Vec::with_capacity(1 << 16),
+            out: Vec::with_capacity(1 << 16),
+        })
+    }
+
+    /// Filters and decimates `block`; the result is in [`Decimator::output`].
+    pub fn process(&mut self, block: &[f32]) {
+        self.out.clear();
+        if self.factor == 1 {
+            self.out.extend_from_slice(block);
+            return;
+        }
+        self.scratch.clear();
+        self.scratch.extend_from_slice(block);
+        self.lp.process_inplace(&mut self.scratch);
+        let mut i = self.skip;
+        while i < self.scratch.len() {
+            self.out.push(self.scratch[i]);
+            i += self.factor;
+        }
+        self.skip = i - self.scratch.len();
+    }
+
+    /// The decimated samples of the last block.
+    pub fn output(&self) -> &[f32] {
+        &self.out
+    }
+
+    /// Back to the initial state.
+    pub fn reset(&mut self) {
+        self.lp.reset();
+        self.skip = 0;
+        self.out.clear();
+    }
+}
+
 /// Pitch feature track of one melodic stem.
 pub struct PitchTrack {
+    decimator: Decimator,
     tracker: Box<dyn HopStage<Out = PitchEstimate>>,
     rms: Rms,
     hop: usize,
@@ -132,22 +202,27 @@ impl PitchTrack {
         fmax_hz: f32,
         method: PitchMethod,
     ) -> Result<Self, ConfigError> {
-        let yc = YinConfig::new(geo.sample_rate, fmin_hz, fmax_hz);
-        let hop = yc.hop;
+        let factor = Decimator::factor_for(geo.sample_rate, fmax_hz);
+        let rate = geo.sample_rate / factor as u32;
+        let yc = YinConfig::new(rate, fmin_hz, fmax_hz);
+        // The tracker and the RMS run at the decimated rate; the binner and the time
+        // stamps use engine-rate samples (`hop = yc.hop * factor`).
+        let hop = yc.hop * factor;
         let frame = yc.frame;
         let tracker: Box<dyn HopStage<Out = PitchEstimate>> = match method {
-            PitchMethod::Yin => Box::new(Yin::new(yc)?),
+            PitchMethod::Yin => Box::new(Yin::new(yc.clone())?),
             PitchMethod::Pyin => {
-                let mut pc = PyinConfig::new(geo.sample_rate, fmin_hz, fmax_hz);
-                pc.yin = yc;
+                let mut pc = PyinConfig::new(rate, fmin_hz, fmax_hz);
+                pc.yin = yc.clone();
                 pc.lag_hops = PYIN_LAG_HOPS;
                 Box::new(Pyin::new(pc)?)
             }
         };
         let hop_s = hop as f32 / geo.sample_rate as f32;
         Ok(PitchTrack {
+            decimator: Decimator::new(geo.sample_rate, factor)?,
             tracker,
-            rms: Rms::new(frame.min(4 * hop).max(hop), hop)?,
+            rms: Rms::new(frame.min(4 * yc.hop).max(yc.hop), yc.hop)?,
             hop,
             geo,
             raw_f0: Vec::new(),
@@ -169,15 +244,20 @@ impl PitchTrack {
         self.hop
     }
 
-    /// Input samples of look-ahead this track needs before hop `i` is final.
+    /// Input samples (engine rate) of look-ahead this track needs before hop `i` is final.
     pub fn latency_samples(&self) -> usize {
-        self.tracker
-            .latency_samples()
-            .max(self.rms.latency_samples())
+        self.tracker.latency_samples().max(self.rms.latency_samples()) * self.decimator.factor
+    }
+
+    /// Decimation factor in front of the tracker.
+    pub fn decimation(&self) -> usize {
+        self.decimator.factor
     }
 
     /// Feeds a block of the (denoised) stem.
     pub fn process(&mut self, block: &[f32]) {
+        self.decimator.process(block);
+        let block = self.decimator.output();
         let raw_f0 = &mut self.raw_f0;
         self.tracker
             .process(block, &mut |_, e| raw_f0.push(e.f0_hz));
@@ -241,6 +321,7 @@ impl PitchTrack {
 
     /// Back to the initial state.
     pub fn reset(&mut self) {
+        self.decimator.reset();
         self.tracker.reset();
         self.rms.reset();
         self.raw_f0.clear();
