@@ -20,7 +20,7 @@
 //! **Blocking.** A network call runs inside `process` / `finish` on the caller's thread
 //! (seconds on 2 cores): run these separators off the real-time thread.
 
-// htdemucs: next
+pub mod htdemucs;
 pub mod spleeter;
 
 use std::path::{Path, PathBuf};
