@@ -54,9 +54,17 @@ fn tones(n: usize) -> common::Mix {
             })
             .sum::<f64>() as f32
     };
-    let left: Vec<f32> = (0..n).map(|i| f(i, &[55.0, 220.0, 1234.5, 4400.0, 9000.0])).collect();
-    let right: Vec<f32> = (0..n).map(|i| f(i, &[82.4, 330.0, 2000.0, 6100.0])).collect();
-    let mono = left.iter().zip(&right).map(|(a, b)| 0.5 * (a + b)).collect();
+    let left: Vec<f32> = (0..n)
+        .map(|i| f(i, &[55.0, 220.0, 1234.5, 4400.0, 9000.0]))
+        .collect();
+    let right: Vec<f32> = (0..n)
+        .map(|i| f(i, &[82.4, 330.0, 2000.0, 6100.0]))
+        .collect();
+    let mono = left
+        .iter()
+        .zip(&right)
+        .map(|(a, b)| 0.5 * (a + b))
+        .collect();
     common::Mix {
         left,
         right,
@@ -72,7 +80,8 @@ fn gain(stem: Stem) -> f32 {
 
 #[test]
 fn standin_segment_interior_is_the_scaled_mix() {
-    let Some(mut sep) = standin("standin_segment_interior_is_the_scaled_mix", StemSet::all()) else {
+    let Some(mut sep) = standin("standin_segment_interior_is_the_scaled_mix", StemSet::all())
+    else {
         return;
     };
     // Tones well below Nyquist: Demucs drops the Nyquist bin, which white noise (the
@@ -152,7 +161,14 @@ fn contract_lengths_chunks_reset_latency() {
         return;
     };
     let mix = common::synthetic_mix(SR, 17.0, 8);
-    for n in [0usize, 1, 4097, SEGMENT_SAMPLES - 1, SEGMENT_SAMPLES, SEGMENT_SAMPLES + 1] {
+    for n in [
+        0usize,
+        1,
+        4097,
+        SEGMENT_SAMPLES - 1,
+        SEGMENT_SAMPLES,
+        SEGMENT_SAMPLES + 1,
+    ] {
         sep.reset();
         let out = common::run_block(&mut sep, &mix.left[..n], &mix.right[..n]);
         for s in stems.iter() {
@@ -173,7 +189,10 @@ fn contract_lengths_chunks_reset_latency() {
         pos = end;
         i += 1;
         for s in stems.iter() {
-            assert!(out.get(s).len() + latency >= pos, "{s:?} lags more than {latency}");
+            assert!(
+                out.get(s).len() + latency >= pos,
+                "{s:?} lags more than {latency}"
+            );
         }
     }
     sep.finish(&mut out);
@@ -202,7 +221,9 @@ fn wrong_model_is_rejected() {
         model: support::fixture("wrong_names.onnx"),
         threads: 1,
     };
-    let err = HtDemucsSeparator::new(SR, StemSet::all(), &cfg).err().unwrap();
+    let err = HtDemucsSeparator::new(SR, StemSet::all(), &cfg)
+        .err()
+        .unwrap();
     assert!(matches!(err, OnnxError::WrongModel { .. }), "{err}");
     assert!(err.to_string().contains("no input named `mix`"), "{err}");
 }
@@ -215,7 +236,10 @@ fn read_pairs(path: &Path) -> Vec<(usize, f32)> {
         .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
         .map(|l| {
             let mut it = l.split_whitespace();
-            (it.next().unwrap().parse().unwrap(), it.next().unwrap().parse().unwrap())
+            (
+                it.next().unwrap().parse().unwrap(),
+                it.next().unwrap().parse().unwrap(),
+            )
         })
         .collect()
 }
@@ -233,8 +257,13 @@ fn golden_input() -> (Vec<f32>, Vec<f32>) {
         let t = i as f64 / SR as f64;
         let nl = noise();
         let nr = noise();
-        l.push((0.3 * (tau * 220.0 * t).sin() + 0.1 * (tau * 1234.5 * t + 0.3).sin() + 0.05 * nl) as f32);
-        r.push((0.2 * (tau * 330.0 * t + 1.0).sin() + 0.1 * (tau * 87.0 * t).sin() + 0.05 * nr) as f32);
+        l.push(
+            (0.3 * (tau * 220.0 * t).sin() + 0.1 * (tau * 1234.5 * t + 0.3).sin() + 0.05 * nl)
+                as f32,
+        );
+        r.push(
+            (0.2 * (tau * 330.0 * t + 1.0).sin() + 0.1 * (tau * 87.0 * t).sin() + 0.05 * nr) as f32,
+        );
     }
     (l, r)
 }

@@ -27,12 +27,19 @@ fn loading_errors_are_clear() {
 
     // 1. Missing library file.
     let missing = PathBuf::from("/nonexistent/libonnxruntime.so");
-    let err = SpleeterSeparator::new(44_100, vocals, &cfg(Some(missing.clone()), any_model.clone()))
-        .err()
-        .expect("missing library must fail");
+    let err = SpleeterSeparator::new(
+        44_100,
+        vocals,
+        &cfg(Some(missing.clone()), any_model.clone()),
+    )
+    .err()
+    .expect("missing library must fail");
     assert_eq!(err, OnnxError::RuntimeNotFound(Some(missing)));
     let msg = err.to_string();
-    assert!(msg.contains("ONNX Runtime not found") && msg.contains("setup_onnxruntime.sh"), "{msg}");
+    assert!(
+        msg.contains("ONNX Runtime not found") && msg.contains("setup_onnxruntime.sh"),
+        "{msg}"
+    );
 
     // 2. A file that is not a shared library.
     let not_lib = support::fixture("not_a_model.onnx");
@@ -44,7 +51,10 @@ fn loading_errors_are_clear() {
 
     // 3. Argument errors come before any loading.
     let err = SpleeterSeparator::new(48_000, vocals, &cfg(None, any_model.clone())).err();
-    assert_eq!(err, Some(OnnxError::Separate(SeparateError::SampleRate(48_000))));
+    assert_eq!(
+        err,
+        Some(OnnxError::Separate(SeparateError::SampleRate(48_000)))
+    );
     let err = SpleeterSeparator::new(44_100, StemSet::EMPTY, &cfg(None, any_model.clone())).err();
     assert_eq!(err, Some(OnnxError::Separate(SeparateError::NoStems)));
 
@@ -62,9 +72,13 @@ fn loading_errors_are_clear() {
     assert!(err.to_string().contains("setup_models.sh"));
 
     // 5. Not an ONNX file.
-    let err = SpleeterSeparator::new(44_100, vocals, &cfg(lib.clone(), support::fixture("not_a_model.onnx")))
-        .err()
-        .expect("garbage must fail");
+    let err = SpleeterSeparator::new(
+        44_100,
+        vocals,
+        &cfg(lib.clone(), support::fixture("not_a_model.onnx")),
+    )
+    .err()
+    .expect("garbage must fail");
     assert!(matches!(err, OnnxError::ModelLoad { .. }), "{err}");
 
     // 6. A valid ONNX model with other input names.
@@ -73,13 +87,20 @@ fn loading_errors_are_clear() {
         .expect("foreign model must fail");
     let msg = err.to_string();
     assert!(matches!(err, OnnxError::WrongModel { .. }), "{msg}");
-    assert!(msg.contains("no input named `mag`") && msg.contains("\"x\""), "{msg}");
+    assert!(
+        msg.contains("no input named `mag`") && msg.contains("\"x\""),
+        "{msg}"
+    );
     println!("foreign model: {msg}");
 
     // 7. Right names, wrong bin count.
-    let err = SpleeterSeparator::new(44_100, vocals, &cfg(lib, support::fixture("wrong_shape.onnx")))
-        .err()
-        .expect("wrong shape must fail");
+    let err = SpleeterSeparator::new(
+        44_100,
+        vocals,
+        &cfg(lib, support::fixture("wrong_shape.onnx")),
+    )
+    .err()
+    .expect("wrong shape must fail");
     let msg = err.to_string();
     assert!(msg.contains("shape") && msg.contains("1024"), "{msg}");
     println!("wrong shape: {msg}");

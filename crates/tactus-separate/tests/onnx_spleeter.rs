@@ -100,7 +100,10 @@ fn vocals_beat_the_mix_on_corpus_songs() {
 /// (same 4096/1024 Hann frame grid as Spleeter's; Spleeter's masks sum to 1 below bin
 /// 1024 and the spectral split of the accompaniment sums to the accompaniment).
 fn band_limited(x: &[f32]) -> Vec<f32> {
-    let cfg = StftConfig { n_fft: 4096, hop: 1024 };
+    let cfg = StftConfig {
+        n_fft: 4096,
+        hop: 1024,
+    };
     let mut a = StftAnalysis::new(cfg, 1).unwrap();
     let mut s = OverlapAdd::new(cfg, 1).unwrap();
     let mut y = Vec::with_capacity(x.len());
@@ -150,7 +153,10 @@ fn four_stems_sum_to_the_band_limited_mix() {
 
 fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
     assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
 }
 
 #[test]
@@ -184,7 +190,10 @@ fn contract_chunk_invariance_reset_and_latency() {
         }
     }
     sp.finish(&mut out);
-    let peak = whole.get(Stem::Vocals).iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    let peak = whole
+        .get(Stem::Vocals)
+        .iter()
+        .fold(0.0f32, |m, v| m.max(v.abs()));
     for s in stems.iter() {
         assert_eq!(out.get(s).len(), l.len());
         // Same frames, same network inputs: only ONNX Runtime's thread scheduling may
@@ -199,7 +208,10 @@ fn contract_chunk_invariance_reset_and_latency() {
     let again = common::run_block(&mut sp, l, r);
     for s in stems.iter() {
         let d = max_abs_diff(whole.get(s), again.get(s));
-        assert!(d <= 1e-5 * peak.max(1.0), "{s:?} after reset differs by {d}");
+        assert!(
+            d <= 1e-5 * peak.max(1.0),
+            "{s:?} after reset differs by {d}"
+        );
     }
 }
 

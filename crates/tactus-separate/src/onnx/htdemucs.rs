@@ -86,7 +86,13 @@ const INPUTS: [Port; 2] = [
 const OUTPUTS: [Port; 2] = [
     Port {
         name: "freq",
-        shape: &[Some(1), Some(4), Some(4), Some(BINS as i64), Some(FRAMES as i64)],
+        shape: &[
+            Some(1),
+            Some(4),
+            Some(4),
+            Some(BINS as i64),
+            Some(FRAMES as i64),
+        ],
     },
     Port {
         name: "time",
@@ -250,7 +256,11 @@ impl HtDemucsSeparator {
                 }
                 if self
                     .fft
-                    .process_with_scratch(&mut self.frame, &mut self.spectrum, &mut self.scratch_fwd)
+                    .process_with_scratch(
+                        &mut self.frame,
+                        &mut self.spectrum,
+                        &mut self.scratch_fwd,
+                    )
                     .is_err()
                 {
                     self.spectrum.fill(Complex::new(0.0, 0.0));

@@ -240,9 +240,9 @@ fn segment_weight(k: usize, j: usize) -> f32 {
 impl Core {
     fn on_frame(&mut self, t: usize, spectra: &[Vec<Complex<f32>>], out: &mut StemOutput) {
         let slot = (t % SEGMENT_FRAMES) * NET_BINS;
-        for c in 0..2 {
-            self.spec[c][slot..slot + NET_BINS].copy_from_slice(&spectra[c][..NET_BINS]);
-            self.vmask[c][slot..slot + NET_BINS].fill(0.0);
+        for ((spec, vmask), src) in self.spec.iter_mut().zip(&mut self.vmask).zip(spectra) {
+            spec[slot..slot + NET_BINS].copy_from_slice(&src[..NET_BINS]);
+            vmask[slot..slot + NET_BINS].fill(0.0);
         }
         self.frames_in = t + 1;
         let k = self.segments;
@@ -273,9 +273,11 @@ impl Core {
         }
         self.segments = k + 1;
         let result = (|| -> Result<(), String> {
-            let input =
-                TensorRef::from_array_view(([1usize, 2, SEGMENT_FRAMES, NET_BINS], &self.net_in[..]))
-                    .map_err(|e| e.to_string())?;
+            let input = TensorRef::from_array_view((
+                [1usize, 2, SEGMENT_FRAMES, NET_BINS],
+                &self.net_in[..],
+            ))
+            .map_err(|e| e.to_string())?;
             let outputs = self
                 .session
                 .run(ort::inputs![input])
@@ -451,7 +453,12 @@ impl Split {
             }
         }
         if self.want_other {
-            for (&o, &v) in self.out.get(Stem::Other).iter().zip(self.out.get(Stem::Vocals)) {
+            for (&o, &v) in self
+                .out
+                .get(Stem::Other)
+                .iter()
+                .zip(self.out.get(Stem::Vocals))
+            {
                 out.push(Stem::Other, o + v);
             }
         }
@@ -511,8 +518,9 @@ impl Separator for SpleeterSeparator {
         let mut scratch = StemOutput::new();
         let mut fed = 0;
         while fed < EXTRA_PAD {
-            self.analysis
-                .push(&[zeros, zeros], |t, spectra| core.on_frame(t, spectra, &mut scratch));
+            self.analysis.push(&[zeros, zeros], |t, spectra| {
+                core.on_frame(t, spectra, &mut scratch)
+            });
             fed += zeros.len();
         }
     }
