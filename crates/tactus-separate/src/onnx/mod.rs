@@ -17,6 +17,10 @@
 //! ONNX Runtime allocates its output tensors inside every network call (once per
 //! segment, i.e. every several seconds of audio), which is outside our control.
 //!
+//! **Panics**: none. Buffer sizes are fixed at construction and every index is derived
+//! from them; the library path is made absolute before `ort` sees it (`ort` would panic
+//! resolving a relative path if the executable's path were unknown).
+//!
 //! **Blocking.** A network call runs inside `process` / `finish` on the caller's thread
 //! (seconds on 2 cores): run these separators off the real-time thread.
 
