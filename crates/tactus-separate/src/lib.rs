@@ -33,6 +33,8 @@
 #![forbid(unsafe_code)]
 
 pub mod none;
+#[cfg(feature = "onnx")]
+pub mod onnx;
 pub mod spectral;
 pub mod stft;
 
