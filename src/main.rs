@@ -190,13 +190,16 @@ fn engine_config(
     mode: Mode,
     default_bin_ms: u32,
 ) -> Result<(EngineConfig, Vec<(Stem, PathBuf)>)> {
+    let model = |name: &str| -> Result<PathBuf> {
+        e.model.clone().ok_or_else(|| {
+            anyhow!("--separator {name} needs --model PATH (see README, \"ONNX models\")")
+        })
+    };
     let separator = match e.separator {
         SepArg::Spectral => SeparatorChoice::Spectral,
         SepArg::None => SeparatorChoice::None,
-        SepArg::Htdemucs | SepArg::Spleeter => bail!(
-            "the ONNX separators are not part of this build yet; use --separator spectral (default) or none{}",
-            e.model.as_ref().map(|m| format!(" (model {} not loaded)", m.display())).unwrap_or_default()
-        ),
+        SepArg::Spleeter => SeparatorChoice::Spleeter(model("spleeter")?),
+        SepArg::Htdemucs => SeparatorChoice::HtDemucs(model("htdemucs")?),
     };
     let map = match &e.map {
         Some(p) => GloveMap::from_path(p).with_context(|| format!("--map {}", p.display()))?,

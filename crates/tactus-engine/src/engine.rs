@@ -26,13 +26,18 @@ pub const ENGINE_RATE: u32 = 44_100;
 const PARALLEL_MIN_BLOCK: usize = 16_384;
 
 /// Which separator splits the mix.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub enum SeparatorChoice {
     /// The embedded pure-Rust spectral separator (HPSS + bass band + centre extraction).
     #[default]
     Spectral,
     /// No separation: the mix feeds every stem chain.
     None,
+    /// Spleeter 2-stem ONNX model (vocals from the network, the accompaniment split
+    /// spectrally). Needs the `onnx` cargo feature and ONNX Runtime at run time.
+    Spleeter(std::path::PathBuf),
+    /// Hybrid Transformer Demucs exported to ONNX (`models/export_htdemucs.py`).
+    HtDemucs(std::path::PathBuf),
 }
 
 /// Everything the engine needs to know up front.
@@ -229,6 +234,37 @@ impl StemChain {
     }
 }
 
+#[cfg(feature = "onnx")]
+fn onnx_separator(
+    demucs: bool,
+    model: &std::path::Path,
+    rate: u32,
+    stems: StemSet,
+) -> Result<Box<dyn Separator>, EngineError> {
+    use tactus_separate::onnx::{
+        htdemucs::HtDemucsSeparator, spleeter::SpleeterSeparator, OnnxConfig,
+    };
+    let cfg = OnnxConfig::new(model);
+    let err = |e: tactus_separate::onnx::OnnxError| EngineError::Config(e.to_string());
+    Ok(if demucs {
+        Box::new(HtDemucsSeparator::new(rate, stems, &cfg).map_err(err)?)
+    } else {
+        Box::new(SpleeterSeparator::new(rate, stems, &cfg).map_err(err)?)
+    })
+}
+
+#[cfg(not(feature = "onnx"))]
+fn onnx_separator(
+    _demucs: bool,
+    _model: &std::path::Path,
+    _rate: u32,
+    _stems: StemSet,
+) -> Result<Box<dyn Separator>, EngineError> {
+    Err(EngineError::Config(
+        "this tactus was built without ONNX support: rebuild with `--features onnx` (see README, \"ONNX models\")".into(),
+    ))
+}
+
 /// The streaming pipeline. See the module docs.
 pub struct Engine {
     cfg: EngineConfig,
@@ -277,11 +313,17 @@ impl Engine {
         let separator: Option<Box<dyn Separator>> = if separated.is_empty() {
             None
         } else {
-            Some(match cfg.separator {
+            Some(match &cfg.separator {
                 SeparatorChoice::Spectral => Box::new(
                     SpectralSeparator::new(cfg.sample_rate, separated, SpectralConfig::default())
                         .map_err(|e| EngineError::Config(e.to_string()))?,
                 ),
+                SeparatorChoice::Spleeter(model) => {
+                    onnx_separator(false, model, cfg.sample_rate, separated)?
+                }
+                SeparatorChoice::HtDemucs(model) => {
+                    onnx_separator(true, model, cfg.sample_rate, separated)?
+                }
                 SeparatorChoice::None => Box::new(
                     NoneSeparator::new(cfg.sample_rate, separated)
                         .map_err(|e| EngineError::Config(e.to_string()))?,

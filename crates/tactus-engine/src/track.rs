@@ -119,7 +119,9 @@ impl Decimator {
         (1..=32usize)
             .rev()
             .find(|&f| {
-                rate as usize % f == 0 && (rate as usize / f) % 100 == 0 && (rate as usize / f) as f32 >= 7.0 * fmax_hz
+                rate as usize % f == 0
+                    && (rate as usize / f) % 100 == 0
+                    && (rate as usize / f) as f32 >= 7.0 * fmax_hz
             })
             .unwrap_or(1)
     }
@@ -127,7 +129,13 @@ impl Decimator {
     /// A decimator by `factor` for input at `rate`.
     pub fn new(rate: u32, factor: usize) -> Result<Self, ConfigError> {
         let out_rate = rate as f64 / factor as f64;
-        let lp = SosFilter::butterworth(8, Response::LowPass { cutoff_hz: 0.4 * out_rate }, rate)?;
+        let lp = SosFilter::butterworth(
+            8,
+            Response::LowPass {
+                cutoff_hz: 0.4 * out_rate,
+            },
+            rate,
+        )?;
         Ok(Decimator {
             lp,
             factor,
@@ -246,7 +254,10 @@ impl PitchTrack {
 
     /// Input samples (engine rate) of look-ahead this track needs before hop `i` is final.
     pub fn latency_samples(&self) -> usize {
-        self.tracker.latency_samples().max(self.rms.latency_samples()) * self.decimator.factor
+        self.tracker
+            .latency_samples()
+            .max(self.rms.latency_samples())
+            * self.decimator.factor
     }
 
     /// Decimation factor in front of the tracker.
