@@ -7,12 +7,17 @@ use std::path::Path;
 use std::process::Command;
 
 fn tactus(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_tactus")).args(args).output().expect("run tactus")
+    Command::new(env!("CARGO_BIN_EXE_tactus"))
+        .args(args)
+        .output()
+        .expect("run tactus")
 }
 
 fn rpa(features: &Path, truth: &Path, stem: &str) -> f64 {
-    let f: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(features).unwrap()).unwrap();
-    let t: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(truth).unwrap()).unwrap();
+    let f: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(features).unwrap()).unwrap();
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(truth).unwrap()).unwrap();
     let est = f["pitch_hz"][stem].as_array().unwrap();
     let tru = t["f0_hz"][stem].as_array().unwrap();
     let (mut voiced, mut hit) = (0usize, 0usize);
@@ -38,7 +43,10 @@ fn spleeter_render_beats_the_spectral_default_on_vocals() {
     }
     let song = root.join("corpus/fixtures/bwv347_120bpm");
     let d = tempfile::tempdir().unwrap();
-    let (fs, fx) = (d.path().join("spleeter.json"), d.path().join("spectral.json"));
+    let (fs, fx) = (
+        d.path().join("spleeter.json"),
+        d.path().join("spectral.json"),
+    );
     let mix = song.join("mix.flac");
     let o = tactus(&[
         "render",
@@ -51,7 +59,12 @@ fn spleeter_render_beats_the_spectral_default_on_vocals() {
         fs.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = tactus(&["render", mix.to_str().unwrap(), "--features", fx.to_str().unwrap()]);
+    let o = tactus(&[
+        "render",
+        mix.to_str().unwrap(),
+        "--features",
+        fx.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let truth = song.join("truth.json");
     let (a, b) = (rpa(&fs, &truth, "vocals"), rpa(&fx, &truth, "vocals"));

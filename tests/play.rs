@@ -24,7 +24,12 @@ fn wait_for(p: &Path) -> bool {
 
 #[test]
 fn play_pattern_over_a_pty_into_the_emulator() {
-    if Command::new("socat").arg("-V").stdout(Stdio::null()).status().is_err() {
+    if Command::new("socat")
+        .arg("-V")
+        .stdout(Stdio::null())
+        .status()
+        .is_err()
+    {
         eprintln!("SKIPPED: socat is not installed (apt-get install socat; CI does)");
         return;
     }
@@ -44,23 +49,50 @@ fn play_pattern_over_a_pty_into_the_emulator() {
     let pattern = d.path().join("demo.json");
     let song = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/demo.ogg");
     let o = Command::new(bin())
-        .args(["render", song.to_str().unwrap(), "--bin-ms", "25", "-o", pattern.to_str().unwrap()])
+        .args([
+            "render",
+            song.to_str().unwrap(),
+            "--bin-ms",
+            "25",
+            "-o",
+            pattern.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let p: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&pattern).unwrap()).unwrap();
-    let frames: Vec<String> = p["frames"].as_array().unwrap().iter().map(|f| f.as_str().unwrap().to_string()).collect();
+    let p: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&pattern).unwrap()).unwrap();
+    let frames: Vec<String> = p["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap().to_string())
+        .collect();
 
     let log = d.path().join("glove.jsonl");
     let emu = Command::new(bin())
-        .args(["emulate", "--port", b.to_str().unwrap(), "--log", log.to_str().unwrap(), "--duration", "30"])
+        .args([
+            "emulate",
+            "--port",
+            b.to_str().unwrap(),
+            "--log",
+            log.to_str().unwrap(),
+            "--duration",
+            "30",
+        ])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     std::thread::sleep(Duration::from_millis(300));
     let o = Command::new(bin())
-        .args(["play", pattern.to_str().unwrap(), "--no-audio", "--glove", &format!("serial:{}", a.display())])
+        .args([
+            "play",
+            pattern.to_str().unwrap(),
+            "--no-audio",
+            "--glove",
+            &format!("serial:{}", a.display()),
+        ])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -68,12 +100,23 @@ fn play_pattern_over_a_pty_into_the_emulator() {
     let _ = socat.kill();
     let _ = socat.wait();
     let out = emu.wait_with_output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(r["crc_errors"], 0);
     assert_eq!(r["sequence_gaps"], 0);
-    assert_eq!(r["pins_frames"].as_u64().unwrap() as usize, frames.len(), "every frame arrives");
-    assert_eq!(r["final_frame"], "00000000000000000000", "all pins down at the end");
+    assert_eq!(
+        r["pins_frames"].as_u64().unwrap() as usize,
+        frames.len(),
+        "every frame arrives"
+    );
+    assert_eq!(
+        r["final_frame"], "00000000000000000000",
+        "all pins down at the end"
+    );
     assert!(r["all_downs"].as_u64().unwrap() >= 1);
     let lines = std::fs::read_to_string(&log).unwrap();
     assert!(lines.lines().count() as u64 >= r["actuations"].as_u64().unwrap().min(1));
