@@ -195,17 +195,19 @@ pub fn emulate(port: &Path, log: Option<&Path>, duration: Option<f64>) -> Result
         ..Default::default()
     };
     let r = tactus_transport::run_emulator_on_port(port, log, &stop, &opts)?;
-    println!(
-        "{{\"packets\":{},\"crc_errors\":{},\"malformed\":{},\"sequence_gaps\":{},\"garbage_bytes\":{},\"all_downs\":{},\"actuations\":{},\"pins_frames\":{},\"final_frame\":\"{}\"}}",
-        r.packets,
-        r.crc_errors,
-        r.malformed,
-        r.sequence_gaps,
-        r.garbage_bytes,
-        r.all_downs,
-        r.actuations,
-        r.frames.len(),
-        r.final_frame.to_hex()
-    );
+    let report = serde_json::json!({
+        "packets": r.packets,
+        "crc_errors": r.crc_errors,
+        "malformed": r.malformed,
+        "sequence_gaps": r.sequence_gaps,
+        "garbage_bytes": r.garbage_bytes,
+        "all_downs": r.all_downs,
+        "actuations": r.actuations,
+        "final_frame": r.final_frame.to_hex(),
+        "frames": r.frames.iter().map(|f| serde_json::json!({
+            "arrival_ms": f.arrival_ms, "seq": f.seq, "time_ms": f.time_ms, "frame": f.frame.to_hex()
+        })).collect::<Vec<_>>(),
+    });
+    println!("{report}");
     Ok(())
 }
