@@ -119,8 +119,8 @@ impl Decimator {
         (1..=32usize)
             .rev()
             .find(|&f| {
-                rate as usize % f == 0
-                    && (rate as usize / f) % 100 == 0
+                (rate as usize).is_multiple_of(f)
+                    && (rate as usize / f).is_multiple_of(100)
                     && (rate as usize / f) as f32 >= 7.0 * fmax_hz
             })
             .unwrap_or(1)
