@@ -59,6 +59,10 @@ pub struct EngineConfig {
     pub separator: SeparatorChoice,
     /// Stems the caller supplies directly (never separated).
     pub supplied: StemSet,
+    /// Overlap separation of block `n + 1` with the stem chains of block `n` (one thread
+    /// each). Delays the chains by one block; results are identical. The offline driver
+    /// turns it on; a live caller with small blocks leaves it off.
+    pub pipeline: bool,
 }
 
 impl Default for EngineConfig {
@@ -72,6 +76,7 @@ impl Default for EngineConfig {
             map: GloveMap::default(),
             separator: SeparatorChoice::default(),
             supplied: StemSet::default(),
+            pipeline: false,
         }
     }
 }
@@ -265,6 +270,35 @@ fn onnx_separator(
     ))
 }
 
+/// Feeds one block to every chain: supplied stems where given, separated ones otherwise.
+/// Chains run on their own threads when the block is large enough to pay for it.
+fn feed(chains: &mut [StemChain], sep_out: &StemOutput, supplied: &[(Stem, &[f32])]) {
+    let inputs: Vec<(&mut StemChain, &[f32])> = chains
+        .iter_mut()
+        .map(|c| {
+            let stem = c.stem;
+            let input = supplied
+                .iter()
+                .find(|(s, _)| *s == stem)
+                .map(|(_, x)| *x)
+                .unwrap_or_else(|| sep_out.get(stem));
+            (c, input)
+        })
+        .collect();
+    let big = inputs.iter().map(|(_, x)| x.len()).max().unwrap_or(0) >= PARALLEL_MIN_BLOCK;
+    if big && inputs.len() > 1 {
+        std::thread::scope(|s| {
+            for (c, x) in inputs {
+                s.spawn(move || c.process(x));
+            }
+        });
+    } else {
+        for (c, x) in inputs {
+            c.process(x);
+        }
+    }
+}
+
 /// The streaming pipeline. See the module docs.
 pub struct Engine {
     cfg: EngineConfig,
@@ -274,6 +308,8 @@ pub struct Engine {
     chains: Vec<StemChain>,
     n_in: usize,
     t_separate: Duration,
+    /// A separated block (with copies of the supplied stems) waiting for the chains.
+    pending: Option<(StemOutput, Vec<(Stem, Vec<f32>)>)>,
 }
 
 impl Engine {
@@ -338,6 +374,7 @@ impl Engine {
             chains,
             n_in: 0,
             t_separate: Duration::ZERO,
+            pending: None,
         })
     }
 
@@ -360,24 +397,70 @@ impl Engine {
     /// the same span of every supplied stem. All slices must have the same length.
     pub fn process(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {
         self.n_in += left.len();
+        if self.cfg.pipeline && self.separator.is_some() {
+            self.process_pipelined(left, right, supplied);
+            return;
+        }
         if let Some(sep) = &mut self.separator {
             let t = Instant::now();
             self.sep_out.clear();
             sep.process(left, right, &mut self.sep_out);
             self.t_separate += t.elapsed();
         }
-        self.feed_chains(supplied);
+        feed(&mut self.chains, &self.sep_out, supplied);
+    }
+
+    /// Separates this block on the calling thread while the chains work on the previous one.
+    fn process_pipelined(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {
+        let Engine {
+            separator,
+            sep_out,
+            chains,
+            pending,
+            t_separate,
+            ..
+        } = self;
+        let Some(sep) = separator.as_mut() else {
+            return;
+        };
+        let prev = pending.take();
+        // Reuse the buffer of the block before last for this block's output.
+        let mut out = std::mem::take(sep_out);
+        out.clear();
+        std::thread::scope(|s| {
+            if let Some((p_out, p_sup)) = &prev {
+                let chains = &mut *chains;
+                s.spawn(move || {
+                    let views: Vec<(Stem, &[f32])> =
+                        p_sup.iter().map(|(st, v)| (*st, v.as_slice())).collect();
+                    feed(chains, p_out, &views);
+                });
+            }
+            let t = Instant::now();
+            sep.process(left, right, &mut out);
+            *t_separate += t.elapsed();
+        });
+        let copies = supplied.iter().map(|(st, x)| (*st, x.to_vec())).collect();
+        *pending = Some((out, copies));
+        if let Some((p_out, _)) = prev {
+            *sep_out = p_out;
+        }
     }
 
     /// Ends the stream: flushes the separator and every chain, and (offline) computes the
     /// whole-track statistics.
     pub fn finish(&mut self) {
+        if let Some((p_out, p_sup)) = self.pending.take() {
+            let views: Vec<(Stem, &[f32])> =
+                p_sup.iter().map(|(st, v)| (*st, v.as_slice())).collect();
+            feed(&mut self.chains, &p_out, &views);
+        }
         if let Some(sep) = &mut self.separator {
             let t = Instant::now();
             self.sep_out.clear();
             sep.finish(&mut self.sep_out);
             self.t_separate += t.elapsed();
-            self.feed_chains(&[]);
+            feed(&mut self.chains, &self.sep_out, &[]);
         }
         let parallel = self.chains.len() > 1 && self.cfg.mode == Mode::Offline;
         if parallel {
@@ -389,35 +472,6 @@ impl Engine {
         } else {
             for c in &mut self.chains {
                 c.finish();
-            }
-        }
-    }
-
-    fn feed_chains(&mut self, supplied: &[(Stem, &[f32])]) {
-        let sep_out = &self.sep_out;
-        let inputs: Vec<(&mut StemChain, &[f32])> = self
-            .chains
-            .iter_mut()
-            .map(|c| {
-                let stem = c.stem;
-                let input = supplied
-                    .iter()
-                    .find(|(s, _)| *s == stem)
-                    .map(|(_, x)| *x)
-                    .unwrap_or_else(|| sep_out.get(stem));
-                (c, input)
-            })
-            .collect();
-        let big = inputs.iter().map(|(_, x)| x.len()).max().unwrap_or(0) >= PARALLEL_MIN_BLOCK;
-        if big && inputs.len() > 1 {
-            std::thread::scope(|s| {
-                for (c, x) in inputs {
-                    s.spawn(move || c.process(x));
-                }
-            });
-        } else {
-            for (c, x) in inputs {
-                c.process(x);
             }
         }
     }
@@ -579,5 +633,6 @@ impl Engine {
         }
         self.n_in = 0;
         self.t_separate = Duration::ZERO;
+        self.pending = None;
     }
 }

@@ -130,6 +130,7 @@ pub fn render_with(
     let rate = req.config.sample_rate;
 
     let mut cfg = req.config.clone();
+    cfg.pipeline = true;
     let mut t_decode = Duration::ZERO;
     let t = Instant::now();
     let mut supplied = Vec::new();

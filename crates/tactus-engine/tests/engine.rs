@@ -65,11 +65,15 @@ fn config(mode: Mode) -> EngineConfig {
 proptest! {
     #![proptest_config(ProptestConfig { cases: 6, .. ProptestConfig::default() })]
     #[test]
-    fn any_chunking_equals_one_block(chunks in prop::collection::vec(1usize..9000, 1..6), streaming in any::<bool>()) {
+    fn any_chunking_equals_one_block(
+        chunks in prop::collection::vec(1usize..40000, 1..6),
+        streaming in any::<bool>(),
+        pipeline in any::<bool>(),
+    ) {
         let x = song(44_100 * 2);
         let mode = if streaming { Mode::Streaming } else { Mode::Offline };
         let whole = run(&mut Engine::new(config(mode)).unwrap(), &x, &[x.len()]);
-        let mut e = Engine::new(config(mode)).unwrap();
+        let mut e = Engine::new(EngineConfig { pipeline, ..config(mode) }).unwrap();
         let chunked = run(&mut e, &x, &chunks);
         prop_assert_eq!(&chunked.frames, &whole.frames);
         prop_assert_eq!(&chunked.features, &whole.features);
