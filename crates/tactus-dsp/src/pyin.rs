@@ -143,6 +143,12 @@ struct Tracker {
     obs_voiced: Vec<f32>,
     delta: Vec<f32>,
     next: Vec<f32>,
+    /// Viterbi scratch: best predecessor score and its offset index (`0..=2j`, source bin
+    /// = target + index − j) per target bin, for the voiced and the unvoiced layer.
+    best_v: Vec<f32>,
+    arg_v: Vec<u32>,
+    best_u: Vec<f32>,
+    arg_u: Vec<u32>,
     /// Backpointers, `ring × 2M`: the best predecessor of each state at each hop.
     bp: Vec<u16>,
     cands: Vec<Candidate>,
@@ -150,6 +156,20 @@ struct Tracker {
     path: Vec<u16>,
     hops_seen: usize,
     next_emit: usize,
+}
+
+/// One offset of the Viterbi max: for every target `i`, `best[i] = max(best[i], src[i] + w)`,
+/// recording `offset` in `arg[i]` when the new value is strictly larger.
+#[inline(always)]
+fn relax(best: &mut [f32], arg: &mut [u32], src: &[f32], w: f32, offset: u32) {
+    for ((b, a), &x) in best.iter_mut().zip(arg.iter_mut()).zip(src) {
+        let v = x + w;
+        let better = v > *b;
+        // Branch-free select (a bit mask), so the loop becomes compare + blend.
+        let mask = (better as u32).wrapping_neg();
+        *a = (offset & mask) | (*a & !mask);
+        *b = if better { v } else { *b };
+    }
 }
 
 impl Tracker {
@@ -215,6 +235,10 @@ impl Tracker {
             obs_voiced: vec![0.0; n_bins],
             delta: vec![0.0; 2 * n_bins],
             next: vec![0.0; 2 * n_bins],
+            best_v: vec![0.0; n_bins],
+            arg_v: vec![0; n_bins],
+            best_u: vec![0.0; n_bins],
+            arg_u: vec![0; n_bins],
             bp: vec![0; ring * 2 * n_bins],
             cands: vec![Candidate::default(); ring * CANDIDATES_PER_HOP],
             info: vec![HopInfo::default(); ring],
@@ -360,55 +384,7 @@ impl Tracker {
                 self.delta[m + k] = l_unvoiced;
             }
         } else {
-            let bp = &mut self.bp[slot * 2 * m..(slot + 1) * 2 * m];
-            let (dv, du) = self.delta.split_at(m);
-            let j = self.max_jump;
-            let mut best = f32::NEG_INFINITY;
-            for k in 0..m {
-                let lo = k.saturating_sub(j);
-                let hi = (k + j).min(m - 1);
-                let (mut bv, mut av) = (f32::NEG_INFINITY, k);
-                let (mut bu, mut au) = (f32::NEG_INFINITY, k);
-                for src in lo..=hi {
-                    let w = self.l_jump[src.abs_diff(k)];
-                    let v = dv[src] + w;
-                    if v > bv {
-                        bv = v;
-                        av = src;
-                    }
-                    let u = du[src] + w;
-                    if u > bu {
-                        bu = u;
-                        au = src;
-                    }
-                }
-                // Into voiced bin k.
-                let (stay, switch) = (bv + self.l_stay, bu + self.l_switch);
-                let (sv, pv) = if stay >= switch {
-                    (stay, av)
-                } else {
-                    (switch, m + au)
-                };
-                // Into unvoiced bin k.
-                let (stay, switch) = (bu + self.l_stay, bv + self.l_switch);
-                let (su, pu) = if stay >= switch {
-                    (stay, m + au)
-                } else {
-                    (switch, av)
-                };
-                self.next[k] = sv + self.obs_voiced[k];
-                self.next[m + k] = su + l_unvoiced;
-                bp[k] = pv as u16;
-                bp[m + k] = pu as u16;
-                best = best.max(self.next[k]).max(self.next[m + k]);
-            }
-            // Renormalize so the log scores stay bounded over long streams.
-            if best.is_finite() {
-                for v in self.next.iter_mut() {
-                    *v -= best;
-                }
-            }
-            std::mem::swap(&mut self.delta, &mut self.next);
+            self.viterbi_step(slot, l_unvoiced);
         }
         self.hops_seen = t + 1;
         if t >= self.lag {
@@ -420,6 +396,78 @@ impl Tracker {
             emit(h, self.output(h, s));
             self.next_emit = h + 1;
         }
+    }
+
+    /// One Viterbi step from `delta` (hop t − 1) to `next`, then swapped into `delta`;
+    /// backpointers of hop t go to ring slot `slot`. `obs_voiced` holds hop t's voiced
+    /// log-observations, `l_unvoiced` its unvoiced one.
+    fn viterbi_step(&mut self, slot: usize, l_unvoiced: f32) {
+        let m = self.n_bins;
+        let bp = &mut self.bp[slot * 2 * m..(slot + 1) * 2 * m];
+        let (dv, du) = self.delta.split_at(m);
+        let j = self.max_jump;
+        // Best predecessor within the triangular window, for the voiced and the unvoiced
+        // layer separately. Offset-major order (offset −j … +j, i.e. ascending source
+        // bin for every target) with a strict `>` keeps the first maximum, exactly as a
+        // source-ascending scan per target would, and lets the compiler vectorize the
+        // inner loops (compare + select, no branches).
+        let (bv, av, bu, au) = (
+            &mut self.best_v,
+            &mut self.arg_v,
+            &mut self.best_u,
+            &mut self.arg_u,
+        );
+        bv.fill(f32::NEG_INFINITY);
+        bu.fill(f32::NEG_INFINITY);
+        // Offset index `j` (offset 0) is "stay in the same bin".
+        av.fill(j as u32);
+        au.fill(j as u32);
+        for oi in 0..=2 * j {
+            let w = self.l_jump[oi.abs_diff(j)];
+            // Targets k whose source k + oi − j lies in 0..m.
+            let (k0, k1) = if oi < j {
+                (j - oi, m)
+            } else {
+                (0, m - (oi - j))
+            };
+            if k0 >= k1 {
+                continue;
+            }
+            let (s0, s1) = (k0 + oi - j, k1 + oi - j);
+            relax(&mut bv[k0..k1], &mut av[k0..k1], &dv[s0..s1], w, oi as u32);
+            relax(&mut bu[k0..k1], &mut au[k0..k1], &du[s0..s1], w, oi as u32);
+        }
+        let mut best = f32::NEG_INFINITY;
+        for k in 0..m {
+            let (bv, bu) = (bv[k], bu[k]);
+            let (av, au) = ((k + av[k] as usize) - j, (k + au[k] as usize) - j);
+            // Into voiced bin k.
+            let (stay, switch) = (bv + self.l_stay, bu + self.l_switch);
+            let (sv, pv) = if stay >= switch {
+                (stay, av)
+            } else {
+                (switch, m + au)
+            };
+            // Into unvoiced bin k.
+            let (stay, switch) = (bu + self.l_stay, bv + self.l_switch);
+            let (su, pu) = if stay >= switch {
+                (stay, m + au)
+            } else {
+                (switch, av)
+            };
+            self.next[k] = sv + self.obs_voiced[k];
+            self.next[m + k] = su + l_unvoiced;
+            bp[k] = pv as u16;
+            bp[m + k] = pu as u16;
+            best = best.max(self.next[k]).max(self.next[m + k]);
+        }
+        // Renormalize so the log scores stay bounded over long streams.
+        if best.is_finite() {
+            for v in self.next.iter_mut() {
+                *v -= best;
+            }
+        }
+        std::mem::swap(&mut self.delta, &mut self.next);
     }
 
     fn best_state(&self) -> usize {
@@ -570,4 +618,93 @@ pub fn pyin_offline(samples: &[f32], cfg: &PyinConfig) -> Result<Vec<PitchEstima
     p.process(samples, &mut |_, e| out.push(e));
     p.finish(&mut |_, e| out.push(e));
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The obvious Viterbi step: for each target bin, scan the window's sources in
+    /// ascending order (first maximum wins), as the first implementation did.
+    fn naive_step(t: &Tracker, l_unvoiced: f32) -> (Vec<f32>, Vec<u16>) {
+        let m = t.n_bins;
+        let j = t.max_jump;
+        let (dv, du) = t.delta.split_at(m);
+        let mut next = vec![0.0f32; 2 * m];
+        let mut bp = vec![0u16; 2 * m];
+        let mut best = f32::NEG_INFINITY;
+        for k in 0..m {
+            let (lo, hi) = (k.saturating_sub(j), (k + j).min(m - 1));
+            let (mut bv, mut av, mut bu, mut au) = (f32::NEG_INFINITY, k, f32::NEG_INFINITY, k);
+            for src in lo..=hi {
+                let w = t.l_jump[src.abs_diff(k)];
+                if dv[src] + w > bv {
+                    (bv, av) = (dv[src] + w, src);
+                }
+                if du[src] + w > bu {
+                    (bu, au) = (du[src] + w, src);
+                }
+            }
+            let (sv, pv) = if bv + t.l_stay >= bu + t.l_switch {
+                (bv + t.l_stay, av)
+            } else {
+                (bu + t.l_switch, m + au)
+            };
+            let (su, pu) = if bu + t.l_stay >= bv + t.l_switch {
+                (bu + t.l_stay, m + au)
+            } else {
+                (bv + t.l_switch, av)
+            };
+            next[k] = sv + t.obs_voiced[k];
+            next[m + k] = su + l_unvoiced;
+            bp[k] = pv as u16;
+            bp[m + k] = pu as u16;
+            best = best.max(next[k]).max(next[m + k]);
+        }
+        for v in &mut next {
+            *v -= best;
+        }
+        (next, bp)
+    }
+
+    #[test]
+    fn vectorized_viterbi_step_equals_the_naive_scan() {
+        // Small integer-valued scores make exact ties common, so the tie rule is exercised.
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for (fmin, fmax, jump) in [(35.0, 400.0, 25), (70.0, 90.0, 3), (50.0, 60.0, 4)] {
+            let mut cfg = PyinConfig::new(16_000, fmin, fmax);
+            cfg.max_jump_bins = jump;
+            let Ok(mut t) = Tracker::new(&cfg, 4) else {
+                panic!("config {fmin}–{fmax} Hz");
+            };
+            let m = t.n_bins;
+            for round in 0..200 {
+                for v in t.delta.iter_mut() {
+                    *v = -((rnd() % 6) as f32);
+                }
+                for v in t.obs_voiced.iter_mut() {
+                    *v = -((rnd() % 4) as f32) * 0.5;
+                }
+                let l_unvoiced = -((rnd() % 3) as f32);
+                let (want_next, want_bp) = naive_step(&t, l_unvoiced);
+                let slot = round % t.ring;
+                t.viterbi_step(slot, l_unvoiced);
+                assert_eq!(
+                    t.delta, want_next,
+                    "scores, {fmin}–{fmax} Hz, round {round}"
+                );
+                assert_eq!(
+                    &t.bp[slot * 2 * m..(slot + 1) * 2 * m],
+                    &want_bp[..],
+                    "backpointers, {fmin}–{fmax} Hz, round {round}"
+                );
+            }
+        }
+    }
 }
