@@ -118,7 +118,8 @@ pub fn render_png(svg: &str) -> Result<PngPlot> {
         fontdb: std::sync::Arc::new(fonts),
         ..usvg::Options::default()
     };
-    let tree = usvg::Tree::from_str(svg, &opt).map_err(|e| anyhow!("the SVG does not parse: {e}"))?;
+    let tree =
+        usvg::Tree::from_str(svg, &opt).map_err(|e| anyhow!("the SVG does not parse: {e}"))?;
     let size = tree.size().to_int_size();
     let mut pixmap = tiny_skia::Pixmap::new(size.width(), size.height()).ok_or_else(|| {
         anyhow!(
@@ -128,7 +129,11 @@ pub fn render_png(svg: &str) -> Result<PngPlot> {
         )
     })?;
     pixmap.fill(tiny_skia::Color::WHITE);
-    resvg::render(&tree, tiny_skia::Transform::identity(), &mut pixmap.as_mut());
+    resvg::render(
+        &tree,
+        tiny_skia::Transform::identity(),
+        &mut pixmap.as_mut(),
+    );
     let bytes = pixmap
         .encode_png()
         .map_err(|e| anyhow!("PNG encoding: {e}"))?;
@@ -288,10 +293,7 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
             }
         }
         if !d.is_empty() {
-            let _ = writeln!(
-                s,
-                r##"<path d="{d}" fill="#ff7f0e" fill-opacity="0.35"/>"##
-            );
+            let _ = writeln!(s, r##"<path d="{d}" fill="#ff7f0e" fill-opacity="0.35"/>"##);
         }
         if let Some(on) = f.onsets_s.get(band) {
             let mut d = String::new();
@@ -343,12 +345,7 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
                 (false, Some(k0)) => {
                     let (x0, x1) = (x_of(k0 as f64 * bin_s), x_of(k as f64 * bin_s));
                     let w = (x1 - x0).max(0.5);
-                    let _ = write!(
-                        d,
-                        "M{x0:.1},{ry:.1}h{w:.2}v{:.1}h{:.2}z",
-                        DOT_H - 0.8,
-                        -w
-                    );
+                    let _ = write!(d, "M{x0:.1},{ry:.1}h{w:.2}v{:.1}h{:.2}z", DOT_H - 0.8, -w);
                     run = None;
                 }
                 _ => {}
