@@ -373,3 +373,79 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
     s.push_str("</svg>\n");
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::BTreeMap;
+    use tactus_glove::{Frame, GloveMap, SourceInfo};
+
+    /// `bins` bins of 100 ms; the index finger's cell 0 (byte 2) has every dot raised in even
+    /// bins, so each of its 8 rows has a run every other bin; the kick beats likewise.
+    fn alternating(bins: usize) -> (Pattern, Features) {
+        let frames = (0..bins)
+            .map(|k| {
+                let mut f = Frame::DOWN;
+                if k % 2 == 0 {
+                    f.0[2] = 0xFF;
+                }
+                f
+            })
+            .collect();
+        let pattern = Pattern {
+            source: SourceInfo {
+                path: "long.wav".into(),
+                sha256: "0".repeat(64),
+                duration_s: bins as f64 * 0.1,
+                sample_rate: 44_100,
+            },
+            bin_ms: 100,
+            levels: 8,
+            map: GloveMap::default(),
+            frames,
+        };
+        let mut beats = BTreeMap::new();
+        beats.insert(
+            "kick".to_string(),
+            (0..bins).map(|k| (k % 2 == 0) as u8).collect(),
+        );
+        let features = Features {
+            hop_s: 0.01,
+            bin_s: 0.1,
+            pitch_hz: BTreeMap::new(),
+            levels: BTreeMap::new(),
+            onsets_s: BTreeMap::new(),
+            beats,
+        };
+        (pattern, features)
+    }
+
+    /// Elements other than text (the time axis has more labels for a longer song).
+    fn elements(svg: &str) -> usize {
+        svg.matches('<').count() - svg.matches("</").count() - svg.matches("<text").count()
+    }
+
+    #[test]
+    fn element_count_does_not_grow_with_the_song() {
+        let (p, f) = alternating(20);
+        let short = render_svg(&p, &f);
+        // One hour: 18 000 runs in each of 8 rows and in the kick raster.
+        let (p, f) = alternating(36_000);
+        let long = render_svg(&p, &f);
+        assert_eq!(elements(&short), elements(&long));
+        assert!(elements(&long) < 30, "{}", elements(&long));
+        let runs = long.matches("zM").count() + long.matches("z\"").count();
+        assert_eq!(runs, 9 * 18_000, "one subpath per run");
+    }
+
+    #[test]
+    fn an_hour_long_plot_rasterises() {
+        let (p, f) = alternating(36_000);
+        let png = render_png(&render_svg(&p, &f)).unwrap();
+        // PNG signature, then the IHDR chunk: width and height, big-endian.
+        assert_eq!(&png.bytes[..8], b"\x89PNG\r\n\x1a\n");
+        let be = |i: usize| u32::from_be_bytes(png.bytes[i..i + 4].try_into().unwrap());
+        assert_eq!(be(16), 1400);
+        assert_eq!(be(20), (60.0 + 34.0 + GAP + 80.0 * DOT_H + 50.0) as u32);
+    }
+}
