@@ -1,4 +1,5 @@
 //! `tactus`: turns music into touch. See README.md for the tour.
+#![forbid(unsafe_code)]
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
