@@ -1,4 +1,5 @@
 //! `tactus`: turns music into touch. See README.md for the tour.
+#![forbid(unsafe_code)]
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -85,7 +86,7 @@ enum Cmd {
         /// Features file to write (JSON).
         #[arg(long)]
         features: Option<PathBuf>,
-        /// Plot to write (.svg).
+        /// Plot to write (.svg, or .png rasterised with the system's fonts).
         #[arg(long)]
         plot: Option<PathBuf>,
         #[command(flatten)]
@@ -308,9 +309,7 @@ fn run(cli: Cli) -> Result<()> {
             for p in [&output, &features, &plot].into_iter().flatten() {
                 check_writable(p)?;
             }
-            if let Some(p) = &plot {
-                plot::check_extension(p)?;
-            }
+            let plot_format = plot.as_deref().map(plot::format_of).transpose()?;
             let req = RenderRequest {
                 input: input.clone(),
                 stems,
@@ -341,6 +340,28 @@ fn run(cli: Cli) -> Result<()> {
             for w in &out.warnings {
                 eprintln!("tactus: warning: {w}");
             }
+            // Everything is drawn before anything is written, so a failure leaves no output.
+            let plot_bytes = match (&plot, plot_format) {
+                (Some(p), Some(format)) => {
+                    let svg = plot::render_svg(&out.pattern, &out.features);
+                    Some(match format {
+                        plot::PlotFormat::Svg => svg.into_bytes(),
+                        plot::PlotFormat::Png => {
+                            let png = plot::render_png(&svg)
+                                .with_context(|| format!("--plot {}", p.display()))?;
+                            if !png.fonts {
+                                eprintln!(
+                                    "tactus: warning: --plot {}: no system font found, so the PNG \
+                                     has no text (install e.g. fonts-dejavu-core, or use .svg)",
+                                    p.display()
+                                );
+                            }
+                            png.bytes
+                        }
+                    })
+                }
+                _ => None,
+            };
             if let Some(p) = &output {
                 let json = out.pattern.to_json_string()?;
                 write_atomic(p, |w| w.write_all(json.as_bytes()))
@@ -351,9 +372,8 @@ fn run(cli: Cli) -> Result<()> {
                 write_atomic(p, |w| w.write_all(json.as_bytes()))
                     .with_context(|| format!("writing {}", p.display()))?;
             }
-            if let Some(p) = &plot {
-                let svg = plot::render_svg(&out.pattern, &out.features);
-                write_atomic(p, |w| w.write_all(svg.as_bytes()))
+            if let (Some(p), Some(bytes)) = (&plot, &plot_bytes) {
+                write_atomic(p, |w| w.write_all(bytes))
                     .with_context(|| format!("writing {}", p.display()))?;
             }
             if verbose {

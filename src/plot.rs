@@ -1,13 +1,28 @@
-//! `render --plot`: an SVG a researcher can read, after the paper's Figures 5 and 7.
+//! `render --plot`: a figure a researcher can read, after the paper's Figures 5 and 7.
 //!
 //! * one panel per melodic stem: the pitch contour (semitones) and the tactile level per bin;
 //! * one raster per drum band: onsets as ticks over the beat bins they light;
 //! * the glove: a piano roll of the 80 dots over time (finger, cell, dot), runs merged.
+//!
+//! The figure is drawn once, as SVG ([`render_svg`]). `.svg` writes it as is; `.png` rasterises
+//! it at one pixel per SVG unit with resvg (usvg + tiny-skia, pure Rust) and encodes it as PNG
+//! ([`render_png`]). Text needs a font: system fonts are found through fontdb (fontconfig's
+//! configuration, read without the C library, then the usual font folders); when none is
+//! found the PNG is still drawn, without its text, and [`PngPlot::fonts`] says so.
+//!
+//! Layout (SVG units = PNG pixels; `tests/cli.rs` checks the PNG against it): width 1400, plots
+//! from x = 110 to 1380; title at y = 22; pitch panels 140 high from y = 40, one every 166;
+//! band rasters 28 high, one every 34; then 20 more and the piano roll, 80 rows of 4 (row =
+//! 8 × cell index + dot index, cells thumb 0, thumb 1, index 0, ...), each dot drawn 3.2 high
+//! from the top of its row; a bin `k` spans `[k, k+1) × bin / duration` of the plot width.
+//! Every run of raised dots of one row is one subpath of that row's single `<path>`, so the
+//! element count stays small for any song length (usvg refuses more than 10⁶ elements).
 
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Result};
+use resvg::usvg;
 use tactus_glove::{Features, Finger, Pattern};
 
 const W: f64 = 1400.0;
@@ -18,20 +33,114 @@ const BAND_H: f64 = 28.0;
 const DOT_H: f64 = 4.0;
 const GAP: f64 = 26.0;
 
-/// Accepts `.svg`; anything else is a clear error.
-pub fn check_extension(path: &Path) -> Result<()> {
+/// What `--plot` writes, chosen by the file's extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlotFormat {
+    /// The SVG as drawn.
+    Svg,
+    /// The SVG rasterised.
+    Png,
+}
+
+/// `.svg` or `.png` (any case); anything else is a clear error.
+pub fn format_of(path: &Path) -> Result<PlotFormat> {
     match path
         .extension()
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase())
     {
-        Some(e) if e == "svg" => Ok(()),
-        Some(e) if e == "png" => bail!(
-            "--plot {}: PNG output is not built in yet; use .svg",
+        Some(e) if e == "svg" => Ok(PlotFormat::Svg),
+        Some(e) if e == "png" => Ok(PlotFormat::Png),
+        _ => bail!(
+            "--plot {}: the plot must end in .svg or .png",
             path.display()
         ),
-        _ => bail!("--plot {}: the plot must end in .svg", path.display()),
     }
+}
+
+/// A rasterised plot.
+#[derive(Debug, Clone)]
+pub struct PngPlot {
+    /// The PNG file's bytes (8-bit RGBA).
+    pub bytes: Vec<u8>,
+    /// Whether a font was found; without one the PNG has no text.
+    pub fonts: bool,
+}
+
+/// Families tried for `sans-serif` when the system's configuration names none that is
+/// installed (fontdb's built-in default is Arial).
+const SANS: [&str; 6] = [
+    "DejaVu Sans",
+    "Liberation Sans",
+    "Noto Sans",
+    "FreeSans",
+    "Arial",
+    "Helvetica",
+];
+
+/// The system's fonts, with `sans-serif` mapped to an installed family. Empty if none.
+fn system_fonts() -> usvg::fontdb::Database {
+    use usvg::fontdb::{Family, Query};
+    let mut db = usvg::fontdb::Database::new();
+    db.load_system_fonts();
+    let sans = Query {
+        families: &[Family::SansSerif],
+        ..Query::default()
+    };
+    if !db.is_empty() && db.query(&sans).is_none() {
+        let installed = |name: &str| {
+            db.faces()
+                .any(|f| f.families.iter().any(|(n, _)| n.eq_ignore_ascii_case(name)))
+        };
+        let family = SANS
+            .iter()
+            .find(|n| installed(n))
+            .map(|n| n.to_string())
+            .or_else(|| {
+                db.faces()
+                    .find_map(|f| f.families.first().map(|(n, _)| n.clone()))
+            });
+        if let Some(family) = family {
+            db.set_sans_serif_family(family);
+        }
+    }
+    db
+}
+
+/// Rasterises an SVG from [`render_svg`] at one pixel per unit on white and encodes it as PNG.
+/// Fails only if the SVG does not parse or the image is too large to allocate.
+pub fn render_png(svg: &str) -> Result<PngPlot> {
+    use resvg::tiny_skia;
+    let fonts = system_fonts();
+    let has_fonts = !fonts.is_empty();
+    let opt = usvg::Options {
+        font_family: "sans-serif".to_string(),
+        fontdb: std::sync::Arc::new(fonts),
+        ..usvg::Options::default()
+    };
+    let tree =
+        usvg::Tree::from_str(svg, &opt).map_err(|e| anyhow!("the SVG does not parse: {e}"))?;
+    let size = tree.size().to_int_size();
+    let mut pixmap = tiny_skia::Pixmap::new(size.width(), size.height()).ok_or_else(|| {
+        anyhow!(
+            "a {}x{} image cannot be allocated",
+            size.width(),
+            size.height()
+        )
+    })?;
+    pixmap.fill(tiny_skia::Color::WHITE);
+    resvg::render(
+        &tree,
+        tiny_skia::Transform::identity(),
+        &mut pixmap.as_mut(),
+    );
+    let bytes = pixmap
+        .encode_png()
+        .map_err(|e| anyhow!("PNG encoding: {e}"))?;
+    Ok(PngPlot {
+        bytes,
+        fonts: has_fonts,
+    })
 }
 
 fn esc(s: &str) -> String {
@@ -175,15 +284,16 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
             y + 18.0,
             esc(band)
         );
+        let mut d = String::new();
         for (k, &b) in beats.iter().enumerate() {
             if b != 0 {
                 let (x0, x1) = (x_of(k as f64 * bin_s), x_of((k + 1) as f64 * bin_s));
-                let _ = writeln!(
-                    s,
-                    r##"<rect x="{x0:.1}" y="{y}" width="{:.2}" height="{BAND_H}" fill="#ff7f0e" opacity="0.35"/>"##,
-                    (x1 - x0).max(0.5)
-                );
+                let w = (x1 - x0).max(0.5);
+                let _ = write!(d, "M{x0:.1},{y}h{w:.2}v{BAND_H}h{:.2}z", -w);
             }
+        }
+        if !d.is_empty() {
+            let _ = writeln!(s, r##"<path d="{d}" fill="#ff7f0e" fill-opacity="0.35"/>"##);
         }
         if let Some(on) = f.onsets_s.get(band) {
             let mut d = String::new();
@@ -226,6 +336,7 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
         let (cell_idx, dot) = (row / 8, row % 8);
         let ry = y + row as f64 * DOT_H;
         let color = colors[cell_idx / 2];
+        let mut d = String::new();
         let mut run: Option<usize> = None;
         for k in 0..=pattern.frames.len() {
             let on = k < pattern.frames.len() && pattern.frames[k].0[cell_idx] & (1 << dot) != 0;
@@ -233,16 +344,15 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
                 (true, None) => run = Some(k),
                 (false, Some(k0)) => {
                     let (x0, x1) = (x_of(k0 as f64 * bin_s), x_of(k as f64 * bin_s));
-                    let _ = writeln!(
-                        s,
-                        r#"<rect x="{x0:.1}" y="{ry:.1}" width="{:.2}" height="{:.1}" fill="{color}"/>"#,
-                        (x1 - x0).max(0.5),
-                        DOT_H - 0.8
-                    );
+                    let w = (x1 - x0).max(0.5);
+                    let _ = write!(d, "M{x0:.1},{ry:.1}h{w:.2}v{:.1}h{:.2}z", DOT_H - 0.8, -w);
                     run = None;
                 }
                 _ => {}
             }
+        }
+        if !d.is_empty() {
+            let _ = writeln!(s, r#"<path d="{d}" fill="{color}"/>"#);
         }
     }
     y += roll_h + 18.0;
@@ -262,4 +372,80 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
     }
     s.push_str("</svg>\n");
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::BTreeMap;
+    use tactus_glove::{Frame, GloveMap, SourceInfo};
+
+    /// `bins` bins of 100 ms; the index finger's cell 0 (byte 2) has every dot raised in even
+    /// bins, so each of its 8 rows has a run every other bin; the kick beats likewise.
+    fn alternating(bins: usize) -> (Pattern, Features) {
+        let frames = (0..bins)
+            .map(|k| {
+                let mut f = Frame::DOWN;
+                if k % 2 == 0 {
+                    f.0[2] = 0xFF;
+                }
+                f
+            })
+            .collect();
+        let pattern = Pattern {
+            source: SourceInfo {
+                path: "long.wav".into(),
+                sha256: "0".repeat(64),
+                duration_s: bins as f64 * 0.1,
+                sample_rate: 44_100,
+            },
+            bin_ms: 100,
+            levels: 8,
+            map: GloveMap::default(),
+            frames,
+        };
+        let mut beats = BTreeMap::new();
+        beats.insert(
+            "kick".to_string(),
+            (0..bins).map(|k| (k % 2 == 0) as u8).collect(),
+        );
+        let features = Features {
+            hop_s: 0.01,
+            bin_s: 0.1,
+            pitch_hz: BTreeMap::new(),
+            levels: BTreeMap::new(),
+            onsets_s: BTreeMap::new(),
+            beats,
+        };
+        (pattern, features)
+    }
+
+    /// Elements other than text (the time axis has more labels for a longer song).
+    fn elements(svg: &str) -> usize {
+        svg.matches('<').count() - svg.matches("</").count() - svg.matches("<text").count()
+    }
+
+    #[test]
+    fn element_count_does_not_grow_with_the_song() {
+        let (p, f) = alternating(20);
+        let short = render_svg(&p, &f);
+        // One hour: 18 000 runs in each of 8 rows and in the kick raster.
+        let (p, f) = alternating(36_000);
+        let long = render_svg(&p, &f);
+        assert_eq!(elements(&short), elements(&long));
+        assert!(elements(&long) < 30, "{}", elements(&long));
+        let runs = long.matches("zM").count() + long.matches("z\"").count();
+        assert_eq!(runs, 9 * 18_000, "one subpath per run");
+    }
+
+    #[test]
+    fn an_hour_long_plot_rasterises() {
+        let (p, f) = alternating(36_000);
+        let png = render_png(&render_svg(&p, &f)).unwrap();
+        // PNG signature, then the IHDR chunk: width and height, big-endian.
+        assert_eq!(&png.bytes[..8], b"\x89PNG\r\n\x1a\n");
+        let be = |i: usize| u32::from_be_bytes(png.bytes[i..i + 4].try_into().unwrap());
+        assert_eq!(be(16), 1400);
+        assert_eq!(be(20), (60.0 + 34.0 + GAP + 80.0 * DOT_H + 50.0) as u32);
+    }
 }
