@@ -21,6 +21,7 @@ which `--verify` measures.
 
 Usage:
     python corpus/generate.py --out DIR [--small] [--format wav|flac] [--verify]
+    python corpus/generate.py --out corpus/fixtures --update-band-truth   # truth.json only
 
 Everything is deterministic: fixed pieces, fixed tempos, a seeded numpy RNG for the groove.
 """
@@ -288,6 +289,54 @@ def f0_track(mid: mido.MidiFile, n_frames: int, top_line=False):
     return f0
 
 
+# Per-band truth (DESIGN.md "Known weakness"): the Tactus band edges in Hz, and the rule that
+# puts a hit in a band. A GM drum note belongs to band b when the energy of its isolated
+# sound in b is within BAND_TRUTH_DB of its loudest band. Energy: the note rendered alone
+# (velocity 100, no reverb/chorus), first BAND_TRUTH_WINDOW_S after note-on, Hann window,
+# |rfft|^2 summed over the band's bins [lo, hi). Velocity scales all bands alike, so the
+# table is per note (ghost notes share their note's bands).
+BAND_EDGES_HZ = {"kick": (30.0, 150.0), "snare": (150.0, 800.0), "toms": (800.0, 5000.0), "cymbals": (5000.0, 12000.0)}
+BAND_TRUTH_DB = 10.0
+BAND_TRUTH_WINDOW_S = 0.2
+
+
+def drum_band_table(sf2, notes, tmp):
+    """{note: {band: dB re the note's loudest band}} from one FluidSynth render per note."""
+    table = {}
+    for note in sorted(set(notes)):
+        mp = os.path.join(tmp, f"band{note}.mid")
+        write_midi(mp, [(1.0, 1.1, note, 100)], 60, 9, 0, drums=True)
+        x = render(sf2, mp, os.path.join(tmp, f"band{note}.wav"))
+        seg = x[SR : SR + int(BAND_TRUTH_WINDOW_S * SR)]
+        spec = np.abs(np.fft.rfft(seg * np.hanning(len(seg)))) ** 2
+        freqs = np.fft.rfftfreq(len(seg), 1.0 / SR)
+        e = {b: float(spec[(freqs >= lo) & (freqs < hi)].sum()) for b, (lo, hi) in BAND_EDGES_HZ.items()}
+        top = max(e.values())
+        table[note] = {b: round(10 * math.log10(max(v, 1e-30) / top), 2) for b, v in e.items()}
+    return table
+
+
+def band_truth(onsets, table):
+    """Per-band truth: every hit whose note is within BAND_TRUTH_DB of its loudest band in b."""
+    out = {b: [] for b in BAND_EDGES_HZ}
+    hits = sorted((h for hs in onsets.values() for h in hs), key=lambda h: (h["time_s"], h["note"]))
+    for h in hits:
+        for b, db in table[h["note"]].items():
+            if db >= -BAND_TRUTH_DB:
+                out[b].append(h)
+    return out
+
+
+def add_band_truth(truth, table):
+    truth["band_onsets"] = band_truth(truth["onsets"], table)
+    truth["band_truth_rule"] = (
+        f"a hit is in band b when its GM note's isolated sound (velocity 100, first "
+        f"{BAND_TRUTH_WINDOW_S * 1000:g} ms) has energy in b within {BAND_TRUTH_DB:g} dB of its loudest band"
+    )
+    truth["band_db_by_note"] = {str(n): table[n] for n in sorted(table)}
+    return truth
+
+
 def drum_truth(hits, bpm):
     out = {b: [] for b in ("kick", "snare", "toms", "cymbals")}
     for beat, note, vel in hits:
@@ -368,6 +417,7 @@ def build_song(sf2, name, work, bpm, vprog, bprog, oprog, seed, out_dir, seconds
         "f0_notes": {"other": "top line of the polyphonic alto + tenor accompaniment"},
         "onsets": drum_truth(arr["drums"], bpm),
     }
+    add_band_truth(truth, drum_band_table(sf2, [n for _t, n, _v in arr["drums"]], tmp))
     with open(os.path.join(song_dir, "truth.json"), "w") as fh:
         json.dump(truth, fh, separators=(",", ":"))
         fh.write("\n")
@@ -472,6 +522,8 @@ def main():
     ap.add_argument("--format", choices=("wav", "flac"), default=None, help="audio format (default wav, flac with --small)")
     ap.add_argument("--verify", action="store_true", help="after generating, check audio against truth")
     ap.add_argument("--calibrate", action="store_true", help="measure ghost-note level and onset latencies, then exit")
+    ap.add_argument("--update-band-truth", action="store_true",
+                    help="only (re)compute band_onsets in the truth.json files under --out; audio untouched")
     args = ap.parse_args()
     sf2 = find_soundfont()
     fmt = args.format or ("flac" if args.small else "wav")
@@ -479,6 +531,19 @@ def main():
     try:
         if args.calibrate:
             calibrate(sf2, tmp)
+            return
+        if args.update_band_truth:
+            for song in sorted(os.listdir(args.out)):
+                path = os.path.join(args.out, song, "truth.json")
+                if not os.path.exists(path):
+                    continue
+                truth = json.load(open(path))
+                notes = [h["note"] for hs in truth["onsets"].values() for h in hs]
+                add_band_truth(truth, drum_band_table(sf2, notes, tmp))
+                with open(path, "w") as fh:
+                    json.dump(truth, fh, separators=(",", ":"))
+                    fh.write("\n")
+                print(path, {b: len(v) for b, v in truth["band_onsets"].items()})
             return
         os.makedirs(args.out, exist_ok=True)
         songs = [s for s in SONGS if (not args.small) or s[0] in SMALL_SONGS]

@@ -133,13 +133,24 @@ enum Cmd {
         #[arg(long, default_value_t = 3.0)]
         ble_scan_s: f64,
     },
-    /// Score a features file against ground truth (a corpus song folder or truth.json).
+    /// Score a features file against ground truth (a corpus song folder or truth.json), or
+    /// a virtual glove's actuation log against the pattern it played (the paper's Table 3).
+    #[command(
+        after_help = "Forms:\n  tactus eval FEATURES.json --truth SONG_DIR|truth.json [--json OUT]\n  tactus eval --glove-log LOG.jsonl --pattern PATTERN.json [FEATURES.json] [--json OUT]"
+    )]
     Eval {
-        /// Features file from `tactus render --features`.
-        features: PathBuf,
+        /// Features file from `tactus render --features` (with --glove-log: the features
+        /// rendered with the pattern, for the scores against the audio).
+        features: Option<PathBuf>,
         /// Folder with truth.json, or the truth file itself.
-        #[arg(long)]
-        truth: PathBuf,
+        #[arg(long, conflicts_with_all = ["glove_log", "pattern"])]
+        truth: Option<PathBuf>,
+        /// Actuation log from `tactus emulate --log` (JSON Lines).
+        #[arg(long, requires = "pattern")]
+        glove_log: Option<PathBuf>,
+        /// The pattern file that was played (with --glove-log).
+        #[arg(long, requires = "glove_log")]
+        pattern: Option<PathBuf>,
         /// Also write the report as JSON.
         #[arg(long)]
         json: Option<PathBuf>,
@@ -267,26 +278,59 @@ fn run(cli: Cli) -> Result<()> {
         Cmd::Eval {
             features,
             truth,
+            glove_log,
+            pattern,
             json,
         } => {
-            let truth_path = if truth.is_dir() {
-                truth.join("truth.json")
-            } else {
-                truth
+            let read_features = |p: &Path| -> Result<tactus_eval::FeaturesLike> {
+                let f = std::fs::read_to_string(p)
+                    .with_context(|| format!("reading {}", p.display()))?;
+                tactus_eval::FeaturesLike::from_json_str(&f)
+                    .with_context(|| p.display().to_string())
             };
-            let t = std::fs::read_to_string(&truth_path)
-                .with_context(|| format!("reading {}", truth_path.display()))?;
-            let t = tactus_eval::Truth::from_json_str(&t)
-                .with_context(|| truth_path.display().to_string())?;
-            let f = std::fs::read_to_string(&features)
-                .with_context(|| format!("reading {}", features.display()))?;
-            let f = tactus_eval::FeaturesLike::from_json_str(&f)
-                .with_context(|| features.display().to_string())?;
-            let report = tactus_eval::evaluate(&f, &t);
-            print!("{}", report.to_markdown());
             if let Some(p) = &json {
                 check_writable(p)?;
-                let j = report.to_json();
+            }
+            let (text, j) = match (glove_log, pattern, truth) {
+                (Some(log), Some(pattern), None) => {
+                    let pat = tactus_glove::Pattern::from_path(&pattern)
+                        .with_context(|| pattern.display().to_string())?;
+                    let l = std::fs::read_to_string(&log)
+                        .with_context(|| format!("reading {}", log.display()))?;
+                    let l = tactus_eval::glove_log::parse_actuation_log(&l)
+                        .with_context(|| log.display().to_string())?;
+                    let f = features.as_deref().map(read_features).transpose()?;
+                    let r = tactus_eval::glove_log::glove_fidelity(
+                        &l,
+                        &pat,
+                        f.as_ref(),
+                        tactus_eval::glove_log::PAPER_BIN_S,
+                    )
+                    .context("scoring the glove log")?;
+                    (r.to_markdown(), r.to_json())
+                }
+                (None, None, Some(truth)) => {
+                    let features = features
+                        .ok_or_else(|| anyhow!("eval --truth needs a FEATURES.json"))?;
+                    let truth_path = if truth.is_dir() {
+                        truth.join("truth.json")
+                    } else {
+                        truth
+                    };
+                    let t = std::fs::read_to_string(&truth_path)
+                        .with_context(|| format!("reading {}", truth_path.display()))?;
+                    let t = tactus_eval::Truth::from_json_str(&t)
+                        .with_context(|| truth_path.display().to_string())?;
+                    let f = read_features(&features)?;
+                    let report = tactus_eval::evaluate(&f, &t);
+                    (report.to_markdown(), report.to_json())
+                }
+                _ => bail!(
+                    "eval needs FEATURES.json --truth DIR, or --glove-log LOG.jsonl --pattern PATTERN.json"
+                ),
+            };
+            print!("{text}");
+            if let Some(p) = &json {
                 write_atomic(p, |w| w.write_all(j.as_bytes()))
                     .with_context(|| format!("writing {}", p.display()))?;
             }

@@ -45,8 +45,9 @@ fn play_pattern_over_a_pty_into_the_emulator() {
         .unwrap();
     assert!(wait_for(&a) && wait_for(&b), "socat made no ptys");
 
-    // A pattern rendered from the bundled demo song.
+    // A pattern rendered from the bundled demo song, with its features.
     let pattern = d.path().join("demo.json");
+    let features = d.path().join("demo-features.json");
     let song = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/demo.ogg");
     let o = Command::new(bin())
         .args([
@@ -56,6 +57,8 @@ fn play_pattern_over_a_pty_into_the_emulator() {
             "25",
             "-o",
             pattern.to_str().unwrap(),
+            "--features",
+            features.to_str().unwrap(),
         ])
         .output()
         .unwrap();
@@ -139,4 +142,50 @@ fn play_pattern_over_a_pty_into_the_emulator() {
     assert!(r["all_downs"].as_u64().unwrap() >= 1);
     let lines = std::fs::read_to_string(&log).unwrap();
     assert!(lines.lines().count() as u64 >= r["actuations"].as_u64().unwrap().min(1));
+
+    // The paper's Table 3 from the glove's own log (`tactus eval --glove-log`).
+    let report = d.path().join("fidelity.json");
+    let o = Command::new(bin())
+        .args([
+            "eval",
+            "--glove-log",
+            log.to_str().unwrap(),
+            "--pattern",
+            pattern.to_str().unwrap(),
+            features.to_str().unwrap(),
+            "--json",
+            report.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    println!("{}", String::from_utf8_lossy(&o.stdout));
+    let fid: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(fid["frames"].as_u64().unwrap() as usize, frames.len());
+    assert_eq!(fid["undecodable"], 0);
+    // Tolerances: at most the first three 25 ms frames may be superseded (see above), and
+    // they all fall in the first 100 ms paper bin. A level differs by at most 1 after
+    // min–max normalization, so over N bins: MAE(log, pattern) ≤ 1/N, normalized DTW ≤ 1/N
+    // (the diagonal path costs at most N·MAE and K ≥ N), rhythm accuracy ≥ 1 − 1/N, and
+    // against the audio the log is within 1/N of the pattern (triangle inequality).
+    let n = fid["paper_bins"].as_f64().unwrap();
+    assert!(n >= (frames.len() as f64 * 0.025 / 0.1).floor());
+    let tol = 1.0 / n + 1e-12;
+    let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap();
+    assert_eq!(fid["stems"].as_array().unwrap().len(), 3);
+    for s in fid["stems"].as_array().unwrap() {
+        assert!(f(s, "mae_vs_pattern") <= tol, "{s}");
+        assert!(f(s, "dtw_vs_pattern") <= tol, "{s}");
+        assert!(
+            (f(s, "mae_vs_audio") - f(s, "pattern_mae_vs_audio")).abs() <= tol,
+            "{s}"
+        );
+    }
+    assert_eq!(fid["bands"].as_array().unwrap().len(), 4);
+    for b in fid["bands"].as_array().unwrap() {
+        assert!(f(b, "rhythm_vs_pattern") >= 1.0 - tol, "{b}");
+        let d = f(b, "rhythm_vs_audio") - f(b, "pattern_rhythm_vs_audio");
+        assert!(d.abs() <= tol, "{b}");
+    }
 }

@@ -13,6 +13,7 @@
 //! | [`levels`] | ground-truth pitch levels per bin, level accuracy (exact and ±1) | DESIGN.md "levels" |
 //! | [`sdr`] | plain signal-to-distortion ratio, 10·log10(‖s‖² / ‖s − ŝ‖²) | — |
 //! | [`truth`] | reader for the corpus `truth.json` | `corpus/README.md` |
+//! | [`glove_log`] | the paper's Table 3 from a glove actuation log: levels and beats decoded through the map, scored against pattern and audio | the paper, §3 |
 //! | [`features`] | minimal reader for the features file | DESIGN.md "Files" |
 //! | [`report`] | [`evaluate`]: all of the above per stem and band, as Markdown or JSON | — |
 //!
@@ -30,6 +31,7 @@
 #![forbid(unsafe_code)]
 
 pub mod features;
+pub mod glove_log;
 pub mod levels;
 pub mod melody;
 pub mod onset;

@@ -45,6 +45,10 @@ pub struct Truth {
     /// Drum hits per band name (GM note mapped to a band), sorted by time.
     #[serde(default)]
     pub onsets: BTreeMap<String, Vec<DrumHit>>,
+    /// Per-band truth: the hits whose isolated sound is loud in each band (`corpus/README.md`,
+    /// `band_truth_rule`); a hit may be in several bands. Absent in older truth files.
+    #[serde(default)]
+    pub band_onsets: Option<BTreeMap<String, Vec<DrumHit>>>,
 }
 
 impl Truth {
@@ -69,7 +73,11 @@ impl Truth {
         for v in t.f0_hz.values() {
             crate::check_finite("truth f0_hz", v)?;
         }
-        for hits in t.onsets.values() {
+        for hits in t
+            .onsets
+            .values()
+            .chain(t.band_onsets.iter().flat_map(|b| b.values()))
+        {
             if !hits.iter().all(|h| h.time_s.is_finite()) {
                 return Err(EvalError::NonFinite("truth onsets"));
             }
@@ -82,7 +90,18 @@ impl Truth {
         self.f0_hz.get(stem.name()).map(Vec::as_slice)
     }
 
-    /// Sorted onset times of a band (empty if the band has no hits).
+    /// Sorted onset times of the per-band truth of `band`, `None` if the file has none.
+    pub fn band_onset_times(&self, band: Band) -> Option<Vec<f64>> {
+        let b = self.band_onsets.as_ref()?;
+        let mut t: Vec<f64> = b
+            .get(band.name())
+            .map(|h| h.iter().map(|x| x.time_s).collect())
+            .unwrap_or_default();
+        t.sort_by(f64::total_cmp);
+        Some(t)
+    }
+
+    /// Sorted onset times of a band's instruments, the per-instrument truth (empty if none).
     pub fn onset_times(&self, band: Band) -> Vec<f64> {
         let mut t: Vec<f64> = self
             .onsets
