@@ -80,9 +80,13 @@ fn find_device(name: Option<&str>, input: bool) -> Result<cpal::Device> {
         });
     };
     let devices: Vec<cpal::Device> = if input {
-        host.input_devices().map(|d| d.collect()).unwrap_or_default()
+        host.input_devices()
+            .map(|d| d.collect())
+            .unwrap_or_default()
     } else {
-        host.output_devices().map(|d| d.collect()).unwrap_or_default()
+        host.output_devices()
+            .map(|d| d.collect())
+            .unwrap_or_default()
     };
     let matches = |d: &cpal::Device| {
         let id = device_id(d);
@@ -110,9 +114,15 @@ pub fn devices_report() -> String {
     let mut out = format!("Audio devices (cpal, host {}):\n", host.id().name());
     for input in [true, false] {
         let (label, list) = if input {
-            ("inputs (--input NAME)", host.input_devices().map(|d| d.collect::<Vec<_>>()))
+            (
+                "inputs (--input NAME)",
+                host.input_devices().map(|d| d.collect::<Vec<_>>()),
+            )
         } else {
-            ("outputs", host.output_devices().map(|d| d.collect::<Vec<_>>()))
+            (
+                "outputs",
+                host.output_devices().map(|d| d.collect::<Vec<_>>()),
+            )
         };
         let default = if input {
             host.default_input_device()
@@ -211,7 +221,9 @@ fn capture_callback<T>(
     if dropped > 0 {
         shared.overruns.fetch_add(dropped, Ordering::Relaxed);
     }
-    shared.peak_bits.fetch_max(peak.to_bits(), Ordering::Relaxed);
+    shared
+        .peak_bits
+        .fetch_max(peak.to_bits(), Ordering::Relaxed);
     shared.frames.fetch_add(frames as u64, Ordering::Relaxed);
     shared.callbacks.fetch_add(1, Ordering::Relaxed);
 }
@@ -390,6 +402,8 @@ struct OutShared {
     /// The ring was full once (or the song ended): ready to start.
     prefilled: AtomicBool,
     feed_error: AtomicBool,
+    /// Frames of silence before the song.
+    pad: AtomicU64,
 }
 
 /// What the output callback published last.
@@ -491,7 +505,12 @@ where
 }
 
 /// Pushes all of `samples` into the ring, waiting while it is full. False if `stop` was set.
-fn push_all(ring: &mut rtrb::Producer<f32>, mut samples: &[f32], shared: &OutShared, stop: &AtomicBool) -> bool {
+fn push_all(
+    ring: &mut rtrb::Producer<f32>,
+    mut samples: &[f32],
+    shared: &OutShared,
+    stop: &AtomicBool,
+) -> bool {
     while !samples.is_empty() {
         let (_, rest) = ring.push_partial_slice(samples);
         samples = rest;
@@ -511,10 +530,17 @@ fn feed(
     mut source: AudioSource,
     rate: u32,
     channels: usize,
+    pad: usize,
     mut ring: rtrb::Producer<f32>,
     shared: Arc<OutShared>,
     stop: Arc<AtomicBool>,
 ) {
+    shared.pad.store(pad as u64, Ordering::Relaxed);
+    if !push_all(&mut ring, &vec![0.0; pad * channels], &shared, &stop) {
+        shared.fed_all.store(true, Ordering::Release);
+        shared.prefilled.store(true, Ordering::Release);
+        return;
+    }
     let in_rate = source.info().sample_rate;
     let mut rs = match StreamResampler::new(in_rate, rate, 2) {
         Ok(r) => r,
@@ -567,7 +593,7 @@ fn feed(
             break;
         }
     }
-    shared.total.store(total, Ordering::Relaxed);
+    shared.total.store(total + pad as u64, Ordering::Relaxed);
     shared.fed_all.store(true, Ordering::Release);
     shared.prefilled.store(true, Ordering::Release);
 }
@@ -599,7 +625,10 @@ impl Playback {
     /// waits until the ring is full. The sound starts with [`Playback::start`].
     ///
     /// Errors: no output device, the song cannot be opened, or the device refuses to open.
-    pub fn open(song: &Path, stop: Arc<AtomicBool>) -> Result<Playback> {
+    ///
+    /// `pad_ms` of silence precede the song (time 0 of [`Playback::now_ms`] is still the
+    /// song's first sample), so frames due before the song starts go out on time.
+    pub fn open(song: &Path, pad_ms: u32, stop: Arc<AtomicBool>) -> Result<Playback> {
         let device = find_device(None, false)?;
         let label = device_id(&device);
         let sc = device
@@ -608,7 +637,11 @@ impl Playback {
         let config = sc.config();
         let rate = config.sample_rate;
         let channels = usize::from(config.channels.max(1));
+        if std::env::var_os("TACTUS_AUDIO_DEBUG").is_some() {
+            eprintln!("tactus: debug: output {label}: {sc:?}");
+        }
         let source = AudioSource::open(song)?;
+        let pad = (u64::from(rate) * u64::from(pad_ms) / 1000) as usize;
         let capacity = ((rate as f64 * OUTPUT_RING_S) as usize * channels).max(4096 * channels);
         let (producer, consumer) = rtrb::RingBuffer::new(capacity);
         let shared = Arc::new(OutShared {
@@ -625,13 +658,14 @@ impl Playback {
             fed_all: AtomicBool::new(false),
             prefilled: AtomicBool::new(false),
             feed_error: AtomicBool::new(false),
+            pad: AtomicU64::new(pad as u64),
         });
         let feed_stop = Arc::new(AtomicBool::new(false));
         let feeder = {
             let (s, fs) = (shared.clone(), feed_stop.clone());
             std::thread::Builder::new()
                 .name("tactus-audio-feed".into())
-                .spawn(move || feed(source, rate, channels, producer, s, fs))
+                .spawn(move || feed(source, rate, channels, pad, producer, s, fs))
                 .context("starting the audio feeder")?
         };
         let t = Instant::now();
@@ -697,7 +731,8 @@ impl Playback {
         let now_ns = self.shared.base.elapsed().as_nanos() as u64;
         let rate = f64::from(self.rate);
         let since = now_ns.saturating_sub(s.cb_ns) as f64 / 1e9;
-        let pos = s.start as f64 / rate + since.min(s.len as f64 / rate) - s.latency_ns as f64 / 1e9;
+        let pos =
+            s.start as f64 / rate + since.min(s.len as f64 / rate) - s.latency_ns as f64 / 1e9;
         let ms = (pos * 1e3).max(self.last_ms.get());
         self.last_ms.set(ms);
         Some(ms)
@@ -705,17 +740,19 @@ impl Playback {
 
     /// The song's length on the device, ms, once the feeder has decoded all of it.
     pub fn duration_ms(&self) -> Option<f64> {
-        self.shared
-            .fed_all
-            .load(Ordering::Acquire)
-            .then(|| self.shared.total.load(Ordering::Relaxed) as f64 * 1e3 / f64::from(self.rate))
+        self.shared.fed_all.load(Ordering::Acquire).then(|| {
+            let song =
+                self.shared.total.load(Ordering::Relaxed) - self.shared.pad.load(Ordering::Relaxed);
+            song as f64 * 1e3 / f64::from(self.rate)
+        })
     }
 
     /// Whether the whole song has been written to the device and its end is audible.
     pub fn finished(&self) -> bool {
         match (self.duration_ms(), self.now_ms()) {
             (Some(d), Some(t)) => {
-                self.shared.written.load(Ordering::Acquire) >= self.shared.total.load(Ordering::Relaxed)
+                self.shared.written.load(Ordering::Acquire)
+                    >= self.shared.total.load(Ordering::Relaxed)
                     && t >= d
             }
             _ => false,
@@ -733,8 +770,7 @@ impl Playback {
         PlaybackStats {
             underruns: self.shared.underruns.load(Ordering::Relaxed),
             latency_ms: self.shared.cb_latency_ns.load(Ordering::Relaxed) as f64 / 1e6,
-            first_callback: (first != NONE)
-                .then(|| self.shared.base + Duration::from_nanos(first)),
+            first_callback: (first != NONE).then(|| self.shared.base + Duration::from_nanos(first)),
         }
     }
 }

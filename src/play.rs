@@ -123,7 +123,7 @@ pub fn run(
         stems,
         config,
     };
-    let output = open_output(input, no_audio, &stop);
+    let output = open_output(input, lead.max(0) as u32, no_audio, &stop);
     let sink = open_sink(&spec, &SinkOptions::default())?;
     let shared: SharedQueue = Arc::new((Mutex::new(Shared::default()), Condvar::new()));
     let producer = {
@@ -162,7 +162,18 @@ pub fn run(
         #[cfg(feature = "audio")]
         Some(out) => {
             out.start()?;
-            let clock = || out.now_ms();
+            let dbg = std::env::var_os("TACTUS_AUDIO_DEBUG").is_some();
+            let t0 = Instant::now();
+            let last = std::cell::Cell::new(0u64);
+            let clock = || {
+                let c = out.now_ms();
+                let ms = t0.elapsed().as_millis() as u64;
+                if dbg && ms / 250 != last.get() {
+                    last.set(ms / 250);
+                    eprintln!("debug: wall {ms} ms clock {c:?} {:?}", out.stats());
+                }
+                c
+            };
             send_clocked(&shared, &sink, bin_ms, lead, &stop, &clock)
         }
         _ => {
@@ -195,24 +206,31 @@ type Output = crate::audio::Playback;
 type Output = ();
 
 /// Opens the audio output for a song, or says (one line) why frames follow the wall clock.
-fn open_output(input: &Path, no_audio: bool, stop: &Arc<AtomicBool>) -> Option<Output> {
+fn open_output(
+    input: &Path,
+    pad_ms: u32,
+    no_audio: bool,
+    stop: &Arc<AtomicBool>,
+) -> Option<Output> {
     if no_audio {
         return None;
     }
     #[cfg(feature = "audio")]
     {
-        match crate::audio::Playback::open(input, stop.clone()) {
+        match crate::audio::Playback::open(input, pad_ms, stop.clone()) {
             Ok(p) => Some(p),
             Err(e) => {
                 let msg = format!("{e:#}").replace('\n', " ");
-                eprintln!("tactus: warning: no audio output ({msg}); timing frames on the wall clock");
+                eprintln!(
+                    "tactus: warning: no audio output ({msg}); timing frames on the wall clock"
+                );
                 None
             }
         }
     }
     #[cfg(not(feature = "audio"))]
     {
-        let _ = (input, stop);
+        let _ = (input, pad_ms, stop);
         eprintln!("tactus: warning: built without the `audio` feature: no sound; timing frames on the wall clock (--no-audio)");
         None
     }
@@ -279,13 +297,23 @@ fn send_clocked(
 ) -> Result<(usize, usize)> {
     let (m, cv) = &**shared;
     let (mut k, mut sent, mut skipped) = (0usize, 0usize, 0usize);
+    // A clock that stops moving for this long (a stalled audio device) ends playback.
+    let stall = Duration::from_secs(10);
+    let (mut last, mut moved) = (None, Instant::now());
     'frames: while !stop.load(Ordering::Relaxed) {
         let due = k as f64 * f64::from(bin_ms) - lead_ms as f64;
         loop {
             if stop.load(Ordering::Relaxed) {
                 break 'frames;
             }
-            match clock() {
+            let now = clock();
+            if now != last {
+                (last, moved) = (now, Instant::now());
+            } else if moved.elapsed() > stall {
+                sink.all_down();
+                anyhow::bail!("the play clock stopped for {} s (audio output stalled?); rerun with --no-audio", stall.as_secs());
+            }
+            match now {
                 Some(t) if t >= due => break,
                 Some(t) => std::thread::sleep(Duration::from_secs_f64((due - t).min(10.0) / 1e3)),
                 None => std::thread::sleep(Duration::from_millis(2)),
@@ -347,7 +375,11 @@ pub fn live(
         cap.device(),
         rate,
         cap.channels(),
-        if seconds.is_some() { "" } else { "; Ctrl-C stops" }
+        if seconds.is_some() {
+            ""
+        } else {
+            "; Ctrl-C stops"
+        }
     );
     // Everything the loop touches is allocated here.
     let mut raw: Vec<f32> = Vec::with_capacity(cap.capacity());
@@ -389,7 +421,10 @@ pub fn live(
             let ready = eng.ready_bins();
             let first = cap.first_callback();
             while delivered < ready {
-                sink.send_frame(eng.frame(delivered), (delivered as u64 * u64::from(bin_ms)) as u32);
+                sink.send_frame(
+                    eng.frame(delivered),
+                    (delivered as u64 * u64::from(bin_ms)) as u32,
+                );
                 if let Some((t0, n0)) = first {
                     // The bin's last sample, in device frames, was captured about
                     // (n − n0) / rate after the first callback (which brought n0 frames).
@@ -429,11 +464,17 @@ pub fn live(
     result?;
 
     let ms = |n: usize, r: u32| n as f64 * 1e3 / f64::from(r);
-    let mut budget = vec![("resample to 44.1 kHz".to_string(), ms(rs.latency_samples(), ENGINE_RATE))];
+    let mut budget = vec![(
+        "resample to 44.1 kHz".to_string(),
+        ms(rs.latency_samples(), ENGINE_RATE),
+    )];
     budget.extend(eng.latency_budget());
     budget.push(("link".into(), (lead_ms(&spec, 0) - 50) as f64));
     budget.push(("pin rise".into(), 50.0));
-    eprintln!("tactus: latency budget (after the device's input buffer, {:.1} ms reported):", cap.input_delay_ms());
+    eprintln!(
+        "tactus: latency budget (after the device's input buffer, {:.1} ms reported):",
+        cap.input_delay_ms()
+    );
     let mut sum = 0.0;
     for (name, v) in &budget {
         sum += v;
@@ -442,7 +483,9 @@ pub fn live(
     eprintln!("    {:<44} {sum:>7.1} ms", "total");
     latencies.sort_by(f64::total_cmp);
     if !latencies.is_empty() {
-        let p = |q: f64| latencies[((latencies.len() as f64 * q).ceil() as usize).clamp(1, latencies.len()) - 1];
+        let p = |q: f64| {
+            latencies[((latencies.len() as f64 * q).ceil() as usize).clamp(1, latencies.len()) - 1]
+        };
         eprintln!(
             "tactus: measured bin end (captured) -> frame sent: median {:.1} ms, p95 {:.1} ms, max {:.1} ms",
             p(0.5),
