@@ -279,13 +279,13 @@ impl Capture {
         });
         let s = shared.clone();
         let stream = match sc.sample_format() {
-            SampleFormat::F32 => build_input::<f32>(&device, config.clone(), producer, s),
-            SampleFormat::I16 => build_input::<i16>(&device, config.clone(), producer, s),
-            SampleFormat::I32 => build_input::<i32>(&device, config.clone(), producer, s),
-            SampleFormat::U16 => build_input::<u16>(&device, config.clone(), producer, s),
-            SampleFormat::U8 => build_input::<u8>(&device, config.clone(), producer, s),
-            SampleFormat::I8 => build_input::<i8>(&device, config.clone(), producer, s),
-            SampleFormat::F64 => build_input::<f64>(&device, config.clone(), producer, s),
+            SampleFormat::F32 => build_input::<f32>(&device, config, producer, s),
+            SampleFormat::I16 => build_input::<i16>(&device, config, producer, s),
+            SampleFormat::I32 => build_input::<i32>(&device, config, producer, s),
+            SampleFormat::U16 => build_input::<u16>(&device, config, producer, s),
+            SampleFormat::U8 => build_input::<u8>(&device, config, producer, s),
+            SampleFormat::I8 => build_input::<i8>(&device, config, producer, s),
+            SampleFormat::F64 => build_input::<f64>(&device, config, producer, s),
             other => bail!("input device {label}: unsupported sample format {other}"),
         }
         .with_context(|| format!("input device {label}: cannot open"))?;
@@ -677,13 +677,13 @@ impl Playback {
         }
         let s = shared.clone();
         let stream = match sc.sample_format() {
-            SampleFormat::F32 => build_output::<f32>(&device, config.clone(), consumer, s),
-            SampleFormat::I16 => build_output::<i16>(&device, config.clone(), consumer, s),
-            SampleFormat::I32 => build_output::<i32>(&device, config.clone(), consumer, s),
-            SampleFormat::U16 => build_output::<u16>(&device, config.clone(), consumer, s),
-            SampleFormat::U8 => build_output::<u8>(&device, config.clone(), consumer, s),
-            SampleFormat::I8 => build_output::<i8>(&device, config.clone(), consumer, s),
-            SampleFormat::F64 => build_output::<f64>(&device, config.clone(), consumer, s),
+            SampleFormat::F32 => build_output::<f32>(&device, config, consumer, s),
+            SampleFormat::I16 => build_output::<i16>(&device, config, consumer, s),
+            SampleFormat::I32 => build_output::<i32>(&device, config, consumer, s),
+            SampleFormat::U16 => build_output::<u16>(&device, config, consumer, s),
+            SampleFormat::U8 => build_output::<u8>(&device, config, consumer, s),
+            SampleFormat::I8 => build_output::<i8>(&device, config, consumer, s),
+            SampleFormat::F64 => build_output::<f64>(&device, config, consumer, s),
             other => {
                 feed_stop.store(true, Ordering::Relaxed);
                 bail!("output device {label}: unsupported sample format {other}")
