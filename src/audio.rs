@@ -574,8 +574,7 @@ fn feed(
         }
         let len = out[0].len().min(out[1].len());
         inter.clear();
-        for i in 0..len {
-            let (l, r) = (out[0][i], out[1][i]);
+        for (&l, &r) in out[0][..len].iter().zip(&out[1][..len]) {
             match channels {
                 1 => inter.push(0.5 * (l + r)),
                 _ => {
