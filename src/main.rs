@@ -14,6 +14,8 @@ use tactus_engine::render::{render, RenderRequest};
 use tactus_engine::{EngineConfig, Mode, PitchMethod, SeparatorChoice};
 use tactus_glove::{write_atomic, GloveMap};
 
+#[cfg(feature = "audio")]
+mod audio;
 mod play;
 mod plot;
 
@@ -109,9 +111,29 @@ enum Cmd {
         /// 50 ms pin rise and the link latency.
         #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
         offset_ms: i64,
-        /// Time frames on the wall clock (this build has no audio output, so this is the only clock).
+        /// Play no sound and time frames on the wall clock. Without it, a build with the
+        /// `audio` feature plays the song on the default output device and times frames on
+        /// the audio clock.
         #[arg(long)]
         no_audio: bool,
+        #[command(flatten)]
+        engine: EngineArgs,
+    },
+    /// Turn live audio (a microphone, a sound server's monitor) into touch, as it plays
+    /// (needs the `audio` feature).
+    Live {
+        /// Input device name (see `tactus devices`; default: the system's default input).
+        #[arg(long)]
+        input: Option<String>,
+        /// Where the frames go: serial:PATH[@BAUD] | ble[:NAME|ADDRESS] | file:LOG.jsonl | emulator[:LOG.jsonl] | null
+        #[arg(long)]
+        glove: String,
+        /// Stop after this many seconds of captured audio (default: until Ctrl-C).
+        #[arg(long)]
+        seconds: Option<f64>,
+        /// Show a one-line status: time, frames, dropped, overruns, link, input level.
+        #[arg(long)]
+        tui: bool,
         #[command(flatten)]
         engine: EngineArgs,
     },
@@ -127,7 +149,7 @@ enum Cmd {
         #[arg(long)]
         duration: Option<f64>,
     },
-    /// List serial ports and BLE devices.
+    /// List serial ports, BLE devices and audio devices.
     Devices {
         /// Seconds to scan for BLE devices.
         #[arg(long, default_value_t = 3.0)]
@@ -261,6 +283,23 @@ fn run(cli: Cli) -> Result<()> {
             no_audio,
             engine,
         } => play::run(&input, &glove, offset_ms, no_audio, &engine),
+        Cmd::Live {
+            input,
+            glove,
+            seconds,
+            tui,
+            engine,
+        } => {
+            #[cfg(feature = "audio")]
+            {
+                play::live(input.as_deref(), &glove, seconds, tui, &engine)
+            }
+            #[cfg(not(feature = "audio"))]
+            {
+                let _ = (input, glove, seconds, tui, engine);
+                bail!("this tactus was built without audio input: rebuild with `--features audio` (needs libasound2-dev)")
+            }
+        }
         Cmd::Emulate {
             port,
             log,
@@ -273,6 +312,10 @@ fn run(cli: Cli) -> Result<()> {
                     ble_scan_s.max(0.0)
                 ))
             );
+            #[cfg(feature = "audio")]
+            print!("{}", audio::devices_report());
+            #[cfg(not(feature = "audio"))]
+            println!("Audio devices:\n  (unavailable: built without the `audio` feature; rebuild with --features audio)");
             Ok(())
         }
         Cmd::Eval {
