@@ -21,8 +21,10 @@
 //! and cpal's output latency for the block (`playback − callback` instant).
 //! [`Playback::now_ms`] is the song time audible now:
 //! `written_before / rate + min(now − callback, written_now / rate) − output_latency`.
-//! It follows the device's crystal, not the CPU's, and stalls on an underrun, so touch
-//! follows the sound. Before the first callback it is `None`.
+//! The clock that frames follow is that position slew-limited to the wall clock's rate
+//! ± 5 %: it follows the device's crystal, not the CPU's, over a song, but not the leaps and
+//! stalls of a sound server that takes audio in bursts. Before the first callback it is
+//! `None`.
 //!
 //! ## Latency
 //! Capture adds the device period plus at most one engine poll (2 ms) before the engine sees
@@ -46,6 +48,9 @@ use tactus_engine::source::AudioSource;
 pub const CAPTURE_RING_S: f64 = 2.0;
 /// Seconds of device audio the output ring holds (and is prefilled with).
 pub const OUTPUT_RING_S: f64 = 0.5;
+/// Largest rate difference between the play clock and the wall clock (see
+/// [`Playback::now_ms`]).
+const MAX_SLEW: f64 = 0.05;
 /// Marks "not yet" in the time atomics.
 const NONE: u64 = u64::MAX;
 
@@ -617,6 +622,8 @@ pub struct Playback {
     rate: u32,
     device: String,
     last_ms: std::cell::Cell<f64>,
+    /// When [`Playback::now_ms`] last ran (ns since `shared.base`).
+    last_wall_ns: std::cell::Cell<Option<u64>>,
 }
 
 impl Playback {
@@ -703,6 +710,7 @@ impl Playback {
             rate,
             device: label,
             last_ms: std::cell::Cell::new(f64::NEG_INFINITY),
+            last_wall_ns: std::cell::Cell::new(None),
         })
     }
 
@@ -732,7 +740,23 @@ impl Playback {
         let since = now_ns.saturating_sub(s.cb_ns) as f64 / 1e9;
         let pos =
             s.start as f64 / rate + since.min(s.len as f64 / rate) - s.latency_ns as f64 / 1e9;
-        let ms = (pos * 1e3).max(self.last_ms.get());
+        let raw = pos * 1e3;
+        // Slew-limited: the clock runs at the wall clock's rate ± MAX_SLEW and steers towards
+        // the device position within that band. Sound servers accept audio in bursts (the
+        // ALSA→PulseAudio plugin fills a large buffer, then stalls), so the raw position
+        // leaps and stalls although the sound plays smoothly; frames timed on it would
+        // arrive in bursts. Over a song the device's crystal still wins: any drift below
+        // MAX_SLEW (5 %, far above real crystals' ±0.01 %) is followed.
+        let ms = match self.last_wall_ns.get() {
+            None => raw,
+            Some(prev_ns) => {
+                let dt = now_ns.saturating_sub(prev_ns) as f64 / 1e6;
+                let predicted = self.last_ms.get() + dt;
+                predicted + (raw - predicted).clamp(-MAX_SLEW * dt, MAX_SLEW * dt)
+            }
+        };
+        let ms = ms.max(self.last_ms.get());
+        self.last_wall_ns.set(Some(now_ns));
         self.last_ms.set(ms);
         Some(ms)
     }
