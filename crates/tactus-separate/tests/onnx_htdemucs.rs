@@ -330,7 +330,10 @@ fn stream(sep: &mut HtDemucsSeparator, mix: &common::Mix, block: usize) -> StemO
 fn only_requested_stems_are_synthesised() {
     let model = support::fixture("htdemucs_golden").join("htdemucs-tiny.onnx");
     if !model.is_file() {
-        eprintln!("SKIPPED only_requested_stems_are_synthesised: no {}", model.display());
+        eprintln!(
+            "SKIPPED only_requested_stems_are_synthesised: no {}",
+            model.display()
+        );
         return;
     }
     let drums = StemSet::EMPTY.with(Stem::Drums);

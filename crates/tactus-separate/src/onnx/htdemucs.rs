@@ -275,8 +275,8 @@ impl HtDemucsSeparator {
                         spec.fill(Complex::new(0.0, 0.0));
                     }
                 }
-                let (re_plane, im_plane) = self.mag[2 * c * plane..(2 * c + 2) * plane]
-                    .split_at_mut(plane);
+                let (re_plane, im_plane) =
+                    self.mag[2 * c * plane..(2 * c + 2) * plane].split_at_mut(plane);
                 for k in 0..BINS {
                     let re = &mut re_plane[k * FRAMES + t0..][..nb];
                     let im = &mut im_plane[k * FRAMES + t0..][..nb];
