@@ -59,6 +59,10 @@ struct EngineArgs {
     /// ONNX model for --separator htdemucs|spleeter.
     #[arg(long)]
     model: Option<PathBuf>,
+    /// Threads ONNX Runtime may use inside one network call (--separator
+    /// htdemucs|spleeter) [default: the available cores].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    threads: Option<u32>,
     /// Supply a stem and skip separating it: NAME=PATH, NAME in drums, bass, vocals, other.
     #[arg(long = "stem", value_name = "NAME=PATH")]
     stems: Vec<String>,
@@ -261,6 +265,7 @@ fn engine_config(
         },
         map,
         separator,
+        threads: e.threads.map_or(0, |n| n as usize),
         ..EngineConfig::default()
     };
     Ok((cfg, stems))
@@ -486,6 +491,21 @@ fn run(cli: Cli) -> Result<()> {
                 }
                 if total > 0.0 {
                     eprintln!("  speed: {:.1}x real time", out.duration_s / total);
+                }
+                if let Some(st) = &out.segments {
+                    eprintln!(
+                        "  network segments: {}, per segment mean {:.3} s, min {:.3} s, max {:.3} s",
+                        st.segments,
+                        st.network_mean().as_secs_f64(),
+                        st.network_min.as_secs_f64(),
+                        st.network_max.as_secs_f64()
+                    );
+                    eprintln!(
+                        "  outside the network (STFT, iSTFT, overlap-add, masks): {:.3} s = {:.1} % of the network's {:.3} s",
+                        st.outside().as_secs_f64(),
+                        100.0 * st.outside_share(),
+                        st.network.as_secs_f64()
+                    );
                 }
                 eprintln!("  latency budget (streaming):");
                 let mut sum = 0.0;

@@ -74,3 +74,55 @@ fn spleeter_render_beats_the_spectral_default_on_vocals() {
     // differences while still failing if the network output were not used.
     assert!(a > 0.5 && a > b + 0.2, "spleeter {a}, spectral {b}");
 }
+
+/// `render --separator htdemucs --threads N --verbose` reports the network segments (count,
+/// mean, min, max) and the time outside the network; `--threads 0` is refused. Uses the
+/// tiny golden-fixture model (htdemucs's I/O contract, a few MB), so it needs only ONNX
+/// Runtime.
+#[test]
+fn htdemucs_verbose_reports_segments_and_threads_is_checked() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model =
+        root.join("crates/tactus-separate/tests/fixtures/onnx/htdemucs_golden/htdemucs-tiny.onnx");
+    if std::env::var_os("ORT_DYLIB_PATH").is_none() || !model.exists() {
+        eprintln!("SKIPPED: run models/setup_onnxruntime.sh and export ORT_DYLIB_PATH (CI does)");
+        return;
+    }
+    let mix = root.join("corpus/fixtures/bwv347_120bpm/mix.flac");
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("p.json");
+    let args = |threads: &'static str| {
+        vec![
+            "render".to_string(),
+            mix.display().to_string(),
+            "--separator".into(),
+            "htdemucs".into(),
+            "--model".into(),
+            model.display().to_string(),
+            "--threads".into(),
+            threads.into(),
+            "--verbose".into(),
+            "-o".into(),
+            out.display().to_string(),
+        ]
+    };
+    let run = |a: Vec<String>| {
+        Command::new(env!("CARGO_BIN_EXE_tactus"))
+            .args(&a)
+            .output()
+            .expect("run tactus")
+    };
+    let o = run(args("1"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    // The corpus songs last 8 s (352 800 samples at 44.1 kHz): segments of 343 980
+    // samples start every 257 985, so two network calls.
+    assert!(
+        err.contains("network segments: 2, per segment mean"),
+        "{err}"
+    );
+    assert!(err.contains("outside the network"), "{err}");
+    let o = run(args("0"));
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--threads"));
+}

@@ -14,7 +14,7 @@ use tactus_dsp::{Band, SampleStage, Stem};
 use tactus_glove::{BinFeatures, Frame, GloveMap};
 use tactus_separate::none::NoneSeparator;
 use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
-use tactus_separate::{Separator, StemOutput, StemSet};
+use tactus_separate::{SegmentStats, Separator, StemOutput, StemSet};
 
 use crate::track::{Denoise, Geometry, Mode, OnsetTrack, PitchMethod, PitchTrack};
 use crate::EngineError;
@@ -63,6 +63,9 @@ pub struct EngineConfig {
     /// each). Delays the chains by one block; results are identical. The offline driver
     /// turns it on; a live caller with small blocks leaves it off.
     pub pipeline: bool,
+    /// Intra-op threads for the ONNX separators (ONNX Runtime); 0 = the available cores
+    /// ([`std::thread::available_parallelism`]). Nothing else uses it.
+    pub threads: usize,
 }
 
 impl Default for EngineConfig {
@@ -77,6 +80,7 @@ impl Default for EngineConfig {
             separator: SeparatorChoice::default(),
             supplied: StemSet::default(),
             pipeline: false,
+            threads: 0,
         }
     }
 }
@@ -245,11 +249,19 @@ fn onnx_separator(
     model: &std::path::Path,
     rate: u32,
     stems: StemSet,
+    threads: usize,
 ) -> Result<Box<dyn Separator>, EngineError> {
     use tactus_separate::onnx::{
         htdemucs::HtDemucsSeparator, spleeter::SpleeterSeparator, OnnxConfig,
     };
-    let cfg = OnnxConfig::new(model);
+    let cfg = OnnxConfig {
+        threads: if threads == 0 {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        } else {
+            threads
+        },
+        ..OnnxConfig::new(model)
+    };
     let err = |e: tactus_separate::onnx::OnnxError| EngineError::Config(e.to_string());
     Ok(if demucs {
         Box::new(HtDemucsSeparator::new(rate, stems, &cfg).map_err(err)?)
@@ -264,6 +276,7 @@ fn onnx_separator(
     _model: &std::path::Path,
     _rate: u32,
     _stems: StemSet,
+    _threads: usize,
 ) -> Result<Box<dyn Separator>, EngineError> {
     Err(EngineError::Config(
         "this tactus was built without ONNX support: rebuild with `--features onnx` (see README, \"ONNX models\")".into(),
@@ -355,10 +368,10 @@ impl Engine {
                         .map_err(|e| EngineError::Config(e.to_string()))?,
                 ),
                 SeparatorChoice::Spleeter(model) => {
-                    onnx_separator(false, model, cfg.sample_rate, separated)?
+                    onnx_separator(false, model, cfg.sample_rate, separated, cfg.threads)?
                 }
                 SeparatorChoice::HtDemucs(model) => {
-                    onnx_separator(true, model, cfg.sample_rate, separated)?
+                    onnx_separator(true, model, cfg.sample_rate, separated, cfg.threads)?
                 }
                 SeparatorChoice::None => Box::new(
                     NoneSeparator::new(cfg.sample_rate, separated)
@@ -391,6 +404,12 @@ impl Engine {
     /// Name of the separator that runs, if any.
     pub fn separator_name(&self) -> Option<&'static str> {
         self.separator.as_ref().map(|s| s.name())
+    }
+
+    /// The separator's per-segment timing, if it runs a network in segments (the ONNX
+    /// separators; see [`Separator::segment_stats`]).
+    pub fn segment_stats(&self) -> Option<SegmentStats> {
+        self.separator.as_ref().and_then(|s| s.segment_stats())
     }
 
     /// Feeds one block of the mix (planar stereo; pass the same slice twice for mono) and

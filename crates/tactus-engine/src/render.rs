@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use tactus_dsp::Stem;
 use tactus_glove::{Features, Pattern, SourceInfo};
+use tactus_separate::SegmentStats;
 
 use crate::engine::{Engine, EngineConfig, StageTimes};
 use crate::resample::StreamResampler;
@@ -47,6 +48,8 @@ pub struct RenderOutput {
     pub separator: Option<&'static str>,
     /// Duration of the input in seconds.
     pub duration_s: f64,
+    /// Per-segment timing of an ONNX separator (`None` for the others).
+    pub segments: Option<SegmentStats>,
 }
 
 /// A supplied stem, decoded and resampled whole, read out in step with the mix.
@@ -107,7 +110,10 @@ impl SuppliedStem {
     }
 }
 
-/// Renders a song. `progress(fraction)` is called after every block when the duration is known.
+/// Renders a song. `progress(fraction)` is called after every block when the duration is
+/// known: the fraction of the input read, or, with a separator that runs a network in
+/// segments (htdemucs, Spleeter: nearly all the time), the fraction of its segments done,
+/// so the bar advances per segment and does not reach 1 before the last one.
 pub fn render(
     req: &RenderRequest,
     progress: &mut dyn FnMut(f64),
@@ -195,7 +201,14 @@ pub fn render_with(
             }
         }
         if total > 0 {
-            progress((frames_in as f64 / total as f64).min(1.0));
+            progress(match engine.segment_stats() {
+                Some(st) => {
+                    let samples = total * rate as u64 / info.sample_rate.max(1) as u64;
+                    let expected = st.expected_segments(samples);
+                    (st.segments as f64 / expected as f64).min(0.999)
+                }
+                None => (frames_in as f64 / total as f64).min(1.0),
+            });
         }
     }
     engine.finish();
@@ -259,6 +272,7 @@ pub fn render_with(
         latency: engine.latency_budget(),
         stems: engine.stems(),
         separator: engine.separator_name(),
+        segments: engine.segment_stats(),
         pattern,
         warnings,
         times,

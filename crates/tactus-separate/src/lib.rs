@@ -40,6 +40,8 @@ pub mod stft;
 
 pub use tactus_dsp::Stem;
 
+use std::time::Duration;
+
 use tactus_dsp::ConfigError;
 
 /// A set of [`Stem`]s (a bit set over [`Stem::ALL`]).
@@ -202,6 +204,90 @@ pub trait Separator: Send {
     /// How far the output lags the input while streaming (worst case, in samples): after
     /// `n` input samples, at least `n - latency_samples()` output samples were appended.
     fn latency_samples(&self) -> usize;
+    /// Timing of the network segments since construction or the last
+    /// [`Separator::reset`], for backends that run a network in segments (the ONNX
+    /// backends); `None` for the others.
+    fn segment_stats(&self) -> Option<SegmentStats> {
+        None
+    }
+}
+
+/// Per-segment instrumentation of a separator that runs a network in segments.
+///
+/// Collected with two `Instant` reads per network call and two per `process` / `finish`
+/// call; no allocation. "Outside the network" is everything else the separator does in
+/// `process` and `finish`: STFT, iSTFT, overlap-add, masks, blending, copies.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SegmentStats {
+    /// Network calls (segments) so far.
+    pub segments: u64,
+    /// Time inside the network calls, summed.
+    pub network: Duration,
+    /// Shortest network call (zero before the first).
+    pub network_min: Duration,
+    /// Longest network call.
+    pub network_max: Duration,
+    /// Time inside `process` and `finish`, network included.
+    pub busy: Duration,
+    /// Inverse FFTs computed (one per synthesised channel and STFT frame): shows which
+    /// stems were synthesised.
+    pub inverse_ffts: u64,
+    /// Input samples between the starts of consecutive segments (44.1 kHz).
+    pub stride_samples: usize,
+}
+
+impl SegmentStats {
+    /// Stats for segments that start every `stride_samples` input samples.
+    pub fn new(stride_samples: usize) -> Self {
+        SegmentStats {
+            stride_samples,
+            ..Self::default()
+        }
+    }
+
+    /// Records one network call that took `d`.
+    #[inline]
+    pub fn record_network(&mut self, d: Duration) {
+        self.network_min = if self.segments == 0 {
+            d
+        } else {
+            self.network_min.min(d)
+        };
+        self.network_max = self.network_max.max(d);
+        self.network += d;
+        self.segments += 1;
+    }
+
+    /// Mean network time per segment (zero before the first).
+    pub fn network_mean(&self) -> Duration {
+        if self.segments == 0 {
+            Duration::ZERO
+        } else {
+            self.network.div_f64(self.segments as f64)
+        }
+    }
+
+    /// Time spent outside the network: `busy - network`.
+    pub fn outside(&self) -> Duration {
+        self.busy.saturating_sub(self.network)
+    }
+
+    /// [`SegmentStats::outside`] as a fraction of the network's time (0 when the network
+    /// has not run).
+    pub fn outside_share(&self) -> f64 {
+        let net = self.network.as_secs_f64();
+        if net > 0.0 {
+            self.outside().as_secs_f64() / net
+        } else {
+            0.0
+        }
+    }
+
+    /// Segments a stream of `samples` input samples needs, about (`⌈samples / stride⌉`,
+    /// at least 1): for a progress bar.
+    pub fn expected_segments(&self, samples: u64) -> u64 {
+        samples.div_ceil(self.stride_samples.max(1) as u64).max(1)
+    }
 }
 
 /// Errors raised when a separator is constructed.

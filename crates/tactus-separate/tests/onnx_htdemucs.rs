@@ -17,7 +17,9 @@ mod support;
 
 use std::path::Path;
 
-use tactus_separate::onnx::htdemucs::{HtDemucsSeparator, SEGMENT_SAMPLES, SOURCES};
+use tactus_separate::onnx::htdemucs::{
+    HtDemucsSeparator, FRAMES, SEGMENT_SAMPLES, SOURCES, STRIDE_SAMPLES,
+};
 use tactus_separate::onnx::{OnnxConfig, OnnxError};
 use tactus_separate::{sdr, Separator, Stem, StemOutput, StemSet};
 
@@ -307,4 +309,77 @@ fn golden_parity_with_demucs() {
         println!("golden {file}: max |rust - reference| = {worst:.2e} (reference peak {peak:.3})");
         assert!(worst <= tol, "{file}: worst {worst} > {tol}");
     }
+}
+
+fn stream(sep: &mut HtDemucsSeparator, mix: &common::Mix, block: usize) -> StemOutput {
+    let mut out = StemOutput::new();
+    for (l, r) in mix.left.chunks(block).zip(mix.right.chunks(block)) {
+        sep.process(l, r, &mut out);
+    }
+    sep.finish(&mut out);
+    out
+}
+
+/// Issue 5: "skip the iSTFT and the downstream work for stems that the map does not use".
+/// With the tiny golden model (a real htdemucs layout, so the four sources differ), a
+/// drums-only separator must (1) run one inverse FFT per frame and segment instead of
+/// four, as counted by its `SegmentStats`, (2) output drums and nothing else, and (3)
+/// output the same drums as the all-stems separator (the stems are independent after
+/// the network). Also checks the segment count and the timing stats' invariants.
+#[test]
+fn only_requested_stems_are_synthesised() {
+    let model = support::fixture("htdemucs_golden").join("htdemucs-tiny.onnx");
+    if !model.is_file() {
+        eprintln!(
+            "SKIPPED only_requested_stems_are_synthesised: no {}",
+            model.display()
+        );
+        return;
+    }
+    let drums = StemSet::EMPTY.with(Stem::Drums);
+    let test = "only_requested_stems_are_synthesised";
+    let (Some(mut all), Some(mut one)) = (
+        open(test, &model, StemSet::all()),
+        open(test, &model, drums),
+    ) else {
+        return;
+    };
+    // Segments start at 0, S and 2S (S = stride): three network calls.
+    let n = 2 * STRIDE_SAMPLES + 10_000;
+    let mix = tones(n);
+    let out_all = stream(&mut all, &mix, 44_100);
+    let out_one = stream(&mut one, &mix, 44_100);
+    let (st_all, st_one) = (all.segment_stats().unwrap(), one.segment_stats().unwrap());
+    assert_eq!(st_all.segments, 3);
+    assert_eq!(st_one.segments, 3);
+    assert_eq!(st_one.expected_segments(n as u64), 3);
+    assert_eq!(st_all.inverse_ffts, 3 * 4 * FRAMES as u64);
+    assert_eq!(st_one.inverse_ffts, 3 * FRAMES as u64);
+
+    assert_eq!(out_one.present(), drums);
+    for s in [Stem::Bass, Stem::Vocals, Stem::Other] {
+        assert!(out_one.get(s).is_empty(), "{s:?} was output");
+    }
+    let (a, b) = (out_all.get(Stem::Drums), out_one.get(Stem::Drums));
+    assert_eq!(a.len(), n);
+    assert_eq!(b.len(), n);
+    let peak = a.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+    assert!(peak > 1e-3, "degenerate drums stem (peak {peak})");
+    // Same inputs to the same network with the same thread count: ONNX Runtime's CPU
+    // kernels give the same numbers; 1e-6 of the peak leaves room for a different
+    // reduction order, while any framing, weighting or stem mix-up errs by > 1e-3.
+    let diff = a
+        .iter()
+        .zip(b)
+        .fold(0.0f32, |m, (x, y)| m.max((x - y).abs()));
+    assert!(diff <= 1e-6 * peak, "drums differ by {diff} (peak {peak})");
+
+    for st in [st_all, st_one] {
+        assert!(st.network_min <= st.network_mean() && st.network_mean() <= st.network_max);
+        assert!(st.network <= st.busy);
+        assert!(st.outside_share().is_finite() && st.outside_share() >= 0.0);
+    }
+    // `reset` starts the stats over.
+    one.reset();
+    assert_eq!(one.segment_stats().unwrap().segments, 0);
 }

@@ -234,3 +234,32 @@ fn output_length_equals_input_length() {
         assert_eq!(out.get(Stem::Vocals).len(), n);
     }
 }
+
+/// Only the requested stems are synthesised: per STFT frame, one inverse FFT for the
+/// vocals and two (L, R) for the accompaniment, which only drums, bass or other need.
+/// The counts come from `SegmentStats`, which also counts the network calls.
+#[test]
+fn only_requested_stems_are_synthesised() {
+    let test = "only_requested_stems_are_synthesised";
+    let mix = common::synthetic_mix(SR, 12.0, 5);
+    let mut counts = Vec::new();
+    for stems in [
+        StemSet::EMPTY.with(Stem::Vocals),
+        StemSet::EMPTY.with(Stem::Drums),
+        StemSet::EMPTY.with(Stem::Vocals).with(Stem::Bass),
+    ] {
+        let Some(mut sp) = spleeter(test, stems) else {
+            return;
+        };
+        let out = common::run_block(&mut sp, &mix.left, &mix.right);
+        assert_eq!(out.present(), stems);
+        let st = sp.segment_stats().expect("Spleeter reports segment stats");
+        // 12 s = 521 frames with the leading pads: segments start at frames 0 and 448.
+        assert_eq!(st.segments, 2);
+        assert!(st.network <= st.busy && st.network_min <= st.network_max);
+        counts.push(st.inverse_ffts);
+    }
+    let frames = counts[0];
+    assert!(frames > 500, "{frames} frames synthesised");
+    assert_eq!(counts, vec![frames, 2 * frames, 3 * frames]);
+}

@@ -42,6 +42,7 @@
 //! for that segment and is reported by [`HtDemucsSeparator::last_error`].
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use ort::session::Session;
 use ort::value::TensorRef;
@@ -51,7 +52,7 @@ use tactus_dsp::sanitize::sanitize_sample;
 
 use super::{open_session, OnnxConfig, OnnxError, Port};
 use crate::stft::hann_periodic;
-use crate::{stem_index, SeparateError, Separator, Stem, StemOutput, StemSet};
+use crate::{stem_index, SegmentStats, SeparateError, Separator, Stem, StemOutput, StemSet};
 
 /// The only sample rate the model accepts, in Hz.
 pub const SAMPLE_RATE: u32 = 44_100;
@@ -69,6 +70,11 @@ pub const BINS: usize = N_FFT / 2;
 pub const FRAMES: usize = SEGMENT_SAMPLES.div_ceil(HOP);
 /// Demucs's extra reflect padding, `HOP / 2 · 3`.
 const PAD: usize = HOP / 2 * 3;
+/// Complex values per one-sided spectrum (`BINS` + the Nyquist bin).
+const SPEC_LEN: usize = N_FFT / 2 + 1;
+/// Frames transposed together between our frame-major spectra and the graph's
+/// bin-major tensors (16 floats = one 64-byte cache line; divides `FRAMES` = 336).
+const BLOCK_FRAMES: usize = 16;
 /// The network's sources, in output order.
 pub const SOURCES: [Stem; 4] = [Stem::Drums, Stem::Bass, Stem::Other, Stem::Vocals];
 const INPUT_LIMIT: f32 = 1e9;
@@ -124,7 +130,10 @@ pub struct HtDemucsSeparator {
     mag: Vec<f32>,
     padded: Vec<f32>,
     frame: Vec<f32>,
-    spectrum: Vec<Complex<f32>>,
+    /// Spectra of `BLOCK_FRAMES` consecutive frames (`BINS + 1` each): the graph's
+    /// layout is bin-major, so spectra go in and out a block of frames at a time (one
+    /// cache line per bin and plane instead of one per value).
+    block: Vec<Complex<f32>>,
     scratch_fwd: Vec<Complex<f32>>,
     scratch_inv: Vec<Complex<f32>>,
     /// Per requested stem (indexed by `stem_index`): weighted output accumulator over
@@ -137,6 +146,7 @@ pub struct HtDemucsSeparator {
     /// Final samples being delivered.
     ready: Vec<f32>,
     last_error: Option<String>,
+    stats: SegmentStats,
 }
 
 impl HtDemucsSeparator {
@@ -188,7 +198,7 @@ impl HtDemucsSeparator {
             mag: vec![0.0; 4 * BINS * FRAMES],
             padded: vec![0.0; FRAMES * HOP + 2 * PAD],
             frame: vec![0.0; N_FFT],
-            spectrum: vec![Complex::new(0.0, 0.0); N_FFT / 2 + 1],
+            block: vec![Complex::new(0.0, 0.0); BLOCK_FRAMES * SPEC_LEN],
             acc: [
                 per_stem(Stem::Drums),
                 per_stem(Stem::Bass),
@@ -199,6 +209,7 @@ impl HtDemucsSeparator {
             stem_out: vec![0.0; SEGMENT_SAMPLES],
             ready: vec![0.0; SEGMENT_SAMPLES],
             last_error: None,
+            stats: SegmentStats::new(STRIDE_SAMPLES),
         })
     }
 
@@ -249,25 +260,31 @@ impl HtDemucsSeparator {
                 }
                 *p = x[j.clamp(0, n - 1) as usize];
             }
-            for t in 0..FRAMES {
-                let src = &self.padded[t * HOP..t * HOP + N_FFT];
-                for ((f, &s), &w) in self.frame.iter_mut().zip(src).zip(&self.window) {
-                    *f = s * w;
+            for t0 in (0..FRAMES).step_by(BLOCK_FRAMES) {
+                let nb = BLOCK_FRAMES.min(FRAMES - t0);
+                for (j, spec) in self.block.chunks_exact_mut(SPEC_LEN).take(nb).enumerate() {
+                    let src = &self.padded[(t0 + j) * HOP..(t0 + j) * HOP + N_FFT];
+                    for ((f, &s), &w) in self.frame.iter_mut().zip(src).zip(&self.window) {
+                        *f = s * w;
+                    }
+                    if self
+                        .fft
+                        .process_with_scratch(&mut self.frame, spec, &mut self.scratch_fwd)
+                        .is_err()
+                    {
+                        spec.fill(Complex::new(0.0, 0.0));
+                    }
                 }
-                if self
-                    .fft
-                    .process_with_scratch(
-                        &mut self.frame,
-                        &mut self.spectrum,
-                        &mut self.scratch_fwd,
-                    )
-                    .is_err()
-                {
-                    self.spectrum.fill(Complex::new(0.0, 0.0));
-                }
-                for (k, z) in self.spectrum[..BINS].iter().enumerate() {
-                    self.mag[(2 * c) * plane + k * FRAMES + t] = z.re * scale;
-                    self.mag[(2 * c + 1) * plane + k * FRAMES + t] = z.im * scale;
+                let (re_plane, im_plane) =
+                    self.mag[2 * c * plane..(2 * c + 2) * plane].split_at_mut(plane);
+                for k in 0..BINS {
+                    let re = &mut re_plane[k * FRAMES + t0..][..nb];
+                    let im = &mut im_plane[k * FRAMES + t0..][..nb];
+                    for (j, (r, i)) in re.iter_mut().zip(im).enumerate() {
+                        let z = self.block[j * SPEC_LEN + k];
+                        *r = z.re * scale;
+                        *i = z.im * scale;
+                    }
                 }
             }
         }
@@ -282,10 +299,10 @@ impl HtDemucsSeparator {
                 .map_err(|e| e.to_string())?;
             let mag = TensorRef::from_array_view(([1usize, 4, BINS, FRAMES], &self.mag[..]))
                 .map_err(|e| e.to_string())?;
-            let outputs = self
-                .session
-                .run(ort::inputs!["mix" => mix, "mag" => mag])
-                .map_err(|e| e.to_string())?;
+            let t_net = Instant::now();
+            let outputs = self.session.run(ort::inputs!["mix" => mix, "mag" => mag]);
+            self.stats.record_network(t_net.elapsed());
+            let outputs = outputs.map_err(|e| e.to_string())?;
             let get = |name: &str, len: usize| -> Result<&[f32], String> {
                 let v = outputs
                     .get(name)
@@ -310,11 +327,12 @@ impl HtDemucsSeparator {
                     &*self.ifft,
                     &self.window,
                     &self.envelope,
-                    &mut self.spectrum,
+                    &mut self.block,
                     &mut self.frame,
                     &mut self.scratch_inv,
                     &mut self.stem_out,
                 );
+                self.stats.inverse_ffts += FRAMES as u64;
                 let acc = &mut self.acc[stem_index(stem)];
                 for ((a, &y), &w) in acc[..len].iter_mut().zip(&self.stem_out).zip(&self.weight) {
                     *a += if y.is_finite() { w * y } else { 0.0 };
@@ -361,7 +379,7 @@ fn synthesise_mono(
     ifft: &dyn ComplexToReal<f32>,
     window: &[f32],
     envelope: &[f32],
-    spectrum: &mut [Complex<f32>],
+    block: &mut [Complex<f32>],
     frame: &mut [f32],
     scratch: &mut [Complex<f32>],
     out: &mut [f32],
@@ -370,25 +388,38 @@ fn synthesise_mono(
     out.fill(0.0);
     // torch.istft(normalized=True): irfft (1/N) times √N.
     let scale = 1.0 / (N_FFT as f32).sqrt();
-    for t in 0..FRAMES {
-        for (k, z) in spectrum[..BINS].iter_mut().enumerate() {
-            let re = 0.5 * (freq[k * FRAMES + t] + freq[2 * plane + k * FRAMES + t]);
-            let im = 0.5 * (freq[plane + k * FRAMES + t] + freq[3 * plane + k * FRAMES + t]);
-            *z = Complex::new(re, im);
+    for t0 in (0..FRAMES).step_by(BLOCK_FRAMES) {
+        let nb = BLOCK_FRAMES.min(FRAMES - t0);
+        // Transpose a block of frames out of the bin-major planes, averaging L and R.
+        for k in 0..BINS {
+            let at = k * FRAMES + t0;
+            let (lr, li) = (&freq[at..at + nb], &freq[plane + at..plane + at + nb]);
+            let (rr, ri) = (
+                &freq[2 * plane + at..2 * plane + at + nb],
+                &freq[3 * plane + at..3 * plane + at + nb],
+            );
+            for j in 0..nb {
+                block[j * SPEC_LEN + k] =
+                    Complex::new(0.5 * (lr[j] + rr[j]), 0.5 * (li[j] + ri[j]));
+            }
         }
-        spectrum[0].im = 0.0;
-        spectrum[BINS] = Complex::new(0.0, 0.0);
-        if ifft.process_with_scratch(spectrum, frame, scratch).is_err() {
-            continue;
-        }
-        // Frame t covers segment samples [t·HOP − PAD, t·HOP − PAD + N_FFT).
-        let first = t * HOP;
-        for (n, (&y, &w)) in frame.iter().zip(window).enumerate() {
-            let p = first + n;
-            if p < PAD || p - PAD >= SEGMENT_SAMPLES {
+        for (j, spectrum) in block.chunks_exact_mut(SPEC_LEN).take(nb).enumerate() {
+            spectrum[0].im = 0.0;
+            spectrum[BINS] = Complex::new(0.0, 0.0);
+            if ifft.process_with_scratch(spectrum, frame, scratch).is_err() {
                 continue;
             }
-            out[p - PAD] += y * w * scale;
+            // Frame t covers segment samples [t·HOP − PAD, t·HOP − PAD + N_FFT).
+            let first = (t0 + j) * HOP;
+            let lo = PAD.saturating_sub(first);
+            let hi = (SEGMENT_SAMPLES + PAD - first).min(N_FFT);
+            if lo >= hi {
+                continue;
+            }
+            let dst = &mut out[first + lo - PAD..first + hi - PAD];
+            for ((o, &y), &w) in dst.iter_mut().zip(&frame[lo..hi]).zip(&window[lo..hi]) {
+                *o += y * w * scale;
+            }
         }
     }
     // Divide by the Hann² envelope; output sample i sits at istft position i + 3584
@@ -417,6 +448,7 @@ impl Separator for HtDemucsSeparator {
     }
 
     fn process(&mut self, left: &[f32], right: &[f32], out: &mut StemOutput) {
+        let t_busy = Instant::now();
         out.declare(self.stems);
         let n = left.len().min(right.len());
         let mut pos = 0;
@@ -436,9 +468,11 @@ impl Separator for HtDemucsSeparator {
                 self.deliver(STRIDE_SAMPLES, STRIDE_SAMPLES, out);
             }
         }
+        self.stats.busy += t_busy.elapsed();
     }
 
     fn finish(&mut self, out: &mut StemOutput) {
+        let t_busy = Instant::now();
         out.declare(self.stems);
         // Segments start at every multiple of the stride below the stream's length.
         while self.start < self.seen {
@@ -453,6 +487,7 @@ impl Separator for HtDemucsSeparator {
                 self.deliver(STRIDE_SAMPLES, STRIDE_SAMPLES, out);
             }
         }
+        self.stats.busy += t_busy.elapsed();
     }
 
     fn reset(&mut self) {
@@ -465,9 +500,14 @@ impl Separator for HtDemucsSeparator {
         }
         self.wsum.fill(0.0);
         self.last_error = None;
+        self.stats = SegmentStats::new(STRIDE_SAMPLES);
     }
 
     fn latency_samples(&self) -> usize {
         SEGMENT_SAMPLES - 1
+    }
+
+    fn segment_stats(&self) -> Option<SegmentStats> {
+        Some(self.stats)
     }
 }

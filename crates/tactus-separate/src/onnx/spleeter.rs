@@ -45,6 +45,8 @@
 //! segment's vocal mask is 0 (everything goes to the accompaniment) and the message is
 //! kept in [`SpleeterSeparator::last_error`].
 
+use std::time::Instant;
+
 use ort::session::Session;
 use ort::value::TensorRef;
 use realfft::num_complex::Complex;
@@ -53,7 +55,7 @@ use tactus_dsp::sanitize::sanitize_sample;
 use super::{open_session, OnnxConfig, OnnxError, Port};
 use crate::spectral::{SpectralConfig, SpectralSeparator};
 use crate::stft::{OverlapAdd, StftAnalysis, StftConfig};
-use crate::{SeparateError, Separator, Stem, StemOutput, StemSet};
+use crate::{SegmentStats, SeparateError, Separator, Stem, StemOutput, StemSet};
 
 /// The only sample rate the model accepts, in Hz.
 pub const SAMPLE_RATE: u32 = 44_100;
@@ -138,6 +140,7 @@ struct Core {
     tail_len: usize,
     split: Option<Split>,
     last_error: Option<String>,
+    stats: SegmentStats,
 }
 
 /// The accompaniment splitter (drums / bass / other).
@@ -208,6 +211,7 @@ impl SpleeterSeparator {
             tail_len: 0,
             split,
             last_error: None,
+            stats: SegmentStats::new(STRIDE * HOP),
         };
         let mut sep = SpleeterSeparator {
             stems,
@@ -278,10 +282,10 @@ impl Core {
                 &self.net_in[..],
             ))
             .map_err(|e| e.to_string())?;
-            let outputs = self
-                .session
-                .run(ort::inputs![input])
-                .map_err(|e| e.to_string())?;
+            let t_net = Instant::now();
+            let outputs = self.session.run(ort::inputs![input]);
+            self.stats.record_network(t_net.elapsed());
+            let outputs = outputs.map_err(|e| e.to_string())?;
             let get = |name: &str| -> Result<&[f32], String> {
                 let v = outputs
                     .get(name)
@@ -345,6 +349,7 @@ impl Core {
                     };
                 }
                 self.synthesis.add(CH_VOCALS, &mut self.work);
+                self.stats.inverse_ffts += 1;
             }
             if self.split.is_some() {
                 for (ch, x, m) in [(CH_ACC_L, xl, ml), (CH_ACC_R, xr, mr)] {
@@ -356,6 +361,7 @@ impl Core {
                         };
                     }
                     self.synthesis.add(ch, &mut self.work);
+                    self.stats.inverse_ffts += 1;
                 }
             }
             self.frames_out += 1;
@@ -440,6 +446,7 @@ impl Core {
             split.out.clear();
         }
         self.last_error = None;
+        self.stats = SegmentStats::new(STRIDE * HOP);
     }
 }
 
@@ -480,6 +487,7 @@ impl Separator for SpleeterSeparator {
     }
 
     fn process(&mut self, left: &[f32], right: &[f32], out: &mut StemOutput) {
+        let t_busy = Instant::now();
         out.declare(self.stems);
         let n = left.len().min(right.len());
         for start in (0..n).step_by(BLOCK) {
@@ -495,15 +503,18 @@ impl Separator for SpleeterSeparator {
                     core.on_frame(t, spectra, out)
                 });
         }
+        self.core.stats.busy += t_busy.elapsed();
     }
 
     fn finish(&mut self, out: &mut StemOutput) {
+        let t_busy = Instant::now();
         out.declare(self.stems);
         let core = &mut self.core;
         self.analysis
             .finish(|t, spectra| core.on_frame(t, spectra, out));
         let total = self.analysis.samples_seen() - EXTRA_PAD;
         self.core.finish(total, out);
+        self.core.stats.busy += t_busy.elapsed();
     }
 
     fn reset(&mut self) {
@@ -532,5 +543,9 @@ impl Separator for SpleeterSeparator {
             .as_ref()
             .map_or(0, |s| s.sep.latency_samples());
         (SEGMENT_FRAMES - 1) * HOP + N_FFT - 1 + split
+    }
+
+    fn segment_stats(&self) -> Option<SegmentStats> {
+        Some(self.core.stats)
     }
 }
