@@ -3,6 +3,7 @@
 //! memory does not grow with the song beyond the per-hop feature records.
 
 use std::path::{Path, PathBuf};
+use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use tactus_dsp::Stem;
@@ -17,6 +18,56 @@ use crate::EngineError;
 /// Samples per engine block in offline rendering (1 s at 44.1 kHz): large enough for the
 /// stem chains to run on separate threads.
 const BLOCK: usize = 44_100;
+/// Decoded blocks the reader thread may hold ready ahead of the engine.
+const DECODE_AHEAD: usize = 4;
+
+/// One block of decoded planar stereo at the file's rate; `last` marks the end of the stream.
+struct DecodedBlock {
+    left: Vec<f32>,
+    right: Vec<f32>,
+    last: bool,
+}
+
+/// The reader thread: decodes blocks of about [`BLOCK`] frames (reusing the buffers sent
+/// back on `spare`) until the stream ends, an error occurs (sent on, then it stops) or the
+/// receiver hangs up. Returns the source (for its warnings) and the time spent decoding.
+fn decode_blocks(
+    mut source: AudioSource,
+    blocks: &mpsc::SyncSender<Result<DecodedBlock, EngineError>>,
+    spare: &mpsc::Receiver<DecodedBlock>,
+) -> (AudioSource, Duration) {
+    let mut spent = Duration::ZERO;
+    loop {
+        let mut block = spare.try_recv().unwrap_or_else(|_| DecodedBlock {
+            left: Vec::with_capacity(BLOCK * 2),
+            right: Vec::with_capacity(BLOCK * 2),
+            last: false,
+        });
+        block.left.clear();
+        block.right.clear();
+        block.last = false;
+        let t = Instant::now();
+        while block.left.len() < BLOCK {
+            match source.read_block(&mut block.left, &mut block.right) {
+                Ok(0) => {
+                    block.last = true;
+                    break;
+                }
+                Ok(_) => {}
+                Err(e) => {
+                    spent += t.elapsed();
+                    let _ = blocks.send(Err(e.into()));
+                    return (source, spent);
+                }
+            }
+        }
+        spent += t.elapsed();
+        let last = block.last;
+        if blocks.send(Ok(block)).is_err() || last {
+            return (source, spent);
+        }
+    }
+}
 
 /// What to render.
 #[derive(Debug, Clone)]
@@ -131,7 +182,7 @@ pub fn render_with(
 ) -> Result<RenderOutput, EngineError> {
     let t_all = Instant::now();
     let mut warnings = Vec::new();
-    let mut source = AudioSource::open(&req.input)?;
+    let source = AudioSource::open(&req.input)?;
     let info = source.info().clone();
     let rate = req.config.sample_rate;
 
@@ -156,61 +207,73 @@ pub fn render_with(
         None
     };
     let mut t_resample = Duration::ZERO;
-    let (mut left, mut right) = (Vec::with_capacity(BLOCK * 2), Vec::with_capacity(BLOCK * 2));
     let mut out = vec![Vec::with_capacity(BLOCK * 2), Vec::with_capacity(BLOCK * 2)];
     let mut frames_in: u64 = 0;
     let total = info.frames.unwrap_or(0);
-    let mut ended = false;
     let mut delivered = 0usize;
-    while !ended {
-        let t = Instant::now();
-        let n = source.read_block(&mut left, &mut right)?;
-        t_decode += t.elapsed();
-        if n == 0 {
-            ended = true;
-        }
-        frames_in += n as u64;
-        if !ended && left.len() < BLOCK {
-            continue;
-        }
-        let t = Instant::now();
-        match &mut resampler {
-            Some(rs) => {
-                rs.process(&[&left, &right], &mut out);
-                if ended {
-                    rs.finish(&mut out);
+    // Decoding runs on its own thread, a few blocks ahead (a bounded channel), so that it
+    // overlaps the separator and the stem chains; blocks go back to it for reuse.
+    let (block_tx, block_rx) =
+        mpsc::sync_channel::<Result<DecodedBlock, EngineError>>(DECODE_AHEAD);
+    let (spare_tx, spare_rx) = mpsc::channel::<DecodedBlock>();
+    let (source, t_dec) = std::thread::scope(|scope| -> Result<_, EngineError> {
+        let reader = scope.spawn(move || decode_blocks(source, &block_tx, &spare_rx));
+        let mut result = Ok(());
+        for block in block_rx.iter() {
+            let block = match block {
+                Ok(b) => b,
+                Err(e) => {
+                    result = Err(e);
+                    break;
+                }
+            };
+            frames_in += block.left.len() as u64;
+            let t = Instant::now();
+            match &mut resampler {
+                Some(rs) => {
+                    rs.process(&[&block.left, &block.right], &mut out);
+                    if block.last {
+                        rs.finish(&mut out);
+                    }
+                }
+                None => {
+                    out[0].extend_from_slice(&block.left);
+                    out[1].extend_from_slice(&block.right);
                 }
             }
-            None => {
-                out[0].extend_from_slice(&left);
-                out[1].extend_from_slice(&right);
-            }
-        }
-        left.clear();
-        right.clear();
-        t_resample += t.elapsed();
-        let len = out[0].len().min(out[1].len());
-        feed(&mut engine, &out[0][..len], &out[1][..len], &mut supplied);
-        out[0].clear();
-        out[1].clear();
-        if req.config.mode == crate::Mode::Streaming {
-            let ready = engine.ready_bins();
-            while delivered < ready {
-                on_frame(delivered, engine.frame(delivered));
-                delivered += 1;
-            }
-        }
-        if total > 0 {
-            progress(match engine.segment_stats() {
-                Some(st) => {
-                    let samples = total * rate as u64 / info.sample_rate.max(1) as u64;
-                    let expected = st.expected_segments(samples);
-                    (st.segments as f64 / expected as f64).min(0.999)
+            t_resample += t.elapsed();
+            // The reader may be gone after the last block; the buffer is simply dropped then.
+            let _ = spare_tx.send(block);
+            let len = out[0].len().min(out[1].len());
+            feed(&mut engine, &out[0][..len], &out[1][..len], &mut supplied);
+            out[0].clear();
+            out[1].clear();
+            if req.config.mode == crate::Mode::Streaming {
+                let ready = engine.ready_bins();
+                while delivered < ready {
+                    on_frame(delivered, engine.frame(delivered));
+                    delivered += 1;
                 }
-                None => (frames_in as f64 / total as f64).min(1.0),
-            });
+            }
+            if total > 0 {
+                progress(match engine.segment_stats() {
+                    Some(st) => {
+                        let samples = total * rate as u64 / info.sample_rate.max(1) as u64;
+                        let expected = st.expected_segments(samples);
+                        (st.segments as f64 / expected as f64).min(0.999)
+                    }
+                    None => (frames_in as f64 / total as f64).min(1.0),
+                });
+            }
         }
-    }
+        // Dropping the receiver stops a reader that is still decoding (after an error).
+        drop(block_rx);
+        let joined = reader
+            .join()
+            .map_err(|_| EngineError::Config("the decoding thread panicked".into()))?;
+        result.map(|()| joined)
+    })?;
+    t_decode += t_dec;
     engine.finish();
     progress(1.0);
 
