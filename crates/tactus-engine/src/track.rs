@@ -183,9 +183,10 @@ pub struct PitchTrack {
     rms: Rms,
     hop: usize,
     geo: Geometry,
-    /// Raw tracker output per hop (Hz, 0 = unvoiced).
+    /// Raw tracker output per hop (Hz, 0 = unvoiced): every hop offline, only the hops not
+    /// yet consumed in streaming mode.
     pub raw_f0: Vec<f32>,
-    /// RMS per hop in dBFS.
+    /// RMS per hop in dBFS (kept like `raw_f0`).
     pub raw_rms: Vec<f32>,
     // streaming post-processing
     next: usize,
@@ -295,11 +296,13 @@ impl PitchTrack {
         if self.geo.mode != Mode::Streaming {
             return;
         }
+        // Streaming keeps only the raw hops not yet consumed (memory stays flat however
+        // long the stream): `raw_*[j]` is hop `next + j`.
         let ready = self.raw_f0.len().min(self.raw_rms.len());
-        while self.next < ready {
+        for j in 0..ready {
             let i = self.next;
-            let open = self.gate.process(self.raw_rms[i]);
-            let f0 = if open { self.raw_f0[i] } else { 0.0 };
+            let open = self.gate.process(self.raw_rms[j]);
+            let f0 = if open { self.raw_f0[j] } else { 0.0 };
             let f0 = self.tukey.process(f0);
             let level = match self.range.update(f0) {
                 Some(r) => self.disc.level(f0, r),
@@ -311,6 +314,8 @@ impl PitchTrack {
             self.binner.push(i, level, &mut |_, l| bins.push(l));
             self.next += 1;
         }
+        self.raw_f0.drain(..ready);
+        self.raw_rms.drain(..ready);
     }
 
     fn post_offline(&mut self) {
@@ -354,9 +359,10 @@ pub struct OnsetTrack {
     rms: Rms,
     hop: usize,
     geo: Geometry,
-    /// Raw onset flag per hop.
+    /// Raw onset flag per hop: every hop offline, only the hops not yet consumed in
+    /// streaming mode.
     pub raw_onset: Vec<bool>,
-    /// RMS per hop in dBFS.
+    /// RMS per hop in dBFS (kept like `raw_onset`).
     pub raw_rms: Vec<f32>,
     next: usize,
     gate: StreamingGate,
@@ -436,16 +442,19 @@ impl OnsetTrack {
         if self.geo.mode != Mode::Streaming {
             return;
         }
+        // As in `PitchTrack`: only unconsumed raw hops are kept; `raw_*[j]` is hop `next + j`.
         let ready = self.raw_onset.len().min(self.raw_rms.len());
-        while self.next < ready {
+        for j in 0..ready {
             let i = self.next;
-            let open = self.gate.process(self.raw_rms[i]);
-            let onset = open && self.raw_onset[i];
+            let open = self.gate.process(self.raw_rms[j]);
+            let onset = open && self.raw_onset[j];
             self.onsets.push(onset);
             let bins = &mut self.bins;
             self.binner.push(i, onset, &mut |_, b| bins.push(b));
             self.next += 1;
         }
+        self.raw_onset.drain(..ready);
+        self.raw_rms.drain(..ready);
     }
 
     /// Onset times in seconds (after the gate).
