@@ -312,6 +312,9 @@ fn feed(chains: &mut [StemChain], sep_out: &StemOutput, supplied: &[(Stem, &[f32
     }
 }
 
+/// A separated block and copies of the supplied stems' same span, waiting for the chains.
+type PendingBlock = (StemOutput, Vec<(Stem, Vec<f32>)>);
+
 /// The streaming pipeline. See the module docs.
 pub struct Engine {
     cfg: EngineConfig,
@@ -322,7 +325,7 @@ pub struct Engine {
     n_in: usize,
     t_separate: Duration,
     /// A separated block (with copies of the supplied stems) waiting for the chains.
-    pending: Option<(StemOutput, Vec<(Stem, Vec<f32>)>)>,
+    pending: Option<PendingBlock>,
 }
 
 impl Engine {
