@@ -17,7 +17,7 @@ use crate::EngineError;
 
 /// Samples per engine block in offline rendering (1 s at 44.1 kHz): large enough for the
 /// stem chains to run on separate threads.
-const BLOCK: usize = 44_100;
+const BLOCK: usize = 88_200;
 /// Decoded blocks the reader thread may hold ready ahead of the engine.
 const DECODE_AHEAD: usize = 4;
 
