@@ -238,11 +238,11 @@ def markdown(rows, cmd):
          "Speed relative to Tactus on isolated stems with pYIN, offline statistics. RPA: raw pitch accuracy (±50 cents);",
          "level ±1: bass + vocals tactile levels within one of the truth's; onset F within ±50 ms, mean of 4 bands,",
          "against the per-instrument and the per-band truth. front: on the Pareto front of speed vs 1 − mean RPA (RPA) or vs 1 − band onset F (F).", "",
-         "| who | input | pitch | onsets | stats | speed (× real time) | speed ratio | bass RPA | vocals RPA | level ±1 | onset F instrument | onset F band | front |",
-         "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+         "| # | who | input | pitch | onsets | stats | speed (× real time) | speed ratio | bass RPA | vocals RPA | level ±1 | onset F instrument | onset F band | front |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for i, r in enumerate(rows):
         front = ("RPA" if i in front_rpa else "") + (" F" if i in front_f else "")
-        s.append(f"| {r['who']} | {r['input']} | {r['pitch']} | {r['onsets']} | {r['stats']} | {r['speed']:.1f}× | {r['speed'] / ref['speed']:.2f} | "
+        s.append(f"| {i + 1} | {r['who']} | {r['input']} | {r['pitch']} | {r['onsets']} | {r['stats']} | {r['speed']:.1f}× | {r['speed'] / ref['speed']:.2f} | "
                  f"{r['bass']:.3f} | {r['vocals']:.3f} | {r['lvl']:.3f} | {r['F']:.3f} | {r['bandF']:.3f} | {front.strip() or ''} |")
     return "\n".join(s) + "\n"
 
@@ -288,11 +288,16 @@ def svg(rows):
             c = colors.get(r["who"], "#666")
             ring = ' stroke="#c00" stroke-width="2"' if i in front else ""
             out.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{c}"{ring}/>')
-            out.append(f'<text x="{x + 6:.1f}" y="{y - 4 - 9 * (i % 2):.1f}" fill="{c}" font-size="8">{label(r)}</text>')
+            # Row numbers of benches/sweep.md keep the labels legible where points crowd;
+            # points on the front also get their name.
+            name = f" {label(r)}" if i in front else ""
+            # Names near the right edge go to the left of their point.
+            anchor, dx = ("end", -6) if name and x > left + 0.6 * pw else ("start", 6)
+            out.append(f'<text x="{x + dx:.1f}" y="{y - 4 - 9 * (i % 2):.1f}" fill="{c}" font-size="9" text-anchor="{anchor}">{i + 1}{name}</text>')
     ly = H - 8
     for k, (who, c) in enumerate(colors.items()):
         out.append(f'<circle cx="{M + 140 * k}" cy="{ly - 3}" r="4" fill="{c}"/><text x="{M + 8 + 140 * k}" y="{ly}">{who}</text>')
-    out.append(f'<line x1="{M + 430}" y1="{ly - 3}" x2="{M + 460}" y2="{ly - 3}" stroke="#c00" stroke-dasharray="5,3"/><text x="{M + 466}" y="{ly}">Pareto front (ringed points)</text>')
+    out.append(f'<line x1="{M + 430}" y1="{ly - 3}" x2="{M + 460}" y2="{ly - 3}" stroke="#c00" stroke-dasharray="5,3"/><text x="{M + 466}" y="{ly}">Pareto front (ringed points); numbers are the rows of benches/sweep.md</text>')
     out.append("</svg>")
     return "\n".join(out) + "\n"
 
@@ -303,7 +308,13 @@ def main():
     ap.add_argument("--quick", action="store_true", help="skip Spleeter")
     ap.add_argument("--no-peers", action="store_true")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--replot", action="store_true", help="redraw benches/sweep.svg from benches/sweep.json without running anything")
     a = ap.parse_args()
+    json_path = os.path.join(ROOT, "benches", "sweep.json")
+    if a.replot:
+        rows = json.load(open(json_path))
+        open(os.path.join(ROOT, "benches", "sweep.svg"), "w").write(svg(rows))
+        return
     cmd = "python3 benches/sweep.py" + (" --quick" if a.quick else "") + (f" --spleeter {a.spleeter}" if a.spleeter and not a.quick else "")
     with tempfile.TemporaryDirectory() as tmp:
         rows = tactus_rows(a, tmp) + ([] if a.no_peers else peer_rows(a, tmp))
@@ -312,6 +323,7 @@ def main():
     md += f"\nLoad average at the end: {load[0]:.2f}, {load[1]:.2f}, {load[2]:.2f} ({os.cpu_count()} cores); best of {a.repeats}.\n"
     open(os.path.join(ROOT, "benches", "sweep.md"), "w").write(md)
     open(os.path.join(ROOT, "benches", "sweep.svg"), "w").write(svg(rows))
+    json.dump(rows, open(json_path, "w"), indent=1)
     print(md)
 
 
