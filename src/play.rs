@@ -131,24 +131,34 @@ pub fn run(
         let stop = stop.clone();
         std::thread::spawn(move || {
             let (m, cv) = &*shared;
+            // Returning `false` (stopped, or a poisoned lock) ends the render at once.
             let result = render_with(&req, &mut |_| {}, &mut |k, f| {
-                let Ok(mut g) = m.lock() else { return };
+                let Ok(mut g) = m.lock() else { return false };
                 // The bounded buffer: wait while `ahead` frames are queued.
                 while g.frames.len() >= ahead && !stop.load(Ordering::Relaxed) {
                     g = match cv.wait_timeout(g, Duration::from_millis(50)) {
                         Ok(r) => r.0,
-                        Err(_) => return,
+                        Err(_) => return false,
                     };
                 }
-                if stop.load(Ordering::Relaxed) || k < g.base + g.frames.len() {
-                    return;
+                if stop.load(Ordering::Relaxed) {
+                    return false;
+                }
+                if k < g.base + g.frames.len() {
+                    return true;
                 }
                 if g.frames.is_empty() {
                     g.base = k;
                 }
                 g.frames.push_back(f);
                 cv.notify_all();
+                true
             });
+            // A stop is not an error to report.
+            let result = match result {
+                Err(tactus_engine::EngineError::Cancelled) => Ok(()),
+                other => other.map(|_| ()),
+            };
             if let Ok(mut g) = m.lock() {
                 g.done = true;
                 if let Err(e) = result {

@@ -36,6 +36,9 @@ pub enum EngineError {
     /// Reading a file failed.
     #[error("{path}: {source}", path = .0.display(), source = .1)]
     Io(PathBuf, std::io::Error),
+    /// The caller's frame callback asked to stop ([`render::render_with`]).
+    #[error("rendering was stopped")]
+    Cancelled,
 }
 
 impl From<tactus_dsp::ConfigError> for EngineError {

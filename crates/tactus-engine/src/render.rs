@@ -169,16 +169,18 @@ pub fn render(
     req: &RenderRequest,
     progress: &mut dyn FnMut(f64),
 ) -> Result<RenderOutput, EngineError> {
-    render_with(req, progress, &mut |_, _| {})
+    render_with(req, progress, &mut |_, _| true)
 }
 
 /// [`render`], also handing every glove frame to `on_frame(bin, frame)` as soon as it is
 /// final: in `streaming` mode while the song is still being decoded (what `tactus play`
-/// uses), in `offline` mode all at the end.
+/// uses), in `offline` mode all at the end. `on_frame` returns whether to go on: `false`
+/// stops decoding and rendering at once and the call returns [`EngineError::Cancelled`]
+/// (how `play` stops on Ctrl-C without rendering the rest of a long file).
 pub fn render_with(
     req: &RenderRequest,
     progress: &mut dyn FnMut(f64),
-    on_frame: &mut dyn FnMut(usize, tactus_glove::Frame),
+    on_frame: &mut dyn FnMut(usize, tactus_glove::Frame) -> bool,
 ) -> Result<RenderOutput, EngineError> {
     let t_all = Instant::now();
     let mut warnings = Vec::new();
@@ -251,8 +253,14 @@ pub fn render_with(
             if req.config.mode == crate::Mode::Streaming {
                 let ready = engine.ready_bins();
                 while delivered < ready {
-                    on_frame(delivered, engine.frame(delivered));
+                    if !on_frame(delivered, engine.frame(delivered)) {
+                        result = Err(EngineError::Cancelled);
+                        break;
+                    }
                     delivered += 1;
+                }
+                if result.is_err() {
+                    break;
                 }
             }
             if total > 0 {
@@ -312,7 +320,9 @@ pub fn render_with(
     let duration_s = n as f64 / rate as f64;
     let frames = engine.frames();
     for (k, f) in frames.iter().enumerate().skip(delivered) {
-        on_frame(k, *f);
+        if !on_frame(k, *f) {
+            return Err(EngineError::Cancelled);
+        }
     }
     let pattern = Pattern {
         source: SourceInfo {

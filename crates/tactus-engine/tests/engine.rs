@@ -130,3 +130,51 @@ fn streaming_follows_offline() {
         );
     }
 }
+
+/// A frame callback that says "stop" ends the render at once: `render_with` returns
+/// `Cancelled` after exactly that frame, long before the end of the file (what `play`
+/// relies on after Ctrl-C). Fails if rendering ran on to the end or kept calling back.
+#[test]
+fn a_stopping_frame_callback_cancels_the_render() {
+    use tactus_engine::render::{render_with, RenderRequest};
+    use tactus_engine::EngineError;
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("long.wav");
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: 44_100,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let mut w = hound::WavWriter::create(&path, spec).unwrap();
+    let x = song(44_100 * 3);
+    for _ in 0..10 {
+        for &v in &x {
+            w.write_sample((v * 20_000.0) as i16).unwrap();
+        }
+    }
+    w.finalize().unwrap();
+    let req = RenderRequest {
+        input: path,
+        stems: Vec::new(),
+        config: EngineConfig {
+            mode: Mode::Streaming,
+            bin_ms: 25,
+            ..config(Mode::Streaming)
+        },
+    };
+    let (mut calls, mut last_progress) = (0usize, 0.0f64);
+    let result = render_with(&req, &mut |p| last_progress = p, &mut |_, _| {
+        calls += 1;
+        calls < 20
+    });
+    assert!(
+        matches!(result, Err(EngineError::Cancelled)),
+        "expected Cancelled, got {:?}",
+        result.map(|o| o.pattern.frames.len())
+    );
+    assert_eq!(calls, 20, "no frame may be handed over after the stop");
+    // 30 s of audio, stopped after 0.5 s of frames: at most the first 2 s block was fed.
+    assert!(last_progress < 0.5, "progress reached {last_progress}");
+}
