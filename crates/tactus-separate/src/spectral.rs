@@ -45,7 +45,7 @@
 //! bass 6.8, vocals 9.1, other 2.2 dB, i.e. 8.2 / 5.8 / 14.5 / 13.1 dB better than using
 //! the mix itself. The weak spot is drums: kick thumps are long low sines, which the time
 //! median calls harmonic, so they leak into bass. Speed (`benches/separate.rs`, 2 shared
-//! cores): about 70× real time for all four stems, about 750× for bass alone.
+//! cores, idle): about 180× real time for all four stems, about 1900× for bass alone.
 //!
 //! **Hygiene**: non-finite input samples become 0, samples below 1e-30 are flushed to 0
 //! (`tactus_dsp::sanitize`), and mid/side samples are clamped to ±1e9 so the output is
