@@ -643,9 +643,6 @@ impl Playback {
         let config = sc.config();
         let rate = config.sample_rate;
         let channels = usize::from(config.channels.max(1));
-        if std::env::var_os("TACTUS_AUDIO_DEBUG").is_some() {
-            eprintln!("tactus: debug: output {label}: {sc:?}");
-        }
         let source = AudioSource::open(song)?;
         let pad = (u64::from(rate) * u64::from(pad_ms) / 1000) as usize;
         let capacity = ((rate as f64 * OUTPUT_RING_S) as usize * channels).max(4096 * channels);

@@ -172,18 +172,7 @@ pub fn run(
         #[cfg(feature = "audio")]
         Some(out) => {
             out.start()?;
-            let dbg = std::env::var_os("TACTUS_AUDIO_DEBUG").is_some();
-            let t0 = Instant::now();
-            let last = std::cell::Cell::new(0u64);
-            let clock = || {
-                let c = out.now_ms();
-                let ms = t0.elapsed().as_millis() as u64;
-                if dbg && ms / 250 != last.get() {
-                    last.set(ms / 250);
-                    eprintln!("debug: wall {ms} ms clock {c:?} {:?}", out.stats());
-                }
-                c
-            };
+            let clock = || out.now_ms();
             send_clocked(&shared, &sink, bin_ms, lead, &stop, &clock)
         }
         _ => {

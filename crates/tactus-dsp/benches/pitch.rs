@@ -33,50 +33,44 @@ fn melody(n: usize) -> Vec<f32> {
         .collect()
 }
 
+/// One tracker fed blocks of 128, 256 and 512 samples of `x`, cycling through it.
+fn bench_blocks<S: HopStage<Out = PitchEstimate>>(
+    c: &mut Criterion,
+    group: &str,
+    x: &[f32],
+    make: impl Fn() -> S,
+) {
+    let mut g = c.benchmark_group(group);
+    for block in [128usize, 256, 512] {
+        g.throughput(Throughput::Elements(block as u64));
+        let mut tracker = make();
+        let mut pos = 0;
+        g.bench_with_input(BenchmarkId::from_parameter(block), &block, |b, &block| {
+            b.iter(|| {
+                if pos + block > x.len() {
+                    pos = 0;
+                }
+                let mut acc = 0.0f32;
+                tracker.process(
+                    black_box(&x[pos..pos + block]),
+                    &mut |_, e: PitchEstimate| acc += e.f0_hz,
+                );
+                pos += block;
+                acc
+            })
+        });
+    }
+    g.finish();
+}
+
 fn blocks(c: &mut Criterion) {
     let x = melody(SR as usize * 4);
-    let mut g = c.benchmark_group("yin_block");
-    for block in [128usize, 256, 512] {
-        g.throughput(Throughput::Elements(block as u64));
-        let mut yin = Yin::new(YinConfig::new(SR, 70.0, 1400.0)).unwrap();
-        let mut pos = 0;
-        g.bench_with_input(BenchmarkId::from_parameter(block), &block, |b, &block| {
-            b.iter(|| {
-                if pos + block > x.len() {
-                    pos = 0;
-                }
-                let mut acc = 0.0f32;
-                yin.process(
-                    black_box(&x[pos..pos + block]),
-                    &mut |_, e: PitchEstimate| acc += e.f0_hz,
-                );
-                pos += block;
-                acc
-            })
-        });
-    }
-    g.finish();
-    let mut g = c.benchmark_group("pyin_block");
-    for block in [128usize, 256, 512] {
-        g.throughput(Throughput::Elements(block as u64));
-        let mut p = Pyin::new(PyinConfig::new(SR, 70.0, 1400.0)).unwrap();
-        let mut pos = 0;
-        g.bench_with_input(BenchmarkId::from_parameter(block), &block, |b, &block| {
-            b.iter(|| {
-                if pos + block > x.len() {
-                    pos = 0;
-                }
-                let mut acc = 0.0f32;
-                p.process(
-                    black_box(&x[pos..pos + block]),
-                    &mut |_, e: PitchEstimate| acc += e.f0_hz,
-                );
-                pos += block;
-                acc
-            })
-        });
-    }
-    g.finish();
+    bench_blocks(c, "yin_block", &x, || {
+        Yin::new(YinConfig::new(SR, 70.0, 1400.0)).unwrap()
+    });
+    bench_blocks(c, "pyin_block", &x, || {
+        Pyin::new(PyinConfig::new(SR, 70.0, 1400.0)).unwrap()
+    });
 }
 
 fn song(c: &mut Criterion) {
