@@ -36,13 +36,17 @@
 //! | [`tukey`] | Tukey's fences (k = 1.5) on voiced pitch in semitones | Tukey 1977 |
 //! | [`discretize`] | N pitch levels over the stem's non-zero range | the paper, §3 |
 //! | [`binner`] | per-hop values into bins of B ms | the paper, §3 |
+//! | [`melbank`] | log mel-band power with a chosen look-ahead | HTK mel scale |
+//! | [`drums`] | per-instrument drum transcription (kick, snare, toms, cymbals): mel context, a small MLP, causal peak picking | frame-wise ADT (Vogl et al. 2017; Southall et al. 2017) |
 #![forbid(unsafe_code)]
 
 pub mod binner;
 pub mod discretize;
+pub mod drums;
 pub mod flux;
 pub mod framer;
 pub mod median;
+pub mod melbank;
 pub mod pyin;
 pub mod rms;
 pub mod sanitize;

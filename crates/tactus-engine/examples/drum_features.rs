@@ -1,0 +1,63 @@
+//! Dumps the drum transcriber's front end (log mel frames, `tactus_dsp::melbank`) for the
+//! training script `models/drums/train.py`, computed by the very code the engine runs.
+//!
+//! ```text
+//! cargo run --release -p tactus-engine --example drum_features -- INPUT OUT.f32 [iso|sep|mix]
+//! ```
+//! * `iso`: INPUT is a drum stem; it is downmixed to mono.
+//! * `sep`: INPUT is a mix; the embedded spectral separator's drum stem is used (what the
+//!   default render feeds the transcriber).
+//! * `mix`: INPUT is a mix, downmixed to mono (the transcriber on the mix itself).
+//!
+//! Every input then goes through the engine's drum denoiser (30 Hz high-pass + 3-sample
+//! median). OUT is little-endian f32, one row of `bands` values per 10 ms hop.
+use std::io::Write;
+use std::path::Path;
+
+use tactus_dsp::melbank::{MelBank, MelConfig};
+use tactus_dsp::Stem;
+use tactus_engine::source::decode_all;
+use tactus_engine::track::Denoise;
+use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
+use tactus_separate::{Separator, StemOutput, StemSet};
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    if args.len() < 3 {
+        return Err("usage: drum_features INPUT OUT.f32 [iso|sep|mix]".into());
+    }
+    let mode = args.get(3).map(String::as_str).unwrap_or("iso");
+    let d = decode_all(Path::new(&args[1]))?;
+    let sr = d.info.sample_rate;
+    if sr != 44_100 {
+        return Err(format!("{}: needs 44.1 kHz, got {sr}", args[1]).into());
+    }
+    let mut x: Vec<f32> = match mode {
+        "iso" | "mix" => d.left.iter().zip(&d.right).map(|(l, r)| 0.5 * (l + r)).collect(),
+        "sep" => {
+            let stems = StemSet::default().with(Stem::Drums);
+            let mut sep = SpectralSeparator::new(sr, stems, SpectralConfig::default())?;
+            let mut out = StemOutput::with_capacity(stems, d.left.len());
+            for (l, r) in d.left.chunks(88_200).zip(d.right.chunks(88_200)) {
+                sep.process(l, r, &mut out);
+            }
+            sep.finish(&mut out);
+            out.take(Stem::Drums)
+        }
+        m => return Err(format!("unknown mode {m}").into()),
+    };
+    let mut den = Denoise::new(30.0, sr)?;
+    den.process_inplace(&mut x);
+    let mut mel = MelBank::new(MelConfig::drums(sr))?;
+    let mut rows: Vec<f32> = Vec::new();
+    for c in x.chunks(88_200) {
+        mel.process_bands(c, &mut |_, b| rows.extend_from_slice(b));
+    }
+    mel.finish_bands(&mut |_, b| rows.extend_from_slice(b));
+    let mut f = std::io::BufWriter::new(std::fs::File::create(&args[2])?);
+    for v in rows {
+        f.write_all(&v.to_le_bytes())?;
+    }
+    f.flush()?;
+    Ok(())
+}

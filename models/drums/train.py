@@ -1,0 +1,382 @@
+#!/usr/bin/env python3
+"""Trains the embedded drum transcriber (crates/tactus-dsp/src/drums.rs) and writes
+crates/tactus-dsp/weights/drums.bin.
+
+Data: songs rendered by corpus/drums.py (DIR/<family>/<song>/{drums,mix}.wav + truth.json).
+Features: the engine's own front end, dumped by
+`cargo run --release -p tactus-engine --example drum_features` (so training and inference
+see the same numbers). Three input conditions per song:
+  iso  the drum stem alone;
+  sep  the embedded spectral separator's drum stem of the mix (what `render` feeds it);
+  mix  the mix itself.
+Split: the HELD_OUT family (default musescore) is never used for training or tuning; of the
+other families every VAL_EVERY-th song is kept for validation (threshold tuning, early
+stopping). Everything is seeded: the same data gives the same weights.
+
+Usage:
+  python3 models/drums/train.py --data /work/data/drums [--epochs 30] [--out PATH]
+  python3 models/drums/train.py --data DIR --report-only   # score the committed weights
+Needs numpy only.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import struct
+import subprocess
+import sys
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+CLASSES = ["kick", "snare", "toms", "cymbals"]
+BANDS = 48
+PAST, FUTURE = 7, 1
+FLOOR = -16.0
+LOG_FLOOR = float(np.log(np.float32(1e-12)))
+HOP_S = 0.01
+MIN_GAP = 5  # hops: ceil(0.05 s * 44100 / 441)
+WINDOW_S = 0.05  # onset tolerance
+HELD_OUT = "musescore"
+VAL_EVERY = 4
+CONDS = ["iso", "sep", "mix"]
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+DEFAULT_OUT = os.path.join(ROOT, "crates", "tactus-dsp", "weights", "drums.bin")
+
+
+def dumper_path():
+    return os.path.join(ROOT, "target", "release", "examples", "drum_features")
+
+
+def features(song_dir, cond, cache):
+    src = os.path.join(song_dir, "drums.wav" if cond == "iso" else "mix.wav")
+    os.makedirs(os.path.dirname(cache), exist_ok=True)
+    if not os.path.exists(cache) or os.path.getmtime(cache) < os.path.getmtime(src):
+        tmp = cache + ".tmp"
+        subprocess.run([dumper_path(), src, tmp, cond], check=True)
+        os.replace(tmp, cache)
+    return np.fromfile(cache, dtype="<f4").reshape(-1, BANDS)
+
+
+def context(mel):
+    """Network inputs for every hop: frames i-PAST..i+FUTURE, normalised as in drums.rs."""
+    n = mel.shape[0]
+    pad_before = np.full((PAST, BANDS), LOG_FLOOR, np.float32)
+    last = mel[-1:] if n else np.full((1, BANDS), LOG_FLOOR, np.float32)
+    pad_after = np.repeat(last, FUTURE, axis=0)
+    m = np.concatenate([pad_before, mel, pad_after]).astype(np.float32)
+    win = PAST + 1 + FUTURE
+    idx = np.arange(n)[:, None] + np.arange(win)[None, :]
+    x = m[idx].reshape(n, win * BANDS)
+    x = np.maximum(x - x.max(axis=1, keepdims=True), np.float32(FLOOR))
+    return x.astype(np.float32)
+
+
+def labels(truth, n):
+    y = np.zeros((n, 4), np.float32)
+    w = np.ones((n, 4), np.float32)
+    for c, name in enumerate(CLASSES):
+        for hit in truth.get("onsets", {}).get(name, []):
+            i = int(round(hit["time_s"] / HOP_S))
+            for d in (-1, 1):
+                if 0 <= i + d < n and y[i + d, c] == 0:
+                    w[i + d, c] = 0.0
+            if 0 <= i < n:
+                y[i, c] = 1.0
+                w[i, c] = 1.0
+    return y, w
+
+
+def songs(data):
+    out = []
+    for fam in sorted(os.listdir(data)):
+        fd = os.path.join(data, fam)
+        if not os.path.isdir(fd):
+            continue
+        for s in sorted(os.listdir(fd)):
+            sd = os.path.join(fd, s)
+            if os.path.exists(os.path.join(sd, "truth.json")) and os.path.exists(
+                os.path.join(sd, "mix.wav")
+            ):
+                out.append((fam, s, sd))
+    return out
+
+
+def split(items):
+    tr, va, ho = [], [], []
+    per_fam = {}
+    for fam, s, sd in items:
+        if fam == HELD_OUT:
+            ho.append((fam, s, sd))
+            continue
+        k = per_fam.get(fam, 0)
+        per_fam[fam] = k + 1
+        (va if k % VAL_EVERY == VAL_EVERY - 1 else tr).append((fam, s, sd))
+    return tr, va, ho
+
+
+def load(items, data, conds):
+    jobs = [(it, c) for it in items for c in conds]
+
+    def one(job):
+        (fam, s, sd), c = job
+        mel = features(sd, c, os.path.join(data, ".features", fam, f"{s}.{c}.f32"))
+        with open(os.path.join(sd, "truth.json")) as f:
+            truth = json.load(f)
+        return (fam, s, c, mel, truth)
+
+    with ThreadPoolExecutor(2) as ex:
+        return list(ex.map(one, jobs))
+
+
+# ---------------------------------------------------------------- the network (numpy)
+def init(sizes, rng):
+    ps = []
+    for a, b in zip(sizes[:-1], sizes[1:]):
+        ps.append([(rng.standard_normal((b, a)) * np.sqrt(2.0 / a)).astype(np.float32),
+                   np.zeros(b, np.float32)])
+    ps[-1][1][:] = -3.0  # onsets are rare
+    return ps
+
+
+def forward(ps, x):
+    acts = [x]
+    h = x
+    for li, (W, b) in enumerate(ps):
+        z = h @ W.T + b
+        h = z if li == len(ps) - 1 else np.maximum(z, 0)
+        acts.append(h)
+    return acts
+
+
+def sigmoid(z):
+    return 1.0 / (1.0 + np.exp(-np.clip(z, -40, 40)))
+
+
+def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=None):
+    m = [[np.zeros_like(W_), np.zeros_like(b_)] for W_, b_ in ps]
+    v = [[np.zeros_like(W_), np.zeros_like(b_)] for W_, b_ in ps]
+    t = 0
+    best = (np.inf, None)
+    n = X.shape[0]
+    for ep in range(epochs):
+        order = rng.permutation(n)
+        tot = 0.0
+        for s in range(0, n, batch):
+            idx = order[s:s + batch]
+            x, y, w = X[idx], Y[idx], W[idx]
+            acts = forward(ps, x)
+            p = sigmoid(acts[-1])
+            ww = w * (1 + (pos_weight - 1) * y) if pos_weight is not None else w
+            g = (p - y) * ww / len(idx)
+            tot += float(-(ww * (y * np.log(p + 1e-7) + (1 - y) * np.log(1 - p + 1e-7))).sum())
+            t += 1
+            for li in range(len(ps) - 1, -1, -1):
+                Wl, bl = ps[li]
+                gW = g.T @ acts[li]
+                gb = g.sum(0)
+                if li > 0:
+                    g = (g @ Wl) * (acts[li] > 0)
+                for k, gr in enumerate((gW, gb)):
+                    m[li][k] = 0.9 * m[li][k] + 0.1 * gr
+                    v[li][k] = 0.999 * v[li][k] + 0.001 * gr * gr
+                    mh = m[li][k] / (1 - 0.9 ** t)
+                    vh = v[li][k] / (1 - 0.999 ** t)
+                    ps[li][k] -= (lr * mh / (np.sqrt(vh) + 1e-8)).astype(np.float32)
+        pv = sigmoid(forward(ps, Xv)[-1])
+        ww = Wv * (1 + (pos_weight - 1) * Yv) if pos_weight is not None else Wv
+        vl = float(-(ww * (Yv * np.log(pv + 1e-7) + (1 - Yv) * np.log(1 - pv + 1e-7))).sum() / len(Xv))
+        print(f"epoch {ep + 1}: train {tot / n:.4f} val {vl:.4f}", flush=True)
+        if vl < best[0]:
+            best = (vl, [[W_.copy(), b_.copy()] for W_, b_ in ps])
+        if ep == int(epochs * 0.7):
+            lr *= 0.3
+    return best[1]
+
+
+# ---------------------------------------------------------------- peak picking + scoring
+def pick(a, thr):
+    """drums.rs Picker, per class: returns hop indices."""
+    out = []
+    armed, peak, last = True, 0.0, None
+    for i, x in enumerate(a):
+        if not armed:
+            peak = max(peak, x)
+            if x < thr or x < 0.5 * peak:
+                armed = True
+        if armed and x >= thr and (last is None or i - last >= MIN_GAP):
+            armed, peak, last = False, x, i
+            out.append(i)
+    return out
+
+
+def match(est, ref, tol=WINDOW_S):
+    """Greedy one-to-one matching in time order (mir_eval-like for sorted lists)."""
+    est, ref = sorted(est), sorted(ref)
+    used = [False] * len(ref)
+    tp = 0
+    j0 = 0
+    for e in est:
+        while j0 < len(ref) and ref[j0] < e - tol:
+            j0 += 1
+        j = j0
+        while j < len(ref) and ref[j] <= e + tol:
+            if not used[j]:
+                used[j] = True
+                tp += 1
+                break
+            j += 1
+    return tp, len(est) - tp, len(ref) - tp
+
+
+def prf(tp, fp, fn):
+    p = tp / (tp + fp) if tp + fp else 0.0
+    r = tp / (tp + fn) if tp + fn else 0.0
+    f = 2 * p * r / (p + r) if p + r else 0.0
+    return p, r, f
+
+
+def score(acts_list, truths, thr):
+    res = []
+    for c, name in enumerate(CLASSES):
+        T = [0, 0, 0]
+        for a, truth in zip(acts_list, truths):
+            est = [i * HOP_S for i in pick(a[:, c], thr[c])]
+            ref = [h["time_s"] for h in truth.get("onsets", {}).get(name, [])]
+            for k, v in enumerate(match(est, ref)):
+                T[k] += v
+        res.append(prf(*T) + tuple(T))
+    return res
+
+
+def tune(acts_list, truths):
+    thr = []
+    for c in range(4):
+        best = (-1, 0.5)
+        for t in np.arange(0.1, 0.95, 0.025):
+            th = [0.5] * 4
+            th[c] = t
+            f = score(acts_list, truths, th)[c][2]
+            if f > best[0]:
+                best = (f, float(t))
+        thr.append(best[1])
+    return thr
+
+
+# ---------------------------------------------------------------- file format
+def write_model(path, ps, mean, std, thr):
+    # Fold the standardisation (x - mean) / std into the first layer.
+    W0, b0 = ps[0]
+    W0f = W0 / std[None, :]
+    b0f = b0 - W0f @ mean
+    layers = [(W0f, b0f)] + [(W, b) for W, b in ps[1:]]
+    with open(path + ".tmp", "wb") as f:
+        f.write(b"TACTUSDR")
+        f.write(struct.pack("<6I", 1, BANDS, PAST, FUTURE, 4, len(layers)))
+        f.write(struct.pack("<f", FLOOR))
+        for W, b in layers:
+            f.write(struct.pack("<2I", W.shape[1], W.shape[0]))
+            f.write(np.ascontiguousarray(W, dtype="<f4").tobytes())
+            f.write(np.ascontiguousarray(b, dtype="<f4").tobytes())
+        f.write(np.asarray(thr, dtype="<f4").tobytes())
+    os.replace(path + ".tmp", path)
+
+
+def read_model(path):
+    with open(path, "rb") as f:
+        buf = f.read()
+    assert buf[:8] == b"TACTUSDR"
+    ver, bands, past, fut, ncls, nl = struct.unpack_from("<6I", buf, 8)
+    (floor,) = struct.unpack_from("<f", buf, 32)
+    off = 36
+    ps = []
+    for _ in range(nl):
+        ni, no = struct.unpack_from("<2I", buf, off)
+        off += 8
+        W = np.frombuffer(buf, "<f4", ni * no, off).reshape(no, ni)
+        off += 4 * ni * no
+        b = np.frombuffer(buf, "<f4", no, off)
+        off += 4 * no
+        ps.append([W, b])
+    thr = list(np.frombuffer(buf, "<f4", 4, off))
+    return ps, thr
+
+
+def activations(ps, mel):
+    return sigmoid(forward(ps, context(mel))[-1])
+
+
+def report(ps, thr, sets):
+    lines = []
+    for name, data in sets:
+        for cond in CONDS:
+            sel = [(m, t) for (_, _, c, m, t) in data if c == cond]
+            if not sel:
+                continue
+            acts = [activations(ps, m) for m, _ in sel]
+            res = score(acts, [t for _, t in sel], thr)
+            cells = " | ".join(f"{r[2]:.2f} ({r[0]:.2f}/{r[1]:.2f})" for r in res)
+            lines.append(f"| {name} | {cond} | {len(sel)} | {cells} |")
+    head = ("| set | input | songs | kick F (P/R) | snare F (P/R) | toms F (P/R) | cymbals F (P/R) |\n"
+            "|---|---|---|---|---|---|---|")
+    return head + "\n" + "\n".join(lines)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--data", required=True)
+    ap.add_argument("--epochs", type=int, default=25)
+    ap.add_argument("--hidden", default="128,64")
+    ap.add_argument("--conds", default="iso,sep,mix")
+    ap.add_argument("--out", default=DEFAULT_OUT)
+    ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--report-only", action="store_true")
+    ap.add_argument("--report-md", default=None)
+    a = ap.parse_args()
+    if not os.path.exists(dumper_path()):
+        sys.exit("build the feature dumper first: cargo build --release -p tactus-engine --example drum_features")
+    conds = a.conds.split(",")
+    items = songs(a.data)
+    tr, va, ho = split(items)
+    print(f"songs: train {len(tr)}, validation {len(va)}, held out ({HELD_OUT}) {len(ho)}", flush=True)
+    D_tr, D_va, D_ho = load(tr, a.data, conds), load(va, a.data, CONDS), load(ho, a.data, CONDS)
+    if a.report_only:
+        ps, thr = read_model(a.out)
+    else:
+        rng = np.random.default_rng(a.seed)
+
+        def stack(D, cs):
+            X, Y, W = [], [], []
+            for (_, _, c, mel, truth) in D:
+                if c not in cs:
+                    continue
+                X.append(context(mel))
+                y, w = labels(truth, mel.shape[0])
+                Y.append(y)
+                W.append(w)
+            return np.concatenate(X), np.concatenate(Y), np.concatenate(W)
+
+        X, Y, W = stack(D_tr, conds)
+        Xv, Yv, Wv = stack(D_va, conds)
+        mean = X.mean(0)
+        std = X.std(0) + 1e-3
+        print(f"frames: train {len(X)}, validation {len(Xv)}; positives per class {Y.sum(0)}", flush=True)
+        sizes = [X.shape[1]] + [int(h) for h in a.hidden.split(",")] + [4]
+        ps = init(sizes, rng)
+        ps = train(ps, (X - mean) / std, Y, W, (Xv - mean) / std, Yv, Wv, a.epochs, rng, pos_weight=4.0)
+        # Tune thresholds on validation, over every condition pooled.
+        acts = [sigmoid(forward(ps, (context(m) - mean) / std)[-1]) for (_, _, _, m, _) in D_va]
+        thr = tune(acts, [t for (*_, t) in D_va])
+        print("thresholds", thr, flush=True)
+        write_model(a.out, ps, mean, std, thr)
+        ps, thr = read_model(a.out)
+    md = report(ps, thr, [("validation (training kits)", D_va), (f"held out ({HELD_OUT})", D_ho)])
+    print(md)
+    if a.report_md:
+        with open(a.report_md, "w") as f:
+            f.write(md + "\n")
+
+
+if __name__ == "__main__":
+    main()
