@@ -729,6 +729,26 @@ def build_song(args):
         " ".join(f"{c}={len(onsets[c])}" for c in CLASSES), time.time() - t0
 
 
+def kit_similarity(tmp):
+    """Prints how alike the soundfont families' drum sounds are: peak normalised
+    cross-correlation of single hits (velocity 100, first 180 ms, mono) between families."""
+    pairs = [("fluid", "musescore"), ("timgm", "csound"), ("fluid", "timgm"), ("musescore", "csound")]
+    print("kit note " + " ".join(f"{a}~{b}" for a, b in pairs))
+    win = int(0.18 * SR)
+    for kit in (0, 8, 16, 25, 32, 40):
+        for n in (36, 38, 37, 41, 45, 48, 42, 46, 51, 49, 57):
+            xs = {}
+            for fam in ("fluid", "musescore", "timgm", "csound"):
+                mp_ = os.path.join(tmp, "sim.mid")
+                ex = write_drum_midi(mp_, [(0.5, n, 100)], 120, kit)
+                x = fluid_render(os.path.join(SF2_DIR, FAMILY_SF2[fam]), mp_, os.path.join(tmp, "sim.wav"), False)
+                i = int(round(ex[0][0] * SR))
+                x = x.mean(axis=1)[i : i + win]
+                xs[fam] = x / max(1e-12, float(np.linalg.norm(x)))
+            row = [float(np.max(np.abs(np.correlate(xs[a], xs[b], "full")))) for a, b in pairs]
+            print(f"{kit:3d} {n:3d} " + " ".join(f"{v:.3f}" for v in row), flush=True)
+
+
 def song_dirs(out):
     res = []
     for fam in sorted(os.listdir(out)) if os.path.isdir(out) else []:
@@ -758,7 +778,16 @@ def main():
     ap.add_argument("--force", action="store_true", help="re-render songs that exist")
     ap.add_argument("--ready-at", type=int, default=6,
                     help="write OUT/READY once every family has this many songs (and again at the end)")
+    ap.add_argument("--similarity", action="store_true",
+                    help="print how alike the soundfont families' drum samples are, then exit")
     args = ap.parse_args()
+    if args.similarity:
+        tmp = tempfile.mkdtemp(prefix="tactus-drums-")
+        try:
+            kit_similarity(tmp)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+        return
     fams = [f for f in args.families.split(",") if f]
     for f in fams:
         if f not in FAMILIES:
