@@ -682,9 +682,9 @@ def build_song(args):
     mix_i = sum(ints.values())
     assert np.max(np.abs(mix_i)) <= 32767, "mix clips"
 
-    onsets = {c: [] for c in CLASSES}
-    for t, n, v in sorted(exact):
-        onsets[DRUM_BANDS[n]].append({"time_s": round(t, 9), "velocity": int(v), "note": int(n)})
+    hits = [{"time_s": round(t, 9), "velocity": int(v), "note": int(n), "class": DRUM_BANDS[n]}
+            for t, n, v in sorted(exact)]
+    onsets = class_onsets(hits)
     truth = {
         "format": "tactus-truth",
         "version": 1,
@@ -712,6 +712,8 @@ def build_song(args):
         },
         "f0_notes": {"other": "top line of the polyphonic chords", "vocals": "the lead melody"},
         "onsets": onsets,
+        "onsets_rule": ONSETS_RULE,
+        "hits": hits,
     }
     os.makedirs(fam_dir, exist_ok=True)
     stage = os.path.join(fam_dir, f".{song}.tmp")
@@ -749,6 +751,45 @@ def kit_similarity(tmp):
             print(f"{kit:3d} {n:3d} " + " ".join(f"{v:.3f}" for v in row), flush=True)
 
 
+MERGE_S = 0.030
+ONSETS_RULE = (f"onsets.<class>: the class's hits with those less than {MERGE_S * 1000:g} ms after the previous "
+               "kept hit of the same class merged into it (time of the first, velocity and note of the loudest): "
+               "flam grace notes, pedal hat under the ride, hat under a crash; `hits` lists every MIDI hit")
+
+
+def class_onsets(hits):
+    """Per-class onsets from the per-hit list: same-class hits closer than MERGE_S to the
+    previous kept one are merged (one perceived onset; a class-level detector can fire once)."""
+    out = {c: [] for c in CLASSES}
+    for h in sorted(hits, key=lambda h: (h["time_s"], -h["velocity"])):
+        lst = out[h["class"]]
+        if lst and h["time_s"] - lst[-1]["time_s"] < MERGE_S:
+            if h["velocity"] > lst[-1]["velocity"]:
+                lst[-1] = {"time_s": lst[-1]["time_s"], "velocity": h["velocity"], "note": h["note"]}
+            continue
+        lst.append({"time_s": h["time_s"], "velocity": h["velocity"], "note": h["note"]})
+    return out
+
+
+def update_truth(out):
+    """Recompute `onsets` from the per-hit list in every truth.json under out (audio untouched)."""
+    for d in song_dirs(out):
+        path = os.path.join(d, "truth.json")
+        truth = json.load(open(path))
+        hits = truth.get("hits") or sorted(
+            ({**h, "class": c} for c, hs in truth["onsets"].items() for h in hs),
+            key=lambda h: (h["time_s"], h["note"]))
+        truth["onsets"] = class_onsets(hits)
+        truth["onsets_rule"] = ONSETS_RULE
+        truth["hits"] = hits
+        tmp = path + ".tmp"
+        with open(tmp, "w") as fh:
+            json.dump(truth, fh, separators=(",", ":"))
+            fh.write("\n")
+        os.replace(tmp, path)
+        print(d, {c: f"{len(v)}/{sum(1 for h in hits if h['class'] == c)}" for c, v in truth["onsets"].items()})
+
+
 def song_dirs(out):
     res = []
     for fam in sorted(os.listdir(out)) if os.path.isdir(out) else []:
@@ -780,7 +821,12 @@ def main():
                     help="write OUT/READY once every family has this many songs (and again at the end)")
     ap.add_argument("--similarity", action="store_true",
                     help="print how alike the soundfont families' drum samples are, then exit")
+    ap.add_argument("--update-truth", action="store_true",
+                    help="recompute onsets (merge rule) in every truth.json under --out; audio untouched")
     args = ap.parse_args()
+    if args.update_truth:
+        update_truth(args.out)
+        return
     if args.similarity:
         tmp = tempfile.mkdtemp(prefix="tactus-drums-")
         try:
