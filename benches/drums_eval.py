@@ -68,10 +68,10 @@ def match(ref, est, w=WINDOW_S):
     mref, mest = set(), set()
     j0 = 0
     for i, r in enumerate(ref):
-        while j0 < len(est) and est[j0] < r - w - 1e-9:
+        while j0 < len(est) and not r <= est[j0] + w:  # tactus-eval's bounds: e - w <= r <= e + w
             j0 += 1
         j = j0
-        while j < len(est) and est[j] <= r + w + 1e-9:
+        while j < len(est) and est[j] - w <= r:
             if not used[j]:
                 used[j] = True
                 mref.add(i)
@@ -85,7 +85,7 @@ def nearest(t, times, w=WINDOW_S):
     best = None
     for u in times:
         d = abs(u - t)
-        if d <= w + 1e-9 and (best is None or d < best):
+        if u - w <= t <= u + w and (best is None or d < best):
             best = d
     return best
 
