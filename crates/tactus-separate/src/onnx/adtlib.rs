@@ -346,9 +346,9 @@ impl FrontEnd {
             *d = x * w;
         }
         // Lengths are fixed by the plan, so this cannot fail.
-        let _ = self
-            .fft
-            .process_with_scratch(&mut self.input, &mut self.spectrum, &mut self.scratch);
+        let _ =
+            self.fft
+                .process_with_scratch(&mut self.input, &mut self.spectrum, &mut self.scratch);
         for (o, c) in out.iter_mut().zip(&self.spectrum) {
             *o = c.norm();
         }
@@ -458,14 +458,16 @@ impl AdtLib {
             return Err(AdtLibError::Config("window longer than 2^20 frames"));
         }
         if !(cfg.min_interval_s.is_finite() && cfg.min_interval_s >= 0.0) {
-            return Err(AdtLibError::Config("min_interval_s must be finite and >= 0"));
+            return Err(AdtLibError::Config(
+                "min_interval_s must be finite and >= 0",
+            ));
         }
         if let Level::Peak { target, floor } = cfg.level {
             if !(target.is_finite() && target > 0.0 && floor.is_finite() && floor > 0.0) {
                 return Err(AdtLibError::Config("level target and floor must be > 0"));
             }
         }
-        let session = open_session(onnx, "ADTLib", &INPUTS, &OUTPUTS)?;
+        let session = open_session(onnx, "kick/snare/hi-hat (ADTLib)", &INPUTS, &OUTPUTS)?;
         let window = cfg.window();
         let min_gap = (cfg.min_interval_s * SAMPLE_RATE as f64 / HOP as f64).ceil() as usize;
         let mut det = AdtLib {
@@ -587,7 +589,7 @@ impl AdtLib {
     /// Runs the networks on a whole spectrogram (`frames × 1024`, frame-major, used as
     /// given: no level normalisation) and returns the kick, snare and hi-hat activations.
     pub fn activations_of(&mut self, spec: &[f32]) -> Result<[Vec<f32>; 3], AdtLibError> {
-        if spec.len() % BINS != 0 {
+        if !spec.len().is_multiple_of(BINS) {
             return Err(AdtLibError::SpectrogramShape(spec.len()));
         }
         let frames = spec.len() / BINS;
@@ -655,7 +657,10 @@ impl AdtLib {
         }
         self.emitted = end;
         // Keep the frames the next call's context needs.
-        let keep_from = self.emitted.saturating_sub(self.cfg.context).max(self.spec_start);
+        let keep_from = self
+            .emitted
+            .saturating_sub(self.cfg.context)
+            .max(self.spec_start);
         self.spec.drain(..(keep_from - self.spec_start) * BINS);
         self.spec_start = keep_from;
     }
@@ -677,8 +682,8 @@ fn run_network(
     frames: usize,
     acts: &mut [Vec<f32>; 3],
 ) -> Result<(), AdtLibError> {
-    let input = TensorRef::from_array_view(([1usize, frames, BINS], spec))
-        .map_err(AdtLibError::Network)?;
+    let input =
+        TensorRef::from_array_view(([1usize, frames, BINS], spec)).map_err(AdtLibError::Network)?;
     let outputs = session
         .run(ort::inputs!["spec" => input])
         .map_err(AdtLibError::Network)?;
@@ -691,7 +696,9 @@ fn run_network(
                 want: frames,
             });
         };
-        let (_, data) = v.try_extract_tensor::<f32>().map_err(AdtLibError::Network)?;
+        let (_, data) = v
+            .try_extract_tensor::<f32>()
+            .map_err(AdtLibError::Network)?;
         if data.len() != frames {
             return Err(AdtLibError::OutputShape {
                 name,
