@@ -47,6 +47,22 @@
 //! frames of that call read as zero activation and [`AdtLib::last_error`] keeps the error.
 //!
 //! **Panics**: none; all indices derive from sizes fixed at construction.
+//!
+//! ```no_run
+//! use tactus_separate::onnx::adtlib::{AdtLib, AdtLibConfig};
+//! use tactus_separate::onnx::OnnxConfig;
+//!
+//! // models/setup_onnxruntime.sh and models/setup_adtlib.sh; ORT_DYLIB_PATH set.
+//! let onnx = OnnxConfig { threads: 1, ..OnnxConfig::new("models/adtlib.onnx") };
+//! let mut det = AdtLib::new(&onnx, 44_100, AdtLibConfig::streaming())?;
+//! let block = vec![0.0f32; 512]; // mono 44.1 kHz, any block size
+//! let mut print = |o: tactus_separate::onnx::adtlib::DrumOnset| {
+//!     println!("{} at {:.3} s ({:.2})", o.class.name(), o.time_s, o.strength)
+//! };
+//! det.process(&block, &mut print);
+//! det.finish(&mut print);
+//! # Ok::<(), tactus_separate::onnx::adtlib::AdtLibError>(())
+//! ```
 
 use realfft::num_complex::Complex;
 use realfft::{RealFftPlanner, RealToComplex};
