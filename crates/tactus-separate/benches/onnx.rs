@@ -4,6 +4,8 @@
 //!
 //! * `spleeter/*`: a 10 s stereo stream (one 512-frame segment: STFT, both U-Nets,
 //!   masks, iSTFT, and for `all` the spectral split of the accompaniment).
+//! * `adtlib/*`: a 10 s mono stream through the ADTLib drum transcriber (front end,
+//!   three networks, peak picking), streaming and offline windows, one ORT thread.
 //! * `htdemucs/*`: one 7.8 s segment (`separate_segment`: Demucs STFT, network, iSTFT)
 //!   with models/htdemucs.onnx or models/htdemucs-random.onnx (same size and speed),
 //!   and with the tiny golden-fixture model (the non-network overhead).
@@ -14,6 +16,7 @@
 use std::path::{Path, PathBuf};
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use tactus_separate::onnx::adtlib::{AdtLib, AdtLibConfig};
 use tactus_separate::onnx::htdemucs::{HtDemucsSeparator, SEGMENT_SAMPLES};
 use tactus_separate::onnx::spleeter::SpleeterSeparator;
 use tactus_separate::onnx::OnnxConfig;
@@ -87,6 +90,34 @@ fn bench(c: &mut Criterion) {
         eprintln!(
             "SKIPPED spleeter bench: models/spleeter-2stems.onnx missing (models/setup_models.sh)"
         );
+    }
+
+    let adtlib = root().join("models/adtlib.onnx");
+    if adtlib.is_file() {
+        let (mono, _) = signal(10 * SR as usize);
+        for (name, acfg) in [
+            ("adtlib/streaming", AdtLibConfig::streaming()),
+            ("adtlib/offline", AdtLibConfig::offline()),
+        ] {
+            let onnx = OnnxConfig {
+                threads: 1,
+                ..cfg(&lib, adtlib.clone())
+            };
+            let mut det = AdtLib::new(&onnx, SR, acfg).unwrap();
+            let mut count = 0usize;
+            g.bench_function(name, |b| {
+                b.iter(|| {
+                    det.reset();
+                    for chunk in mono.chunks(512) {
+                        det.process(chunk, &mut |_| count += 1);
+                    }
+                    det.finish(&mut |_| count += 1);
+                })
+            });
+            std::hint::black_box(count);
+        }
+    } else {
+        eprintln!("SKIPPED adtlib bench: models/adtlib.onnx missing (models/setup_adtlib.sh)");
     }
 
     let (l, r) = signal(SEGMENT_SAMPLES);

@@ -5,6 +5,9 @@
 //! | [`spleeter::SpleeterSeparator`] | Deezer Spleeter 2stems U-Nets (MIT), `models/spleeter-2stems.onnx` | vocals from the network; drums, bass, other split from the accompaniment by [`crate::spectral`] | one 512-frame segment + STFT ≈ 12.0 s |
 //! | [`htdemucs::HtDemucsSeparator`] | Demucs v4 `htdemucs` (MIT) exported by `models/export_htdemucs.py` | all four from the network | one 7.8 s segment |
 //!
+//! Besides the separators, [`adtlib::AdtLib`] transcribes kick, snare and hi-hat onsets
+//! with ADTLib's networks (`models/adtlib.onnx`, built by `models/setup_adtlib.sh`).
+//!
 //! **Runtime.** ONNX Runtime is loaded at run time (`ort`'s `load-dynamic`), never at
 //! build time, from the path in [`OnnxConfig::library`] or else from the environment
 //! variable `ORT_DYLIB_PATH`. `models/setup_onnxruntime.sh` installs the exact version
@@ -33,6 +36,7 @@
 //! **Blocking.** A network call runs inside `process` / `finish` on the caller's thread
 //! (seconds on 2 cores): run these separators off the real-time thread.
 
+pub mod adtlib;
 pub mod htdemucs;
 pub mod spleeter;
 
