@@ -11,7 +11,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use tactus_dsp::Stem;
 use tactus_engine::render::{render, RenderRequest};
-use tactus_engine::{EngineConfig, Mode, PitchMethod, SeparatorChoice};
+use tactus_engine::{DrumMethod, EngineConfig, Mode, PitchMethod, SeparatorChoice};
 use tactus_glove::{write_atomic, GloveMap};
 
 #[cfg(feature = "audio")]
@@ -42,6 +42,16 @@ enum SepArg {
 enum ModeArg {
     Offline,
     Streaming,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum DrumsArg {
+    /// Per-instrument transcriber embedded in Tactus (default).
+    Classes,
+    /// The paper's four Butterworth bands with spectral-flux onsets.
+    Bands,
+    /// ADTLib's networks through ONNX (kick, snare, hi-hat; needs --drum-model).
+    Adtlib,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -78,6 +88,13 @@ struct EngineArgs {
     /// Pitch tracker.
     #[arg(long, value_enum, default_value = "pyin")]
     pitch: PitchArg,
+    /// Drum transcription: classes (embedded per-instrument transcriber), bands (the
+    /// paper's band-pass) or adtlib (ONNX, --drum-model models/adtlib.onnx).
+    #[arg(long, value_enum, default_value = "classes")]
+    drums: DrumsArg,
+    /// ONNX model for --drums adtlib (made by models/setup_adtlib.sh).
+    #[arg(long)]
+    drum_model: Option<PathBuf>,
 }
 
 #[derive(Subcommand)]
@@ -265,6 +282,13 @@ fn engine_config(
         },
         map,
         separator,
+        drums: match e.drums {
+            DrumsArg::Classes => DrumMethod::Classes,
+            DrumsArg::Bands => DrumMethod::Bands,
+            DrumsArg::Adtlib => DrumMethod::AdtLib(e.drum_model.clone().ok_or_else(|| {
+                anyhow!("--drums adtlib needs --drum-model PATH (see README, \"ONNX models\")")
+            })?),
+        },
         threads: e.threads.map_or(0, |n| n as usize),
         ..EngineConfig::default()
     };

@@ -9,7 +9,7 @@
 //! 1. **Front end**: [`MelBank`] with [`MelConfig::drums`]: 48 log mel bands of a 2048-point
 //!    frame every 10 ms, frame `i` ending 512 samples (11.6 ms) after hop `i`.
 //! 2. **Context**: the mel frames `i - past ..= i + future` (7 + 1 at the defaults), oldest
-//!    first, band inside. Frames before the stream are silence (`ln 1e-12`).
+//!    first, band inside. Frames before the stream are silence (`ln 1e-20`).
 //! 3. **Level invariance**: subtract the largest value of the whole context window and clip
 //!    at `floor` (-16, about 70 dB below it): a gain change of the input changes nothing
 //!    (up to the log floor), so a quiet ghost snare and a loud one look alike.

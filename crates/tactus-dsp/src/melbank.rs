@@ -14,8 +14,9 @@
 //!    the centres either side and is normalised to unit sum, so a band's value is the mean
 //!    power of its bins (a white-noise level in every band). A triangle narrower than one
 //!    FFT bin still gets the bin nearest to its centre.
-//! 4. **Log.** `ln(E_b + 1e-12)`: about -276 for digital silence; a full-scale sine
-//!    lands near +5 in its band.
+//! 4. **Log.** `ln(E_b + 1e-20)`: -46 for digital silence (far below anything the
+//!    transcriber's relative floor keeps, so a gain change of the input does not change
+//!    what silence looks like); a full-scale sine lands near +5 in its band.
 //!
 //! # Defaults ([`MelConfig::drums`]) at 44.1 kHz
 //! | parameter | value |
@@ -49,7 +50,7 @@ use crate::framer::Framer;
 use crate::{ConfigError, HopStage};
 
 /// The floor inside the logarithm.
-pub const LOG_FLOOR: f32 = 1e-12;
+pub const LOG_FLOOR: f32 = 1e-20;
 
 /// Parameters of [`MelBank`].
 #[derive(Clone, Debug, PartialEq)]
@@ -74,9 +75,8 @@ impl MelConfig {
     /// The drum transcriber's front end (see the module docs).
     pub fn drums(sample_rate: u32) -> Self {
         let sr = sample_rate.max(1) as f64;
-        // 2048 at 44.1/48 kHz, 1024 at 22.05 kHz: about 46 ms.
-        let target = ((sr * 0.0464) as usize).max(16);
-        let frame = 1usize << (usize::BITS - 1 - target.leading_zeros());
+        // The power of two at or above 40 ms: 2048 at 44.1/48 kHz, 1024 at 22.05 kHz.
+        let frame = ((sr * 0.04) as usize).max(16).next_power_of_two();
         MelConfig {
             sample_rate,
             frame,

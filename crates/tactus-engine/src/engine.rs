@@ -16,6 +16,7 @@ use tactus_separate::none::NoneSeparator;
 use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
 use tactus_separate::{SegmentStats, Separator, StemOutput, StemSet};
 
+use crate::drums::{ClassTrack, DrumMethod};
 use crate::track::{Denoise, Geometry, Mode, OnsetTrack, PitchMethod, PitchTrack};
 use crate::EngineError;
 
@@ -57,6 +58,8 @@ pub struct EngineConfig {
     pub map: GloveMap,
     /// Separator for the stems not supplied directly.
     pub separator: SeparatorChoice,
+    /// How the drum stem becomes kick, snare, toms and cymbals.
+    pub drums: DrumMethod,
     /// Stems the caller supplies directly (never separated).
     pub supplied: StemSet,
     /// Overlap separation of block `n + 1` with the stem chains of block `n` (one thread
@@ -78,6 +81,7 @@ impl Default for EngineConfig {
             pitch: PitchMethod::default(),
             map: GloveMap::default(),
             separator: SeparatorChoice::default(),
+            drums: DrumMethod::default(),
             supplied: StemSet::default(),
             pipeline: false,
             threads: 0,
@@ -110,10 +114,15 @@ struct StemChain {
     pitch: Option<PitchTrack>,
     notes: Option<OnsetTrack>,
     bands: Vec<BandChain>,
+    /// The per-instrument transcriber (drums with [`DrumMethod::Classes`]).
+    classes: Option<ClassTrack>,
+    /// Classes the map shows (the transcriber computes all four).
+    class_bands: Vec<Band>,
     samples: usize,
     t_denoise: Duration,
     t_pitch: Duration,
     t_notes: Duration,
+    t_classes: Duration,
 }
 
 impl StemChain {
@@ -123,6 +132,7 @@ impl StemChain {
         pitch: Option<PitchMethod>,
         notes: bool,
         bands: &[Band],
+        drums: &DrumMethod,
     ) -> Result<Self, EngineError> {
         let hp = if matches!(stem, Stem::Bass | Stem::Drums) {
             30.0
@@ -139,6 +149,23 @@ impl StemChain {
             None
         };
         let mut chains = Vec::new();
+        let (classes, class_bands) = match drums {
+            DrumMethod::Classes if !bands.is_empty() => {
+                (Some(ClassTrack::new(geo)?), bands.to_vec())
+            }
+            #[cfg(feature = "onnx")]
+            DrumMethod::AdtLib(model) if !bands.is_empty() => {
+                (Some(ClassTrack::adtlib(geo, model, 0)?), bands.to_vec())
+            }
+            #[cfg(not(feature = "onnx"))]
+            DrumMethod::AdtLib(_) if !bands.is_empty() => {
+                return Err(EngineError::Config(
+                    "--drums adtlib needs a tactus built with `--features onnx` (see README, \"ONNX models\")".into(),
+                ))
+            }
+            _ => (None, Vec::new()),
+        };
+        let bands = if classes.is_some() { &[][..] } else { bands };
         for &band in bands {
             let edges = tactus_dsp::sos::band_edges(band, geo.sample_rate);
             match (SosFilter::band(band, geo.sample_rate), edges) {
@@ -161,10 +188,13 @@ impl StemChain {
             pitch,
             notes,
             bands: chains,
+            classes,
+            class_bands,
             samples: 0,
             t_denoise: Duration::ZERO,
             t_pitch: Duration::ZERO,
             t_notes: Duration::ZERO,
+            t_classes: Duration::ZERO,
         })
     }
 
@@ -184,6 +214,11 @@ impl StemChain {
             let t = Instant::now();
             n.process(&self.buf);
             self.t_notes += t.elapsed();
+        }
+        if let Some(c) = &mut self.classes {
+            let t = Instant::now();
+            c.process(&self.buf);
+            self.t_classes += t.elapsed();
         }
         for b in &mut self.bands {
             let t = Instant::now();
@@ -206,6 +241,11 @@ impl StemChain {
         if let Some(n) = &mut self.notes {
             n.finish();
         }
+        if let Some(c) = &mut self.classes {
+            let t = Instant::now();
+            c.finish();
+            self.t_classes += t.elapsed();
+        }
         for b in &mut self.bands {
             let t = Instant::now();
             b.track.finish();
@@ -224,6 +264,9 @@ impl StemChain {
         for b in &self.bands {
             l = l.max(b.track.latency_samples());
         }
+        if let Some(c) = &self.classes {
+            l = l.max(c.latency_samples());
+        }
         l + self.denoise.latency_samples()
     }
 
@@ -235,6 +278,9 @@ impl StemChain {
         }
         if let Some(n) = &mut self.notes {
             n.reset();
+        }
+        if let Some(c) = &mut self.classes {
+            c.reset();
         }
         for b in &mut self.bands {
             b.filter.reset();
@@ -357,7 +403,7 @@ impl Engine {
             } else {
                 Vec::new()
             };
-            chains.push(StemChain::new(stem, geo, pitch, notes, &bands)?);
+            chains.push(StemChain::new(stem, geo, pitch, notes, &bands, &cfg.drums)?);
             if !cfg.supplied.contains(stem) {
                 separated = separated.with(stem);
             }
@@ -526,6 +572,9 @@ impl Engine {
             for b in &c.bands {
                 ready = ready.min(b.track.bins.len());
             }
+            if let Some(t) = &c.classes {
+                ready = ready.min(t.ready_bins());
+            }
         }
         if ready == usize::MAX {
             self.n_in / self.geo.bin_samples
@@ -547,6 +596,11 @@ impl Engine {
             }
             for b in &c.bands {
                 f.band_beat[b.band as usize] = b.track.bins.get(k).copied().unwrap_or(false);
+            }
+            if let Some(t) = &c.classes {
+                for &band in &c.class_bands {
+                    f.band_beat[band as usize] = t.bins_of(band).get(k).copied().unwrap_or(false);
+                }
             }
         }
         f
@@ -588,6 +642,15 @@ impl Engine {
                 let mut beats: Vec<u8> = b.track.bins.iter().map(|&x| x as u8).collect();
                 beats.resize(bins, 0);
                 out.beats.insert(bn, beats);
+            }
+            if let Some(t) = &c.classes {
+                for &band in &c.class_bands {
+                    let bn = band.name().to_string();
+                    out.onsets_s.insert(bn.clone(), t.onset_times(band));
+                    let mut beats: Vec<u8> = t.bins_of(band).iter().map(|&x| x as u8).collect();
+                    beats.resize(bins, 0);
+                    out.beats.insert(bn, beats);
+                }
             }
         }
         out
@@ -633,6 +696,10 @@ impl Engine {
             }
             if c.notes.is_some() {
                 st.stages.push((format!("{n}: note onsets"), c.t_notes));
+            }
+            if c.classes.is_some() {
+                st.stages
+                    .push((format!("{n}: drum transcriber (4 classes)"), c.t_classes));
             }
             for b in &c.bands {
                 st.stages

@@ -4,17 +4,20 @@
 //! source (symphonia) → resample (rubato) → separate → per-stem chains → bins → glove frames
 //!                                             │  denoise: Butterworth HP + median
 //!                                             ├─ melodic: YIN/pYIN + RMS gate + Tukey + levels
-//!                                             └─ drums: 4 Butterworth bands → spectral-flux onsets + gate
+//!                                             └─ drums: per-instrument transcriber (log-mel + MLP) + gate,
+//!                                                       or the paper's 4 Butterworth bands → spectral-flux onsets
 //! ```
 //! [`engine::Engine`] accepts blocks of any size; [`render::render`] drives it from a file.
 #![forbid(unsafe_code)]
 
+pub mod drums;
 pub mod engine;
 pub mod render;
 pub mod resample;
 pub mod source;
 pub mod track;
 
+pub use drums::DrumMethod;
 pub use engine::{Engine, EngineConfig, SeparatorChoice, ENGINE_RATE};
 pub use track::{Mode, PitchMethod};
 

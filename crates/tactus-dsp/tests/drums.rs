@@ -1,0 +1,443 @@
+//! Tests for `tactus_dsp::melbank` and `tactus_dsp::drums`: the fast front end against a
+//! direct f64 DFT, the network against a naive f64 forward pass, chunking and reset
+//! invariance, the stated latency against an impulse, hard inputs, gain invariance, and
+//! no allocation after construction.
+//!
+//! `unsafe` appears once, in the counting global allocator below: `GlobalAlloc` can only be
+//! implemented with `unsafe impl`. It forwards to `System` unchanged.
+#![deny(unsafe_code)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+
+use tactus_dsp::drums::{DrumFrame, DrumModel, DrumTranscriber, CLASSES};
+use tactus_dsp::melbank::{filters, MelBank, MelConfig, LOG_FLOOR};
+use tactus_dsp::HopStage;
+
+struct Counting;
+
+thread_local! {
+    static ALLOCS: Cell<usize> = const { Cell::new(0) };
+}
+
+#[allow(unsafe_code)]
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
+        System.alloc(layout)
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        System.dealloc(ptr, layout)
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
+        System.realloc(ptr, layout, new_size)
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocs() -> usize {
+    ALLOCS.with(|c| c.get())
+}
+
+const SR: u32 = 44_100;
+
+/// SplitMix64.
+struct Rng(u64);
+
+impl Rng {
+    fn next_f32(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+    }
+}
+
+/// A synthetic kick: a 150 → 50 Hz sweep with a fast decay, plus a click.
+fn kick(len: usize) -> Vec<f32> {
+    let mut phase = 0.0f64;
+    (0..len)
+        .map(|i| {
+            let t = i as f64 / SR as f64;
+            let f = 50.0 + 100.0 * (-t / 0.03).exp();
+            phase += 2.0 * std::f64::consts::PI * f / SR as f64;
+            let click = if i < 40 { 0.5 * (1.0 - i as f64 / 40.0) } else { 0.0 };
+            ((phase.sin() * (-t / 0.15).exp()) * 0.8 + click) as f32
+        })
+        .collect()
+}
+
+/// A synthetic snare: noise with a 180 Hz body, 120 ms decay.
+fn snare(len: usize, rng: &mut Rng) -> Vec<f32> {
+    (0..len)
+        .map(|i| {
+            let t = i as f32 / SR as f32;
+            let body = (2.0 * std::f32::consts::PI * 180.0 * t).sin() * (-t / 0.05).exp();
+            (0.5 * body + 0.5 * rng.next_f32() * (-t / 0.12).exp()) * 0.7
+        })
+        .collect()
+}
+
+fn add_at(dst: &mut [f32], src: &[f32], at: usize) {
+    for (d, s) in dst[at..].iter_mut().zip(src) {
+        *d += s;
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The front end.
+
+/// Direct f64 oracle: frame i = input[i*hop + la - frame .. i*hop + la) with zeros outside,
+/// periodic Hann / sqrt(sum w^2), DFT by definition, triangular filters, ln.
+fn mel_oracle(x: &[f32], cfg: &MelConfig) -> Vec<Vec<f64>> {
+    let n = cfg.frame;
+    let hann: Vec<f64> = (0..n)
+        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos())
+        .collect();
+    let norm = hann.iter().map(|w| w * w).sum::<f64>().sqrt();
+    let fb = filters(cfg);
+    let hops = x.len().div_ceil(cfg.hop);
+    let mut out = Vec::new();
+    for i in 0..hops {
+        let end = (i * cfg.hop + cfg.lookahead) as isize;
+        let start = end - n as isize;
+        let fr: Vec<f64> = (0..n)
+            .map(|k| {
+                let j = start + k as isize;
+                if j >= 0 && (j as usize) < x.len() {
+                    x[j as usize] as f64 * hann[k] / norm
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let power: Vec<f64> = (0..=n / 2)
+            .map(|b| {
+                let (mut re, mut im) = (0.0, 0.0);
+                for (k, v) in fr.iter().enumerate() {
+                    let a = -2.0 * std::f64::consts::PI * (b * k) as f64 / n as f64;
+                    re += v * a.cos();
+                    im += v * a.sin();
+                }
+                re * re + im * im
+            })
+            .collect();
+        out.push(
+            fb.iter()
+                .map(|(s, w)| {
+                    let e: f64 = w
+                        .iter()
+                        .enumerate()
+                        .map(|(k, &wk)| wk as f64 * power[s + k])
+                        .sum();
+                    (e + LOG_FLOOR as f64).ln()
+                })
+                .collect(),
+        );
+    }
+    out
+}
+
+fn mel_fast(x: &[f32], cfg: &MelConfig, chunk: usize) -> Vec<Vec<f32>> {
+    let mut m = MelBank::new(cfg.clone()).unwrap();
+    let mut out = Vec::new();
+    for c in x.chunks(chunk.max(1)) {
+        m.process_bands(c, &mut |i, b| {
+            assert_eq!(i, out.len());
+            out.push(b.to_vec())
+        });
+    }
+    m.finish_bands(&mut |i, b| {
+        assert_eq!(i, out.len());
+        out.push(b.to_vec())
+    });
+    out
+}
+
+#[test]
+fn filters_are_normalised_triangles_covering_the_range() {
+    let cfg = MelConfig::drums(SR);
+    let fb = filters(&cfg);
+    assert_eq!(fb.len(), 48);
+    let mut last_start = 0;
+    for (s, w) in &fb {
+        let sum: f32 = w.iter().sum();
+        assert!((sum - 1.0).abs() < 1e-5, "{sum}");
+        assert!(*s >= last_start, "centres rise");
+        last_start = *s;
+        assert!(w.iter().all(|&v| v > 0.0));
+    }
+    // First band near 20-60 Hz, last below 16 kHz.
+    let hz = |bin: usize| bin as f32 * SR as f32 / cfg.frame as f32;
+    assert!(hz(fb[0].0) < 60.0);
+    let (s, w) = fb.last().unwrap();
+    assert!(hz(s + w.len()) <= 16_100.0);
+}
+
+#[test]
+fn mel_matches_direct_dft_oracle() {
+    // A smaller frame keeps the O(N^2) oracle quick; the code path is the same.
+    let cfg = MelConfig {
+        frame: 256,
+        hop: 100,
+        lookahead: 64,
+        bands: 20,
+        ..MelConfig::drums(SR)
+    };
+    let mut rng = Rng(3);
+    let mut x: Vec<f32> = (0..3000).map(|_| 0.3 * rng.next_f32()).collect();
+    add_at(&mut x, &kick(800), 1200);
+    let want = mel_oracle(&x, &cfg);
+    let got = mel_fast(&x, &cfg, 4096);
+    assert_eq!(got.len(), want.len());
+    // The last frames reaching past the end hold the last real frame (module docs):
+    // compare only frames wholly inside the input.
+    let full = (x.len() - cfg.lookahead) / cfg.hop + 1;
+    let mut worst = 0f64;
+    for i in 0..full.min(got.len()) {
+        for b in 0..cfg.bands {
+            // f32 FFT vs f64 DFT: compare in the log domain, where 1e-3 is 0.004 dB.
+            if want[i][b] > -20.0 {
+                worst = worst.max((got[i][b] as f64 - want[i][b]).abs());
+            }
+        }
+    }
+    assert!(worst < 1e-3, "worst log difference {worst}");
+}
+
+#[test]
+fn mel_is_chunk_invariant_and_reset_reproduces() {
+    let cfg = MelConfig::drums(SR);
+    let mut rng = Rng(9);
+    let x: Vec<f32> = (0..30_000).map(|_| rng.next_f32()).collect();
+    let whole = mel_fast(&x, &cfg, x.len());
+    for chunk in [1usize, 7, 441, 1000, 4096] {
+        assert_eq!(mel_fast(&x, &cfg, chunk), whole, "chunk {chunk}");
+    }
+    let mut m = MelBank::new(cfg).unwrap();
+    m.process_bands(&x[..5000], &mut |_, _| {});
+    m.reset();
+    let mut again = Vec::new();
+    m.process_bands(&x, &mut |_, b| again.push(b.to_vec()));
+    m.finish_bands(&mut |_, b| again.push(b.to_vec()));
+    assert_eq!(again, whole);
+}
+
+#[test]
+fn mel_sees_exactly_its_lookahead() {
+    // An impulse at sample s first changes hop i once i*hop + lookahead > s.
+    let cfg = MelConfig::drums(SR);
+    let s = 20_000;
+    let mut x = vec![0f32; 30_000];
+    x[s] = 1.0;
+    let got = mel_fast(&x, &cfg, 512);
+    let first = got.iter().position(|b| b[10] > LOG_FLOOR.ln() + 1.0).unwrap();
+    let expect = (s + 1 - cfg.lookahead).div_ceil(cfg.hop);
+    assert_eq!(first, expect);
+    // And the stage emits hop `first` as soon as sample first*hop + lookahead - 1 has
+    // arrived, not a sample later.
+    let ready = first * cfg.hop + cfg.lookahead;
+    let mut m = MelBank::new(cfg.clone()).unwrap();
+    let mut emitted = 0;
+    m.process_bands(&x[..ready - 1], &mut |i, _| emitted = i + 1);
+    assert_eq!(emitted, first, "hop {first} out too early");
+    m.process_bands(&x[ready - 1..ready], &mut |i, _| emitted = i + 1);
+    assert_eq!(emitted, first + 1, "hop {first} out late");
+    assert_eq!(m.latency_samples(), cfg.lookahead);
+}
+
+#[test]
+fn dc_to_the_end_is_not_a_step() {
+    let cfg = MelConfig::drums(SR);
+    let x = vec![0.5f32; 44_100];
+    let got = mel_fast(&x, &cfg, 1000);
+    let n = got.len();
+    // The last frames equal the last real one.
+    let full = (x.len() - cfg.lookahead) / cfg.hop;
+    for i in full..n {
+        assert_eq!(got[i], got[full - 1], "hop {i}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// The network.
+
+fn naive_forward(m: &DrumModel, input: &[f32]) -> Vec<f64> {
+    let mut h: Vec<f64> = input.iter().map(|&v| v as f64).collect();
+    for (li, l) in m.layers.iter().enumerate() {
+        let mut o = vec![0f64; l.n_out];
+        for (r, out) in o.iter_mut().enumerate() {
+            let mut s = l.b[r] as f64;
+            for c in 0..l.n_in {
+                s += l.w[r * l.n_in + c] as f64 * h[c];
+            }
+            *out = if li + 1 == m.layers.len() { s } else { s.max(0.0) };
+        }
+        h = o;
+    }
+    h.iter().map(|z| 1.0 / (1.0 + (-z).exp())).collect()
+}
+
+#[test]
+fn forward_matches_naive_f64() {
+    let m = DrumModel::embedded();
+    let mut rng = Rng(5);
+    let widest = m.layers.iter().map(|l| l.n_in.max(l.n_out)).max().unwrap();
+    let (mut a, mut b) = (vec![0f32; widest], vec![0f32; widest]);
+    // Dirty scratch first: the result must not depend on it.
+    a.iter_mut().for_each(|v| *v = 1e6);
+    b.iter_mut().for_each(|v| *v = -1e6);
+    for _ in 0..50 {
+        let window: Vec<f32> = (0..m.input_len()).map(|_| -10.0 + 10.0 * rng.next_f32()).collect();
+        let mut input = vec![0f32; m.input_len()];
+        m.assemble(&window, &mut input);
+        assert!(input.iter().all(|&v| v <= 0.0 && v >= m.floor));
+        let fast = m.forward(&input, &mut a, &mut b);
+        let slow = naive_forward(&m, &input);
+        for c in 0..CLASSES {
+            assert!((fast[c] as f64 - slow[c]).abs() < 1e-4, "{} vs {}", fast[c], slow[c]);
+        }
+    }
+}
+
+fn transcribe(x: &[f32], chunk: usize) -> Vec<DrumFrame> {
+    let mut t = DrumTranscriber::new(SR).unwrap();
+    let mut out = Vec::new();
+    for c in x.chunks(chunk.max(1)) {
+        t.process(c, &mut |i, f| {
+            assert_eq!(i, out.len());
+            out.push(f)
+        });
+    }
+    t.finish(&mut |i, f| {
+        assert_eq!(i, out.len());
+        out.push(f)
+    });
+    out
+}
+
+fn groove(rng: &mut Rng) -> Vec<f32> {
+    let mut x = vec![0f32; 4 * SR as usize];
+    let k = kick(20_000);
+    let s = snare(15_000, rng);
+    for beat in 0..8 {
+        let at = 2_000 + beat * 22_050;
+        if beat % 2 == 0 {
+            add_at(&mut x, &k, at);
+        } else {
+            add_at(&mut x, &s, at);
+        }
+    }
+    x
+}
+
+#[test]
+fn transcriber_is_chunk_invariant_and_counts_hops() {
+    let mut rng = Rng(11);
+    let x = groove(&mut rng);
+    let whole = transcribe(&x, x.len());
+    assert_eq!(whole.len(), x.len().div_ceil(441));
+    for chunk in [1usize, 100, 441, 3000] {
+        assert_eq!(transcribe(&x, chunk), whole, "chunk {chunk}");
+    }
+    let mut t = DrumTranscriber::new(SR).unwrap();
+    t.process(&x[..10_000], &mut |_, _| {});
+    t.reset();
+    let mut again = Vec::new();
+    t.process(&x, &mut |_, f| again.push(f));
+    t.finish(&mut |_, f| again.push(f));
+    assert_eq!(again, whole);
+}
+
+#[test]
+fn gain_does_not_change_the_activations_much() {
+    let mut rng = Rng(12);
+    let x = groove(&mut rng);
+    let a = transcribe(&x, 4096);
+    let quiet: Vec<f32> = x.iter().map(|v| v * 0.05).collect(); // -26 dB
+    let b = transcribe(&quiet, 4096);
+    let mut worst = 0f32;
+    for (fa, fb) in a.iter().zip(&b) {
+        for c in 0..CLASSES {
+            worst = worst.max((fa.activation[c] - fb.activation[c]).abs());
+        }
+    }
+    // Only the log floor (1e-12, ~200 dB down) breaks exact invariance.
+    assert!(worst < 1e-3, "{worst}");
+}
+
+#[test]
+fn onset_comes_out_within_the_stated_latency() {
+    // A hit at sample s: whatever hop reports it, that hop is emitted no later than
+    // latency_samples() after the hop's own time, and the reported time is within one
+    // hop of the hit... for every class the embedded model fires on.
+    let s = 30_000usize;
+    let mut x = vec![0f32; 60_000];
+    add_at(&mut x, &kick(20_000), s);
+    let mut t = DrumTranscriber::new(SR).unwrap();
+    let lat = t.latency_samples();
+    assert_eq!(lat, 512 + 441);
+    let hop = t.hop();
+    let mut fed = 0usize;
+    let mut events = Vec::new();
+    for c in x.chunks(1) {
+        fed += c.len();
+        t.process(c, &mut |i, f: DrumFrame| {
+            // Emitted as soon as sample i*hop + lat - 1 arrived, never later.
+            assert_eq!(fed, i * hop + lat, "hop {i} emitted late or early");
+            if f.onset.iter().any(|&o| o) {
+                events.push(i);
+            }
+        });
+    }
+    // The activation itself moves at the first hop whose frames reach the hit.
+    let frames = transcribe(&x, 4096);
+    let before = (s + 1).saturating_sub(lat) / hop;
+    for f in &frames[..before.saturating_sub(1)] {
+        assert_eq!(f.activation, frames[0].activation, "nothing changes before the hit");
+    }
+    // Any onset near the hit is within ±50 ms of it.
+    for &i in &events {
+        let dt = (i * hop) as f64 - s as f64;
+        assert!(dt.abs() <= 0.05 * SR as f64, "onset {dt} samples from the hit");
+    }
+}
+
+#[test]
+fn silence_and_hard_inputs() {
+    // Silence: no onsets. NaN/Inf: replaced (no panic). Full-scale square: finite.
+    let z = transcribe(&vec![0f32; 44_100], 1000);
+    assert!(z.iter().all(|f| f.onset.iter().all(|&o| !o)));
+    let mut bad = vec![0f32; 20_000];
+    bad[100] = f32::NAN;
+    bad[200] = f32::INFINITY;
+    bad[300] = f32::NEG_INFINITY;
+    let b = transcribe(&bad, 777);
+    assert!(b.iter().all(|f| f.activation.iter().all(|v| v.is_finite())));
+    let sq: Vec<f32> = (0..20_000).map(|i| if (i / 50) % 2 == 0 { 1.0 } else { -1.0 }).collect();
+    let q = transcribe(&sq, 512);
+    assert!(q.iter().all(|f| f.activation.iter().all(|v| v.is_finite())));
+    assert!(transcribe(&[], 1).is_empty());
+    assert_eq!(transcribe(&[0.5], 1).len(), 1);
+}
+
+#[test]
+fn no_allocation_while_processing() {
+    let mut rng = Rng(13);
+    let x = groove(&mut rng);
+    let mut t = DrumTranscriber::new(SR).unwrap();
+    t.process(&x[..4096], &mut |_, _| {});
+    let before = allocs();
+    let mut n = 0;
+    for c in x[4096..].chunks(512) {
+        t.process(c, &mut |_, _| n += 1);
+    }
+    t.finish(&mut |_, _| n += 1);
+    assert_eq!(allocs() - before, 0, "allocations after construction");
+    assert!(n > 300);
+}

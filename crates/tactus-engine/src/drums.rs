@@ -1,0 +1,371 @@
+//! The drum stem's per-instrument track: [`tactus_dsp::drums::DrumTranscriber`] + RMS gate
+//! → onsets and beats per class (kick, snare, toms, cymbals).
+//!
+//! Like [`crate::track::OnsetTrack`], the raw per-hop decisions are post-processed in one
+//! of two statistics modes: `streaming` gates every hop as it arrives with the decaying
+//! running reference, `offline` gates the whole track at the end against its maximum
+//! (a hop more than 35 dB below it carries no onset). The transcriber itself is identical
+//! in both modes, so streaming and offline differ only where the gate reference does.
+
+use tactus_dsp::binner::{bin_beats, BeatBinner};
+use tactus_dsp::drums::{DrumFrame, DrumModel, DrumTranscriber, CLASSES};
+use tactus_dsp::rms::{gate_offline, Rms, StreamingGate, GATE_BELOW_DB};
+use tactus_dsp::melbank::MelConfig;
+use tactus_dsp::{Band, ConfigError, HopStage};
+
+use crate::track::{Geometry, Mode, GATE_DECAY_DB_PER_S};
+
+/// How the drum stem becomes the rhythm fingers' four classes.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum DrumMethod {
+    /// The embedded per-instrument transcriber ([`tactus_dsp::drums`]): the default.
+    #[default]
+    Classes,
+    /// The paper's four Butterworth bands with spectral-flux onsets (for comparison).
+    Bands,
+    /// ADTLib's networks converted to ONNX (`models/setup_adtlib.sh`); feature `onnx`.
+    AdtLib(std::path::PathBuf),
+}
+
+impl DrumMethod {
+    /// Name used on the command line and in reports.
+    pub fn name(&self) -> &'static str {
+        match self {
+            DrumMethod::Classes => "classes",
+            DrumMethod::Bands => "bands",
+            DrumMethod::AdtLib(_) => "adtlib",
+        }
+    }
+}
+
+/// What turns samples into per-hop class decisions.
+enum Detector {
+    Embedded(DrumTranscriber),
+    #[cfg(feature = "onnx")]
+    AdtLib(Box<AdtTrack>),
+}
+
+/// ADTLib emits onset events (with its own 255 ms look-ahead in streaming); they are laid
+/// on the 10 ms hop grid here. Hop `i` is final once `i·hop + latency` samples are in.
+#[cfg(feature = "onnx")]
+struct AdtTrack {
+    adt: tactus_separate::onnx::adtlib::AdtLib,
+    hop: usize,
+    sample_rate: u32,
+    seen: usize,
+    emitted: usize,
+    /// Events not yet laid on the grid: (hop, class, strength).
+    pending: Vec<(usize, usize, f32)>,
+    error: Option<String>,
+}
+
+#[cfg(feature = "onnx")]
+impl AdtTrack {
+    fn class_index(c: tactus_separate::onnx::adtlib::DrumClass) -> usize {
+        use tactus_separate::onnx::adtlib::DrumClass as D;
+        match c {
+            D::Kick => Band::Kick as usize,
+            D::Snare => Band::Snare as usize,
+            D::Cymbals => Band::Cymbals as usize,
+        }
+    }
+
+    fn drain(&mut self, upto: usize, emit: &mut dyn FnMut(usize, DrumFrame)) {
+        while self.emitted < upto {
+            let i = self.emitted;
+            let mut f = DrumFrame::default();
+            for &(h, c, st) in &self.pending {
+                // An event later than its stated latency is put on the next open hop.
+                if h <= i {
+                    f.onset[c] = true;
+                    f.activation[c] = f.activation[c].max(st);
+                }
+            }
+            self.pending.retain(|&(h, _, _)| h > i);
+            emit(i, f);
+            self.emitted += 1;
+        }
+    }
+
+    fn process(&mut self, block: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
+        self.seen += block.len();
+        let (pending, hop, sr) = (&mut self.pending, self.hop, self.sample_rate);
+        self.adt.process(block, &mut |o| {
+            let h = (o.time_s * sr as f64 / hop as f64).round() as usize;
+            pending.push((h, Self::class_index(o.class), o.strength));
+        });
+        if self.error.is_none() {
+            self.error = self.adt.last_error().map(|e| e.to_string());
+        }
+        let lat = self.adt.latency_samples() + hop;
+        let upto = self.seen.saturating_sub(lat) / hop;
+        self.drain(upto, emit);
+    }
+
+    fn finish(&mut self, emit: &mut dyn FnMut(usize, DrumFrame)) {
+        let (pending, hop, sr) = (&mut self.pending, self.hop, self.sample_rate);
+        self.adt.finish(&mut |o| {
+            let h = (o.time_s * sr as f64 / hop as f64).round() as usize;
+            pending.push((h, Self::class_index(o.class), o.strength));
+        });
+        if self.error.is_none() {
+            self.error = self.adt.last_error().map(|e| e.to_string());
+        }
+        let total = self.seen.div_ceil(self.hop);
+        self.drain(total, emit);
+    }
+
+    fn reset(&mut self) {
+        self.adt.reset();
+        self.seen = 0;
+        self.emitted = 0;
+        self.pending.clear();
+        self.error = None;
+    }
+}
+
+impl Detector {
+    fn process(&mut self, block: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
+        match self {
+            Detector::Embedded(d) => d.process(block, emit),
+            #[cfg(feature = "onnx")]
+            Detector::AdtLib(a) => a.process(block, emit),
+        }
+    }
+
+    fn finish(&mut self, emit: &mut dyn FnMut(usize, DrumFrame)) {
+        match self {
+            Detector::Embedded(d) => d.finish(emit),
+            #[cfg(feature = "onnx")]
+            Detector::AdtLib(a) => a.finish(emit),
+        }
+    }
+
+    fn reset(&mut self) {
+        match self {
+            Detector::Embedded(d) => d.reset(),
+            #[cfg(feature = "onnx")]
+            Detector::AdtLib(a) => a.reset(),
+        }
+    }
+
+    fn latency_samples(&self) -> usize {
+        match self {
+            Detector::Embedded(d) => d.latency_samples(),
+            #[cfg(feature = "onnx")]
+            Detector::AdtLib(a) => a.adt.latency_samples() + a.hop,
+        }
+    }
+}
+
+/// Onsets and beats of the four drum classes from one (denoised) drum signal.
+pub struct ClassTrack {
+    det: Detector,
+    rms: Rms,
+    hop: usize,
+    geo: Geometry,
+    /// Raw per-hop decisions not yet consumed (streaming) or all of them (offline).
+    raw: Vec<[bool; CLASSES]>,
+    /// Strength (network activation) of each raw onset, kept like `raw`.
+    raw_strength: Vec<[f32; CLASSES]>,
+    raw_rms: Vec<f32>,
+    next: usize,
+    gate: StreamingGate,
+    binners: [BeatBinner; CLASSES],
+    /// Gated onsets: (hop, class, strength).
+    pub onsets: Vec<(usize, Band, f32)>,
+    /// Beat per bin, per class ([`Band::ALL`] order).
+    pub bins: [Vec<bool>; CLASSES],
+}
+
+impl ClassTrack {
+    /// A track with the embedded model.
+    pub fn new(geo: Geometry) -> Result<Self, ConfigError> {
+        Self::with_model(geo, DrumModel::embedded())
+    }
+
+    /// A track with a given model.
+    pub fn with_model(geo: Geometry, model: DrumModel) -> Result<Self, ConfigError> {
+        let det = DrumTranscriber::with_model(geo.sample_rate, model)?;
+        Self::with_detector(geo, Detector::Embedded(det), MelConfig::drums(geo.sample_rate).hop)
+    }
+
+    /// A track running ADTLib (`model`: `models/adtlib.onnx`), in its streaming window
+    /// layout for `Mode::Streaming` and its offline one otherwise.
+    #[cfg(feature = "onnx")]
+    pub fn adtlib(
+        geo: Geometry,
+        model: &std::path::Path,
+        threads: usize,
+    ) -> Result<Self, crate::EngineError> {
+        use tactus_separate::onnx::adtlib::{AdtLib, AdtLibConfig};
+        use tactus_separate::onnx::OnnxConfig;
+        let cfg = OnnxConfig {
+            threads,
+            ..OnnxConfig::new(model)
+        };
+        let layout = match geo.mode {
+            Mode::Streaming => AdtLibConfig::streaming(),
+            Mode::Offline => AdtLibConfig::offline(),
+        };
+        let adt = AdtLib::new(&cfg, geo.sample_rate, layout)
+            .map_err(|e| crate::EngineError::Config(format!("ADTLib: {e}")))?;
+        let hop = MelConfig::drums(geo.sample_rate).hop;
+        let det = Detector::AdtLib(Box::new(AdtTrack {
+            adt,
+            hop,
+            sample_rate: geo.sample_rate,
+            seen: 0,
+            emitted: 0,
+            pending: Vec::new(),
+            error: None,
+        }));
+        Ok(Self::with_detector(geo, det, hop)?)
+    }
+
+    /// The first network error of the ADTLib detector, if any (the render fails on it).
+    pub fn error(&self) -> Option<String> {
+        match &self.det {
+            Detector::Embedded(_) => None,
+            #[cfg(feature = "onnx")]
+            Detector::AdtLib(a) => a.error.clone(),
+        }
+    }
+
+    fn with_detector(geo: Geometry, det: Detector, hop: usize) -> Result<Self, ConfigError> {
+        let hop_s = hop as f32 / geo.sample_rate as f32;
+        let binner = BeatBinner::new(hop, geo.bin_samples)?;
+        Ok(ClassTrack {
+            // RMS over the transcriber's own hop, a 2-hop frame centred on it.
+            rms: Rms::new(2 * hop, hop)?,
+            det,
+            hop,
+            geo,
+            raw: Vec::new(),
+            raw_strength: Vec::new(),
+            raw_rms: Vec::new(),
+            next: 0,
+            gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s)?,
+            binners: [binner.clone(), binner.clone(), binner.clone(), binner],
+            onsets: Vec::new(),
+            bins: Default::default(),
+        })
+    }
+
+    /// Samples between hops.
+    pub fn hop(&self) -> usize {
+        self.hop
+    }
+
+    /// Input samples of look-ahead before hop `i` is final.
+    pub fn latency_samples(&self) -> usize {
+        self.det.latency_samples().max(self.rms.latency_samples())
+    }
+
+    /// Feeds a block of the drum signal.
+    pub fn process(&mut self, block: &[f32]) {
+        let (raw, strength) = (&mut self.raw, &mut self.raw_strength);
+        self.det.process(block, &mut |_, f: DrumFrame| {
+            raw.push(f.onset);
+            strength.push(f.activation);
+        });
+        let raw_rms = &mut self.raw_rms;
+        self.rms.process(block, &mut |_, r| raw_rms.push(r));
+        self.post_streaming();
+    }
+
+    /// Ends the stream (offline: gates against the whole track's reference).
+    pub fn finish(&mut self) {
+        let (raw, strength) = (&mut self.raw, &mut self.raw_strength);
+        self.det.finish(&mut |_, f: DrumFrame| {
+            raw.push(f.onset);
+            strength.push(f.activation);
+        });
+        let raw_rms = &mut self.raw_rms;
+        self.rms.finish(&mut |_, r| raw_rms.push(r));
+        self.post_streaming();
+        for (c, b) in self.binners.iter_mut().enumerate() {
+            let bins = &mut self.bins[c];
+            b.finish(&mut |_, x| bins.push(x));
+        }
+        if self.geo.mode == Mode::Offline {
+            let n = self.raw.len().min(self.raw_rms.len());
+            let mut open = vec![false; n];
+            gate_offline(&self.raw_rms[..n], GATE_BELOW_DB, &mut open);
+            self.onsets.clear();
+            let mut flags = vec![vec![false; n]; CLASSES];
+            for i in 0..n {
+                for (c, band) in Band::ALL.into_iter().enumerate() {
+                    if open[i] && self.raw[i][c] {
+                        self.onsets.push((i, band, self.raw_strength[i][c]));
+                        flags[c][i] = true;
+                    }
+                }
+            }
+            for c in 0..CLASSES {
+                self.bins[c] = bin_beats(&flags[c], self.hop, self.geo.bin_samples);
+            }
+        }
+    }
+
+    fn post_streaming(&mut self) {
+        if self.geo.mode != Mode::Streaming {
+            return;
+        }
+        let ready = self.raw.len().min(self.raw_rms.len());
+        for j in 0..ready {
+            let i = self.next;
+            let open = self.gate.process(self.raw_rms[j]);
+            for (c, band) in Band::ALL.into_iter().enumerate() {
+                let onset = open && self.raw[j][c];
+                if onset {
+                    self.onsets.push((i, band, self.raw_strength[j][c]));
+                }
+                let bins = &mut self.bins[c];
+                self.binners[c].push(i, onset, &mut |_, b| bins.push(b));
+            }
+            self.next += 1;
+        }
+        self.raw.drain(..ready);
+        self.raw_strength.drain(..ready);
+        self.raw_rms.drain(..ready);
+    }
+
+    /// Bins whose beats are final for every class.
+    pub fn ready_bins(&self) -> usize {
+        self.bins.iter().map(Vec::len).min().unwrap_or(0)
+    }
+
+    /// Beats per bin of one class.
+    pub fn bins_of(&self, band: Band) -> &[bool] {
+        &self.bins[band as usize]
+    }
+
+    /// Onset times in seconds of one class (after the gate).
+    pub fn onset_times(&self, band: Band) -> Vec<f64> {
+        let hop_s = self.hop as f64 / self.geo.sample_rate as f64;
+        self.onsets
+            .iter()
+            .filter(|(_, b, _)| *b == band)
+            .map(|(i, _, _)| *i as f64 * hop_s)
+            .collect()
+    }
+
+    /// Back to the initial state.
+    pub fn reset(&mut self) {
+        self.det.reset();
+        self.rms.reset();
+        self.raw.clear();
+        self.raw_strength.clear();
+        self.raw_rms.clear();
+        self.next = 0;
+        self.gate.reset();
+        for b in &mut self.binners {
+            b.reset();
+        }
+        self.onsets.clear();
+        for b in &mut self.bins {
+            b.clear();
+        }
+    }
+}
