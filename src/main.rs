@@ -12,7 +12,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use tactus_dsp::Stem;
 use tactus_engine::render::{render, RenderRequest};
 use tactus_engine::{EngineConfig, Mode, PitchMethod, SeparatorChoice};
-use tactus_glove::{write_atomic, GloveMap};
+use tactus_glove::{write_atomic, GloveMap, OutputSet};
 
 #[cfg(feature = "audio")]
 mod audio;
@@ -398,10 +398,28 @@ fn run(cli: Cli) -> Result<()> {
                 ModeArg::Streaming => Mode::Streaming,
             };
             let (config, stems) = engine_config(&engine, mode, 100)?;
-            for p in [&output, &features, &plot].into_iter().flatten() {
-                check_writable(p)?;
-            }
+            // Outputs are one transaction: checked and their temporary files created now,
+            // renamed over their targets only when every one is complete.
+            let outputs: Vec<(&str, &Path)> = [
+                ("-o", output.as_deref()),
+                ("--features", features.as_deref()),
+                ("--plot", plot.as_deref()),
+            ]
+            .into_iter()
+            .filter_map(|(label, p)| p.map(|p| (label, p)))
+            .collect();
+            let mut inputs: Vec<&Path> = vec![input.as_path()];
+            inputs.extend(stems.iter().map(|(_, p)| p.as_path()));
+            inputs.extend(engine.model.as_deref());
+            inputs.extend(engine.map.as_deref());
+            let mut out_set = OutputSet::prepare(&outputs, &inputs)?;
             let plot_format = plot.as_deref().map(plot::format_of).transpose()?;
+            // Ctrl-C: remove the temporary files and leave every existing file as it was.
+            let _ = ctrlc::set_handler(|| {
+                tactus_glove::atomic::remove_pending_temporaries();
+                eprintln!("tactus: interrupted: no output written");
+                std::process::exit(130);
+            });
             let req = RenderRequest {
                 input: input.clone(),
                 stems,
@@ -433,7 +451,7 @@ fn run(cli: Cli) -> Result<()> {
                 eprintln!("tactus: warning: {w}");
             }
             // Everything is drawn before anything is written, so a failure leaves no output.
-            let plot_bytes = match (&plot, plot_format) {
+            let mut plot_bytes = match (&plot, plot_format) {
                 (Some(p), Some(format)) => {
                     let svg = plot::render_svg(&out.pattern, &out.features);
                     Some(match format {
@@ -454,19 +472,34 @@ fn run(cli: Cli) -> Result<()> {
                 }
                 _ => None,
             };
-            if let Some(p) = &output {
-                let json = out.pattern.to_json_string()?;
-                write_atomic(p, |w| w.write_all(json.as_bytes()))
-                    .with_context(|| format!("writing {}", p.display()))?;
+            let mut stdout_bytes = None;
+            for (i, &(label, p)) in outputs.iter().enumerate() {
+                let bytes = match label {
+                    "-o" => out.pattern.to_json_string()?.into_bytes(),
+                    "--features" => out.features.to_json_string()?.into_bytes(),
+                    _ => plot_bytes.take().unwrap_or_default(),
+                };
+                if p == Path::new("-") {
+                    stdout_bytes = Some(bytes);
+                } else {
+                    out_set.write(i, &bytes)?;
+                }
             }
-            if let Some(p) = &features {
-                let json = out.features.to_json_string()?;
-                write_atomic(p, |w| w.write_all(json.as_bytes()))
-                    .with_context(|| format!("writing {}", p.display()))?;
+            out_set.commit()?;
+            if let Some(bytes) = stdout_bytes {
+                write_atomic(Path::new("-"), |w| w.write_all(&bytes))
+                    .context("writing the pattern to standard output")?;
             }
-            if let (Some(p), Some(bytes)) = (&plot, &plot_bytes) {
-                write_atomic(p, |w| w.write_all(bytes))
-                    .with_context(|| format!("writing {}", p.display()))?;
+            if outputs.is_empty() {
+                eprintln!(
+                    "tactus: rendered {} ({:.1} s, {} frames of {} ms) and wrote nothing: add \
+                     -o PATTERN.json (or -o - for standard output), --features FEAT.json or \
+                     --plot OUT.svg to keep the result",
+                    input.display(),
+                    out.duration_s,
+                    out.pattern.frames.len(),
+                    out.pattern.bin_ms
+                );
             }
             if verbose {
                 eprintln!(

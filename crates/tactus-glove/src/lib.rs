@@ -65,7 +65,7 @@ pub mod map;
 pub mod pattern;
 pub mod protocol;
 
-pub use atomic::write_atomic;
+pub use atomic::{write_atomic, OutputError, OutputSet};
 pub use error::GloveError;
 pub use features::Features;
 pub use glove::{
