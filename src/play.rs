@@ -417,6 +417,9 @@ pub fn live(
             out[0].clear();
             rs.process(&[&raw], &mut out);
             eng.process(&out[0], &out[0], &[]);
+            if let Some(e) = eng.take_separator_error() {
+                break Err(e.into());
+            }
             let ready = eng.ready_bins();
             let first = cap.first_callback();
             while delivered < ready {

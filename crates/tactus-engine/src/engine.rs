@@ -415,6 +415,14 @@ impl Engine {
         self.separator.as_ref().and_then(|s| s.segment_stats())
     }
 
+    /// The separator's run-time failure since the last call, if any
+    /// ([`Separator::take_error`]): drivers check after every block and after
+    /// [`Engine::finish`], and stop with [`EngineError::Separator`].
+    pub fn take_separator_error(&mut self) -> Option<EngineError> {
+        let e = self.separator.as_mut()?.take_error()?;
+        Some(EngineError::Separator(e))
+    }
+
     /// Feeds one block of the mix (planar stereo; pass the same slice twice for mono) and
     /// the same span of every supplied stem. All slices must have the same length.
     pub fn process(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {

@@ -30,9 +30,13 @@ pub enum EngineError {
     /// Resampler construction failed.
     #[error(transparent)]
     Resample(#[from] resample::ResampleError),
-    /// A stage was configured with impossible parameters.
-    #[error("configuration: {0}")]
+    /// A stage was configured with impossible parameters (the message says which).
+    #[error("{0}")]
     Config(String),
+    /// The separator failed while running (an ONNX Runtime error, a model output of the
+    /// wrong shape): the stems it produced cannot be trusted.
+    #[error(transparent)]
+    Separator(tactus_separate::SeparateError),
     /// Reading a file failed.
     #[error("{path}: {source}", path = .0.display(), source = .1)]
     Io(PathBuf, std::io::Error),
