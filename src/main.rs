@@ -67,10 +67,10 @@ struct EngineArgs {
     #[arg(long = "stem", value_name = "NAME=PATH")]
     stems: Vec<String>,
     /// Bin length in milliseconds (default: 100 for render, as in the paper; 25 for play).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     bin_ms: Option<u32>,
-    /// Pitch levels per melodic stem.
-    #[arg(long, default_value_t = 8)]
+    /// Pitch levels per melodic stem (1..=8: a level raises one of a cell's 8 dots).
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u8).range(1..=8))]
     levels: u8,
     /// Glove map (TOML); the default is the paper's map.
     #[arg(long)]
@@ -78,6 +78,27 @@ struct EngineArgs {
     /// Pitch tracker.
     #[arg(long, value_enum, default_value = "pyin")]
     pitch: PitchArg,
+}
+
+impl EngineArgs {
+    /// The engine options given with other than their default values.
+    fn given(&self) -> Vec<&'static str> {
+        let mut v = Vec::new();
+        let mut add = |on: bool, name| {
+            if on {
+                v.push(name);
+            }
+        };
+        add(!matches!(self.separator, SepArg::Spectral), "--separator");
+        add(self.model.is_some(), "--model");
+        add(self.threads.is_some(), "--threads");
+        add(!self.stems.is_empty(), "--stem");
+        add(self.bin_ms.is_some(), "--bin-ms");
+        add(self.levels != 8, "--levels");
+        add(self.map.is_some(), "--map");
+        add(!matches!(self.pitch, PitchArg::Pyin), "--pitch");
+        v
+    }
 }
 
 #[derive(Subcommand)]
@@ -113,7 +134,8 @@ enum Cmd {
         glove: String,
         /// Send frames this much earlier (positive) or later (negative), on top of the
         /// 50 ms pin rise and the link latency.
-        #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
+        #[arg(long, default_value_t = 0, allow_hyphen_values = true,
+              value_parser = clap::value_parser!(i64).range(-60_000..=60_000))]
         offset_ms: i64,
         /// Play no sound and time frames on the wall clock. Without it, a build with the
         /// `audio` feature plays the song on the default output device and times frames on
@@ -133,7 +155,7 @@ enum Cmd {
         #[arg(long)]
         glove: String,
         /// Stop after this many seconds of captured audio (default: until Ctrl-C).
-        #[arg(long)]
+        #[arg(long, value_parser = seconds_parser(0.001, MAX_SECONDS))]
         seconds: Option<f64>,
         /// Show a one-line status: time, frames, dropped, overruns, link, input level.
         #[arg(long)]
@@ -150,13 +172,13 @@ enum Cmd {
         #[arg(long)]
         log: Option<PathBuf>,
         /// Stop after this many seconds (default: until Ctrl-C or the writer goes away).
-        #[arg(long)]
+        #[arg(long, value_parser = seconds_parser(0.0, MAX_SECONDS))]
         duration: Option<f64>,
     },
     /// List serial ports, BLE devices and audio devices.
     Devices {
-        /// Seconds to scan for BLE devices.
-        #[arg(long, default_value_t = 3.0)]
+        /// Seconds to scan for BLE devices (0..=600).
+        #[arg(long, default_value_t = 3.0, value_parser = seconds_parser(0.0, 600.0))]
         ble_scan_s: f64,
     },
     /// Score a features file against ground truth (a corpus song folder or truth.json), or
@@ -183,8 +205,50 @@ enum Cmd {
     },
 }
 
+/// The longest duration any option accepts: 10⁷ s (116 days).
+const MAX_SECONDS: f64 = 1e7;
+
+/// A parser for a duration in seconds: a finite number within `min..=max`.
+fn seconds_parser(min: f64, max: f64) -> impl Fn(&str) -> Result<f64, String> + Clone {
+    move |s: &str| {
+        let v: f64 = s
+            .trim()
+            .parse()
+            .map_err(|_| format!("{s:?} is not a number of seconds"))?;
+        if !v.is_finite() || v < min || v > max {
+            return Err(format!(
+                "must be a finite number of seconds from {min} to {max}"
+            ));
+        }
+        Ok(v)
+    }
+}
+
+/// clap's error as one line (its usage and help hints dropped), for the one-line rule.
+fn one_line(e: &clap::Error) -> String {
+    let text = e.render().to_string();
+    let mut parts = Vec::new();
+    for line in text.lines() {
+        let line = line.trim();
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        }
+        if !line.is_empty() {
+            parts.push(line.trim_start_matches("error: "));
+        }
+    }
+    parts.join(" ")
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if !e.use_stderr() => e.exit(), // --help, --version
+        Err(e) => {
+            eprintln!("tactus: error: {} (see tactus --help)", one_line(&e));
+            return ExitCode::from(2);
+        }
+    };
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

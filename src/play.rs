@@ -28,7 +28,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use tactus_engine::render::{render_with, RenderRequest};
 use tactus_engine::Mode;
 use tactus_glove::{Frame, Pattern};
@@ -71,6 +71,15 @@ pub fn run(
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
     let lead = lead_ms(&spec, offset_ms);
     if is_pattern {
+        let given = engine.given();
+        if !given.is_empty() {
+            bail!(
+                "{}: a pattern file is played as rendered, so {} cannot apply: render it again \
+                 with them (tactus render SONG -o PATTERN.json ...), or play the song itself",
+                input.display(),
+                given.join(", ")
+            );
+        }
         if !no_audio {
             eprintln!("tactus: note: a pattern file has no audio; timing frames on the wall clock");
         }
