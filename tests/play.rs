@@ -7,6 +7,8 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+mod common;
+
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_tactus")
 }
@@ -30,7 +32,9 @@ fn play_pattern_over_a_pty_into_the_emulator() {
         .status()
         .is_err()
     {
-        eprintln!("SKIPPED: socat is not installed (apt-get install socat; CI does)");
+        common::skip(
+            "play_pattern_over_a_pty: socat is not installed (apt-get install socat; CI does)",
+        );
         return;
     }
     let d = tempfile::tempdir().unwrap();
