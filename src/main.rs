@@ -174,6 +174,14 @@ enum Cmd {
         /// Stop after this many seconds (default: until Ctrl-C or the writer goes away).
         #[arg(long, value_parser = seconds_parser(0.0, MAX_SECONDS))]
         duration: Option<f64>,
+        /// Stop once frames have arrived and then none for 2 s (the player has closed the
+        /// link).
+        #[arg(long)]
+        until_idle: bool,
+        /// Also list every received pin frame in the JSON report on stdout (the actuation
+        /// log, --log, has them too).
+        #[arg(long)]
+        json_frames: bool,
     },
     /// List serial ports, BLE devices and audio devices.
     Devices {
@@ -252,7 +260,18 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            let msg = format!("{e:#}").replace('\n', " ");
+            // The causes, each once: a cause whose text the message already holds adds
+            // nothing (many errors quote their source).
+            let mut msg = String::new();
+            for cause in e.chain() {
+                let c = cause.to_string().replace('\n', " ");
+                if !msg.contains(&c) {
+                    if !msg.is_empty() {
+                        msg.push_str(": ");
+                    }
+                    msg.push_str(&c);
+                }
+            }
             eprintln!("tactus: error: {msg}");
             ExitCode::FAILURE
         }
@@ -304,7 +323,7 @@ fn engine_config(
         SepArg::Htdemucs => SeparatorChoice::HtDemucs(model("htdemucs")?),
     };
     let map = match &e.map {
-        Some(p) => GloveMap::from_path(p).with_context(|| format!("--map {}", p.display()))?,
+        Some(p) => GloveMap::from_name_or_path(p).context("--map")?,
         None => GloveMap::default(),
     };
     if e.levels == 0 {
@@ -373,7 +392,9 @@ fn run(cli: Cli) -> Result<()> {
             port,
             log,
             duration,
-        } => play::emulate(&port, log.as_deref(), duration),
+            until_idle,
+            json_frames,
+        } => play::emulate(&port, log.as_deref(), duration, until_idle, json_frames),
         Cmd::Devices { ble_scan_s } => {
             print!(
                 "{}",
@@ -411,6 +432,13 @@ fn run(cli: Cli) -> Result<()> {
                         .with_context(|| format!("reading {}", log.display()))?;
                     let l = tactus_eval::glove_log::parse_actuation_log(&l)
                         .with_context(|| log.display().to_string())?;
+                    for w in tactus_eval::glove_log::log_mismatch(
+                        &l,
+                        pat.frames.len(),
+                        pat.bin_ms,
+                    ) {
+                        eprintln!("tactus: warning: {}: {w}", log.display());
+                    }
                     let f = features.as_deref().map(read_features).transpose()?;
                     let r = tactus_eval::glove_log::glove_fidelity(
                         &l,
@@ -419,6 +447,13 @@ fn run(cli: Cli) -> Result<()> {
                         tactus_eval::glove_log::PAPER_BIN_S,
                     )
                     .context("scoring the glove log")?;
+                    if r.frames > 0 && r.frames_matching * 2 < r.frames {
+                        eprintln!(
+                            "tactus: warning: only {} of the pattern's {} frames appear in the \
+                             log as they are in the pattern: was this pattern the one played?",
+                            r.frames_matching, r.frames
+                        );
+                    }
                     (r.to_markdown(), r.to_json())
                 }
                 (None, None, Some(truth)) => {
