@@ -2,7 +2,7 @@
 //!
 //! The paper (Electronics 2025, 14(18), 3658, §3) assigns fixed features to fingers: bass,
 //! vocals and other pitch levels plus the four drum bands. Tactus makes that assignment a
-//! small TOML file (DESIGN.md, "The glove"); the default, `maps/default.toml`, is the
+//! small TOML file (docs/design.md, "The glove"); the default, `maps/default.toml`, is the
 //! contract's table:
 //!
 //! | finger | cell 0 | cell 1 |
