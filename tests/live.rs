@@ -15,6 +15,8 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
+mod common;
+
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_tactus")
 }
@@ -34,9 +36,9 @@ impl Pulse {
             .status()
             .is_err()
         {
-            eprintln!(
-                "SKIPPED {test}: pulseaudio is not installed (apt-get install pulseaudio pulseaudio-utils libasound2-plugins; CI does)"
-            );
+            common::skip(&format!(
+                "{test}: pulseaudio is not installed (apt-get install pulseaudio pulseaudio-utils libasound2-plugins; CI does)"
+            ));
             return None;
         }
         let dir = tempfile::tempdir().unwrap();
