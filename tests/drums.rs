@@ -124,6 +124,8 @@ fn the_band_method_stays_available_and_is_worse() {
     assert!(mean(&bands) + 0.2 < mean(&classes), "bands {bands:?} vs classes {classes:?}");
 }
 
-/// Measured F minus about 0.1 (README, "Drums").
-const ISOLATED_FLOORS: [f64; 4] = [0.0, 0.0, 0.0, 0.0];
-const MIX_FLOORS: [f64; 4] = [0.0, 0.0, 0.0, 0.0];
+/// Measured F on these two excerpts (kick, snare, toms, cymbals) minus about 0.1: isolated
+/// 0.90 / 0.48 / 0.46 / 0.72, mix 0.91 / 0.50 / 0.39 / 0.69. The excerpts are short (4–26
+/// hits per class), so these are regression guards; README's table has the corpus figures.
+const ISOLATED_FLOORS: [f64; 4] = [0.80, 0.38, 0.36, 0.62];
+const MIX_FLOORS: [f64; 4] = [0.81, 0.40, 0.29, 0.59];
