@@ -96,10 +96,34 @@ fn renders_pattern_features_and_plot() {
         serde_json::from_str(&std::fs::read_to_string(&feat).unwrap()).unwrap();
     assert!((f["hop_s"].as_f64().unwrap() - 0.01).abs() < 1e-9);
     assert_eq!(f["levels"]["bass"].as_array().unwrap().len(), 40);
-    let kicks = f["onsets_s"]["kick"].as_array().unwrap();
-    assert!(kicks.len() >= 6, "8 thumps in 4 s, found {}", kicks.len());
+    assert!(f["onsets_s"]["kick"].is_array());
     let svg = std::fs::read_to_string(&plot).unwrap();
     assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+}
+
+/// The song's "kick" is a bare 60 Hz sine burst. The paper's band-pass finds every one; the
+/// default per-instrument transcriber, trained on sampled kits, does not call such a pure
+/// synthetic thump a kick (README, "Known weaknesses"), which is why this checks the band
+/// method; `tests/drums.rs` scores the default on real kits.
+#[test]
+fn band_method_finds_synthetic_thumps() {
+    let d = tmp();
+    let song = p(d.path(), "song.wav");
+    write_song(&song, 4.0, 44_100, true);
+    let feat = p(d.path(), "feat.json");
+    let o = tactus(&[
+        "render",
+        song.to_str().unwrap(),
+        "--features",
+        feat.to_str().unwrap(),
+        "--drums",
+        "bands",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let f: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&feat).unwrap()).unwrap();
+    let kicks = f["onsets_s"]["kick"].as_array().unwrap();
+    assert!(kicks.len() >= 6, "8 thumps in 4 s, found {}", kicks.len());
 }
 
 #[test]
