@@ -315,9 +315,7 @@ impl AudioSource {
             Some(r) => r,
             None => {
                 self.truncated = true;
-                *last_error = Some(SymError::DecodeError(
-                    "the decoder failed on damaged data",
-                ));
+                *last_error = Some(SymError::DecodeError("the decoder failed on damaged data"));
                 Ok(self.end())
             }
         }

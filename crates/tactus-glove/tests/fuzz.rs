@@ -189,7 +189,7 @@ fn features_json() -> &'static str {
 }
 
 fn run_all(cases: u64) {
-    let (n, acc, bad) = fuzz_decoder(0x7AC7_05, cases);
+    let (n, acc, bad) = fuzz_decoder(0x7A_C705, cases);
     println!("decoder: {n} cases, {acc} packets accepted, {bad} not in the input with a valid CRC");
     assert_eq!(bad, 0);
     assert!(acc > 0, "the mutations must leave some packets intact");

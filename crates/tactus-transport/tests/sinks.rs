@@ -321,7 +321,10 @@ fn devices_report_degrades_gracefully() {
     assert!(text.contains("Bluetooth LE devices:\n"), "{text}");
     if !cfg!(feature = "ble") {
         assert!(text.contains("--features ble"), "{text}");
-        assert!(!text.contains("tactus-transport"), "no internal crate names: {text}");
+        assert!(
+            !text.contains("tactus-transport"),
+            "no internal crate names: {text}"
+        );
     }
     eprintln!("{text}");
 }
