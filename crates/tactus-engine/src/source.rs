@@ -308,7 +308,20 @@ impl AudioSource {
 
     /// Demuxes and decodes the next packet of our track into `planes` (trimmed, sanitized).
     /// Decoder errors skip the packet and are remembered in `last_error`.
+    /// [`AudioSource::step_inner`], with a panic inside the decoder (damaged data that a
+    /// codec does not check) treated as the end of the readable data, like a truncation.
     fn step(&mut self, last_error: &mut Option<SymError>) -> Result<Step, SourceError> {
+        match guarded(|| self.step_inner(last_error)) {
+            Some(r) => r,
+            None => {
+                self.truncated = true;
+                *last_error = Some(SymError::DecodeError("the decoder failed on damaged data"));
+                Ok(self.end())
+            }
+        }
+    }
+
+    fn step_inner(&mut self, last_error: &mut Option<SymError>) -> Result<Step, SourceError> {
         if self.ended {
             return Ok(Step::End);
         }
@@ -509,12 +522,42 @@ fn probe(path: &Path, hint: &Hint, how: Probe) -> Result<Box<dyn FormatReader>, 
         Probe::RiffSizeIgnored => Box::new(RiffSizeIgnored::new(file)?),
     };
     let mss = MediaSourceStream::new(source, Default::default());
-    symphonia::default::get_probe().probe(
-        hint,
-        mss,
-        FormatOptions::default(),
-        MetadataOptions::default(),
-    )
+    guarded(|| {
+        symphonia::default::get_probe().probe(
+            hint,
+            mss,
+            FormatOptions::default(),
+            MetadataOptions::default(),
+        )
+    })
+    .unwrap_or(Err(SymError::DecodeError(
+        "the container parser failed on damaged data",
+    )))
+}
+
+thread_local! {
+    /// Set while [`guarded`] runs: the panic hook stays quiet for panics it catches.
+    static GUARDED: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f` (a call into Symphonia on untrusted bytes); a panic inside it becomes `None`
+/// instead of unwinding into the caller, and prints nothing (the caller reports it as one
+/// error line). Found by `tests/fuzz_source.rs`: Symphonia 0.6.1's RIFF reader multiplies
+/// header fields without checking for overflow. Panics elsewhere print as usual.
+fn guarded<T>(f: impl FnOnce() -> T) -> Option<T> {
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !GUARDED.with(|g| g.get()) {
+                previous(info);
+            }
+        }));
+    });
+    let was = GUARDED.with(|g| g.replace(true));
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    GUARDED.with(|g| g.set(was));
+    r.ok()
 }
 
 /// A RIFF/WAVE file whose bytes 4..8 (the RIFF size) read as 0xFF.

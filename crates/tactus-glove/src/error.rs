@@ -130,3 +130,21 @@ impl GloveError {
         }
     }
 }
+
+/// `s` with its control characters escaped (`\n`, `\u{1b}`, ...), so that an error that
+/// quotes user input (a key, a value) stays on one line.
+pub(crate) fn one_line(s: impl Into<String>) -> String {
+    let s = s.into();
+    if !s.chars().any(char::is_control) {
+        return s;
+    }
+    s.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_debug().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
+}

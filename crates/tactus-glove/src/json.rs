@@ -1,6 +1,7 @@
 //! Shared helpers for reading the versioned JSON files (pattern, features): parse to an
 //! object, check `format` and `version`, pull typed fields with errors that name the key.
 
+use crate::error::one_line;
 use serde::de::DeserializeOwned;
 use serde_json::{Map, Value};
 
@@ -16,7 +17,7 @@ pub(crate) fn parse_object(bytes: &[u8], what: &'static str) -> Result<Object, G
     let value: Value = serde_json::from_slice(bytes).map_err(|e| GloveError::NotJson {
         line: e.line(),
         column: e.column(),
-        message: e.to_string(),
+        message: one_line(e.to_string()),
     })?;
     match value {
         Value::Object(o) => Ok(o),
@@ -86,8 +87,8 @@ pub(crate) fn optional<T: DeserializeOwned>(
 
 pub(crate) fn typed<T: DeserializeOwned>(v: &Value, field: &str) -> Result<T, GloveError> {
     T::deserialize(v).map_err(|e| GloveError::InvalidField {
-        field: field.into(),
-        reason: e.to_string(),
+        field: one_line(field),
+        reason: one_line(e.to_string()),
     })
 }
 
@@ -104,7 +105,7 @@ pub(crate) fn kind(v: &Value) -> &'static str {
 
 pub(crate) fn invalid(field: impl Into<String>, reason: impl Into<String>) -> GloveError {
     GloveError::InvalidField {
-        field: field.into(),
-        reason: reason.into(),
+        field: one_line(field.into()),
+        reason: one_line(reason.into()),
     }
 }

@@ -143,9 +143,9 @@ impl GloveMap {
         source: CellSource,
     ) -> Result<(), GloveError> {
         check_source(source).map_err(|reason| GloveError::Map {
+            reason: crate::error::one_line(reason),
             finger: finger.name(),
             cell: CELL_KEYS[cell],
-            reason,
         })?;
         self.cells[finger.index()][cell] = source;
         Ok(())
@@ -196,7 +196,7 @@ impl GloveMap {
         }
         let name = arg.to_string_lossy();
         GloveMap::builtin(&name).ok_or_else(|| GloveError::UnknownMap {
-            name: name.into_owned(),
+            name: crate::error::one_line(name.into_owned()),
             known: BUILTIN_MAPS.map(|(n, _)| n).join(", "),
         })
     }
@@ -459,9 +459,9 @@ impl TryFrom<RawMap> for GloveMap {
             {
                 map.cells[finger.index()][cell] =
                     raw_cell.to_source().map_err(|reason| GloveError::Map {
+                        reason: crate::error::one_line(reason),
                         finger: finger.name(),
                         cell: CELL_KEYS[cell],
-                        reason,
                     })?;
             }
         }

@@ -274,5 +274,56 @@ print('ok')
         );
         assert_eq!(tail[1].kind, tactus_glove::PacketType::AllDown);
         eprintln!("ble reconnect: {stats:?}");
+
+        // Issue 11, link faults: five drops in one session, each recovered, and after each
+        // the first packet written is the newest state (never a backlog of the frames that
+        // were due while the link was down).
+        const DROPS: usize = 5;
+        let sink = open_sink(&spec, &opts).unwrap();
+        sink.send_frame(frames[0], 0);
+        wait_for("first write", || sink.stats().frames_sent == 1);
+        let mut recovered = 0;
+        let mut stale = 0;
+        for drop in 0..DROPS {
+            let before = sink.stats();
+            set_write(
+                "raise dbus.exceptions.DBusException('gone', name='org.bluez.Error.NotConnected')",
+            );
+            let t = 100 * (drop as u32 + 1);
+            sink.send_frame(frames[1], t);
+            wait_for("the write error", || sink.stats().errors > before.errors);
+            // Frames due during the outage; only the newest may reach the glove.
+            for (k, f) in frames.iter().enumerate().take(6).skip(2) {
+                sink.send_frame(*f, t + k as u32);
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            let newest = frames[(drop + 7) % frames.len()];
+            sink.send_frame(newest, t + 50);
+            // Let the sink take the newest state; every write logged from here on (failed
+            // attempts included) must carry it.
+            std::thread::sleep(Duration::from_millis(100));
+            let writes_before = writes(&log).len();
+            set_write("");
+            wait_for("reconnect and resend", || {
+                let st = sink.stats();
+                st.reconnects > before.reconnects && st.frames_sent > before.frames_sent
+            });
+            recovered += 1;
+            let got = writes(&log);
+            let after: Vec<Packet> = got[writes_before..]
+                .iter()
+                .filter_map(|b| Packet::decode(b.as_slice().try_into().ok()?).ok())
+                .filter(|p| p.kind == tactus_glove::PacketType::Pins)
+                .collect();
+            assert!(!after.is_empty());
+            stale += after.iter().filter(|p| p.frame != newest).count();
+        }
+        let stats = sink.close();
+        eprintln!(
+            "{DROPS} BLE drops: recovered {recovered}, stale packets after reconnects {stale}, {stats:?}"
+        );
+        assert_eq!(recovered, DROPS);
+        assert_eq!(stale, 0, "a stale frame was delivered after a reconnect");
+        assert!(stats.reconnects >= DROPS as u64, "{stats:?}");
     }
 }

@@ -237,3 +237,81 @@ fn serial_fault_reconnects_and_sends_current_state() {
 fn clock_ms(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
 }
+
+/// Issue 11, link faults: in one 12 s song the serial link is pulled (socat killed) and
+/// plugged back (a new pty pair under the same names) 10 times, 300 ms each. Every outage
+/// must be recovered (a frame arrives between its end and the next outage), no stale frame
+/// may ever arrive (more than 100 ms after its time, as above), and the song ends in the
+/// right state.
+#[test]
+fn ten_serial_outages_in_one_song_are_all_recovered() {
+    if skip_without("socat", "ten_serial_outages_in_one_song_are_all_recovered") {
+        return;
+    }
+    const OUTAGES: usize = 10;
+    let dir = tempfile::tempdir().unwrap();
+    let mut pair = PtyPair::start(dir.path());
+    let epoch = Instant::now();
+    let (stop, emu) = start_emulator(pair.b(), None, epoch, Duration::from_secs(5));
+    let frames = pattern(600); // 12 s at 20 ms
+    let sink = open_sink(&serial_spec(&pair), &quiet()).unwrap();
+    let never = AtomicBool::new(false);
+    let play_start = Instant::now();
+    let play_start_ms = (play_start - epoch).as_secs_f64() * 1e3;
+    let clock = WallClock::starting_at(play_start);
+    let fault = std::thread::spawn(move || {
+        let mut outages = Vec::new();
+        for k in 0..OUTAGES {
+            // Outage k starts at 0.7 + 1.05·k s.
+            let due = Duration::from_millis(700 + 1050 * k as u64);
+            if let Some(wait) = due.checked_sub(play_start.elapsed()) {
+                std::thread::sleep(wait);
+            }
+            let t0 = clock_ms(play_start);
+            pair.kill();
+            std::thread::sleep(Duration::from_millis(300));
+            pair.restart();
+            outages.push((t0, clock_ms(play_start)));
+        }
+        (pair, outages)
+    });
+    let report = play_frames(&frames, BIN_MS, &sink, &clock, 0, &never, &mut |_| {});
+    let stats = sink.close();
+    let (_pair, outages) = fault.join().unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    stop.store(true, Ordering::Relaxed);
+    let got = emu.join().unwrap();
+
+    assert_eq!(report.frames_sent, 600);
+    let arrivals: Vec<f64> = got
+        .frames
+        .iter()
+        .map(|r| r.arrival_ms - play_start_ms)
+        .collect();
+    let mut recovered = 0;
+    for (k, &(_, end)) in outages.iter().enumerate() {
+        let next = outages.get(k + 1).map_or(f64::INFINITY, |o| o.0);
+        if arrivals.iter().any(|&a| a > end && a < next) {
+            recovered += 1;
+        }
+    }
+    let stale = got
+        .frames
+        .iter()
+        .filter(|r| r.arrival_ms - play_start_ms - f64::from(r.time_ms) > 100.0)
+        .count();
+    eprintln!(
+        "{OUTAGES} serial outages: recovered {recovered}, reconnects {}, stale frames {stale}, \
+         frames received {} of 600, dropped {}, CRC errors {}",
+        stats.reconnects,
+        got.frames.len(),
+        stats.dropped,
+        got.crc_errors
+    );
+    assert_eq!(recovered, OUTAGES, "{outages:?}");
+    assert!(stats.reconnects >= OUTAGES as u64, "{stats:?}");
+    assert_eq!(stale, 0, "stale frames delivered");
+    assert_eq!(got.crc_errors, 0);
+    assert_eq!(got.frames.last().unwrap().frame, frames[599]);
+    assert_eq!(got.final_frame, Frame::DOWN);
+}
