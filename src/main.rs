@@ -112,6 +112,10 @@ enum Cmd {
         /// Plot to write (.svg, or .png rasterised with the system's fonts).
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// Browser preview to write: one self-contained page that plays the song (embedded)
+        /// and animates the glove in sync with it.
+        #[arg(long, value_name = "PAGE.html")]
+        html: Option<PathBuf>,
         #[command(flatten)]
         engine: EngineArgs,
         /// Statistics: offline (whole track, paper) or streaming (causal, as live).
@@ -295,6 +299,31 @@ fn engine_config(
     Ok((cfg, stems))
 }
 
+/// The `--html` page: the song file's own bytes (checked against the pattern's SHA-256, so
+/// the page plays what was rendered) embedded with the pattern and features.
+fn html_page(
+    input: &Path,
+    pattern: &tactus_glove::Pattern,
+    features: &tactus_glove::Features,
+) -> Result<Vec<u8>> {
+    let audio = std::fs::read(input).with_context(|| format!("reading {}", input.display()))?;
+    if tactus_glove::sha256_hex(&audio[..])? != pattern.source.sha256 {
+        bail!("{} changed while it was rendered", input.display());
+    }
+    let page =
+        tactus_glove::html::render_page(pattern, features, &audio, &input.display().to_string());
+    if let Some(why) = &page.audio.unplayable {
+        eprintln!("tactus: warning: --html: browsers may not play this audio ({why}); the page's glove runs on the wall clock");
+    }
+    eprintln!(
+        "tactus: --html: page {:.1} MB, of which audio {:.1} MB ({}, the source file as base64)",
+        page.html.len() as f64 / 1e6,
+        page.audio_bytes as f64 * 4.0 / 3.0 / 1e6,
+        page.audio.name
+    );
+    Ok(page.html.into_bytes())
+}
+
 fn stop_flag() -> Arc<AtomicBool> {
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
@@ -413,6 +442,7 @@ fn run(cli: Cli) -> Result<()> {
             output,
             features,
             plot,
+            html,
             engine,
             mode,
             verbose,
@@ -422,7 +452,7 @@ fn run(cli: Cli) -> Result<()> {
                 ModeArg::Streaming => Mode::Streaming,
             };
             let (config, stems) = engine_config(&engine, mode, 100)?;
-            for p in [&output, &features, &plot].into_iter().flatten() {
+            for p in [&output, &features, &plot, &html].into_iter().flatten() {
                 check_writable(p)?;
             }
             let plot_format = plot.as_deref().map(plot::format_of).transpose()?;
@@ -478,6 +508,13 @@ fn run(cli: Cli) -> Result<()> {
                 }
                 _ => None,
             };
+            let html_bytes = match &html {
+                Some(p) => Some(
+                    html_page(&input, &out.pattern, &out.features)
+                        .with_context(|| format!("--html {}", p.display()))?,
+                ),
+                None => None,
+            };
             if let Some(p) = &output {
                 let json = out.pattern.to_json_string()?;
                 write_atomic(p, |w| w.write_all(json.as_bytes()))
@@ -489,6 +526,10 @@ fn run(cli: Cli) -> Result<()> {
                     .with_context(|| format!("writing {}", p.display()))?;
             }
             if let (Some(p), Some(bytes)) = (&plot, &plot_bytes) {
+                write_atomic(p, |w| w.write_all(bytes))
+                    .with_context(|| format!("writing {}", p.display()))?;
+            }
+            if let (Some(p), Some(bytes)) = (&html, &html_bytes) {
                 write_atomic(p, |w| w.write_all(bytes))
                     .with_context(|| format!("writing {}", p.display()))?;
             }
