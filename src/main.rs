@@ -116,6 +116,11 @@ enum Cmd {
         /// and animates the glove in sync with it.
         #[arg(long, value_name = "PAGE.html")]
         html: Option<PathBuf>,
+        /// Export for other tools, by extension (repeatable): .csv (one row per bin, one 0/1
+        /// column per dot) or .ahap (Apple Core Haptics: drums as transients, bass as
+        /// continuous sharpness).
+        #[arg(long, value_name = "FILE.csv|FILE.ahap")]
+        export: Vec<PathBuf>,
         #[command(flatten)]
         engine: EngineArgs,
         /// Statistics: offline (whole track, paper) or streaming (causal, as live).
@@ -299,6 +304,27 @@ fn engine_config(
     Ok((cfg, stems))
 }
 
+enum ExportKind {
+    Csv,
+    Ahap,
+}
+
+fn export_kind(p: &Path) -> Result<ExportKind> {
+    match p
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .as_deref()
+    {
+        Some("csv") => Ok(ExportKind::Csv),
+        Some("ahap") => Ok(ExportKind::Ahap),
+        _ => bail!(
+            "--export {}: unknown format (use a .csv or .ahap file name)",
+            p.display()
+        ),
+    }
+}
+
 /// The `--html` page: the song file's own bytes (checked against the pattern's SHA-256, so
 /// the page plays what was rendered) embedded with the pattern and features.
 fn html_page(
@@ -443,6 +469,7 @@ fn run(cli: Cli) -> Result<()> {
             features,
             plot,
             html,
+            export,
             engine,
             mode,
             verbose,
@@ -455,6 +482,13 @@ fn run(cli: Cli) -> Result<()> {
             for p in [&output, &features, &plot, &html].into_iter().flatten() {
                 check_writable(p)?;
             }
+            let export_kinds = export
+                .iter()
+                .map(|p| {
+                    check_writable(p)?;
+                    export_kind(p)
+                })
+                .collect::<Result<Vec<_>>>()?;
             let plot_format = plot.as_deref().map(plot::format_of).transpose()?;
             let req = RenderRequest {
                 input: input.clone(),
@@ -515,6 +549,13 @@ fn run(cli: Cli) -> Result<()> {
                 ),
                 None => None,
             };
+            let export_bytes: Vec<String> = export_kinds
+                .iter()
+                .map(|k| match k {
+                    ExportKind::Csv => tactus_glove::export::to_csv(&out.pattern),
+                    ExportKind::Ahap => tactus_glove::export::to_ahap(&out.pattern, &out.features),
+                })
+                .collect();
             if let Some(p) = &output {
                 let json = out.pattern.to_json_string()?;
                 write_atomic(p, |w| w.write_all(json.as_bytes()))
@@ -531,6 +572,10 @@ fn run(cli: Cli) -> Result<()> {
             }
             if let (Some(p), Some(bytes)) = (&html, &html_bytes) {
                 write_atomic(p, |w| w.write_all(bytes))
+                    .with_context(|| format!("writing {}", p.display()))?;
+            }
+            for (p, text) in export.iter().zip(&export_bytes) {
+                write_atomic(p, |w| w.write_all(text.as_bytes()))
                     .with_context(|| format!("writing {}", p.display()))?;
             }
             if verbose {

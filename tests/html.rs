@@ -99,7 +99,12 @@ fn browse(chrome: &Path, f: &Fixture, hash: &str, extra: &[String]) -> String {
     let _guard = BROWSER.lock().unwrap_or_else(|e| e.into_inner());
     let profile = tempfile::tempdir_in(&f.dir).unwrap();
     let o = Command::new(chrome)
-        .args(["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars"])
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--hide-scrollbars",
+        ])
         .arg(format!("--user-data-dir={}", profile.path().display()))
         .args(extra)
         .arg(file_url(&f.page, hash))
@@ -205,8 +210,8 @@ fn interesting_bins(p: &Pattern, n: usize) -> Vec<usize> {
 #[test]
 fn page_is_self_contained_and_embeds_the_song() {
     let f = fixture();
-    let song = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/demo.ogg"))
-        .unwrap();
+    let song =
+        std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/demo.ogg")).unwrap();
     // The source file's own bytes, as base64, in the audio island.
     let b64 = tactus_glove::html::base64(&song);
     assert!(f.html.contains(&b64));

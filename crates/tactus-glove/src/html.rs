@@ -87,7 +87,11 @@ pub fn audio_kind(bytes: &[u8]) -> AudioKind {
                 "WAV",
                 format!("WAV with format tag 0x{tag:04x} (not PCM or float, e.g. ADPCM)"),
             ),
-            None => bad("audio/wav", "WAV", "WAV without a readable fmt chunk".into()),
+            None => bad(
+                "audio/wav",
+                "WAV",
+                "WAV without a readable fmt chunk".into(),
+            ),
         };
     }
     if head(4) == b"fLaC" {
@@ -726,7 +730,11 @@ mod tests {
         assert_eq!(audio_kind(&[0xFF, 0xFB, 0x90]).mime, "audio/mpeg");
         assert_eq!(audio_kind(&[0xFF, 0xF1, 0x50]).mime, "audio/aac");
         assert!(audio_kind(b"garbage!").unplayable.is_some());
-        let demo = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/demo.ogg")).unwrap();
+        let demo = std::fs::read(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../examples/demo.ogg"
+        ))
+        .unwrap();
         assert_eq!(audio_kind(&demo).name, "Ogg/Vorbis");
     }
 
