@@ -628,13 +628,29 @@ const JS: &str = r##"
     note.textContent = "audio unavailable (" + why + "): the glove runs on the wall clock, silently";
     if (was) play();
   }
-  function loop() {
+  // Animation-frame statistics while playing, for measurements (window.tactusStats):
+  // callbacks, gaps over 25 ms between callbacks (a dropped 60 Hz frame), the longest gap
+  // the longest and the total time spent inside callbacks.
+  const stats = { frames: 0, late: 0, maxGapMs: 0, maxWorkMs: 0, sumWorkMs: 0 };
+  window.tactusStats = stats;
+  let lastRaf = -1;
+  function loop(ts) {
+    const w0 = performance.now();
+    if (playing() && lastRaf >= 0) {
+      const gap = ts - lastRaf;
+      stats.frames++;
+      if (gap > 25) stats.late++;
+      if (gap > stats.maxGapMs) stats.maxGapMs = gap;
+    }
+    lastRaf = playing() ? ts : -1;
     if (playing()) {
       const t = now();
       if (t >= duration && S.clock === "wall") { S.wallPlaying = false; S.t = duration; }
       S.t = clamp(t);
     }
     render(S.t, false);
+    const work = performance.now() - w0;
+    if (playing()) { stats.sumWorkMs += work; if (work > stats.maxWorkMs) stats.maxWorkMs = work; }
     requestAnimationFrame(loop);
   }
 
