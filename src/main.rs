@@ -146,6 +146,10 @@ enum Cmd {
         /// the audio clock.
         #[arg(long)]
         no_audio: bool,
+        /// The song of a pattern file, when it is not at the pattern's recorded path; it
+        /// must match the pattern's SHA-256.
+        #[arg(long, value_name = "FILE", conflicts_with = "no_audio")]
+        audio: Option<PathBuf>,
         #[command(flatten)]
         engine: EngineArgs,
     },
@@ -365,8 +369,16 @@ fn run(cli: Cli) -> Result<()> {
             glove,
             offset_ms,
             no_audio,
+            audio,
             engine,
-        } => play::run(&input, &glove, offset_ms, no_audio, &engine),
+        } => play::run(
+            &input,
+            &glove,
+            offset_ms,
+            no_audio,
+            audio.as_deref(),
+            &engine,
+        ),
         Cmd::Live {
             input,
             glove,
