@@ -48,7 +48,7 @@ SOUNDFONT_CANDIDATES = [
     "/usr/share/sounds/sf2/FluidR3_GM.sf2",
     "/usr/share/soundfonts/FluidR3_GM.sf2",
 ]
-# GM drum note -> Tactus band (DESIGN.md band split)
+# GM drum note -> Tactus band (docs/design.md band split)
 DRUM_BANDS = {
     35: "kick", 36: "kick",
     37: "snare", 38: "snare", 40: "snare",
@@ -289,7 +289,7 @@ def f0_track(mid: mido.MidiFile, n_frames: int, top_line=False):
     return f0
 
 
-# Per-band truth (DESIGN.md "Known weakness"): the Tactus band edges in Hz, and the rule that
+# Per-band truth (docs/design.md "Known weakness"): the Tactus band edges in Hz, and the rule that
 # puts a hit in a band. A GM drum note belongs to band b when the energy of its isolated
 # sound in b is within BAND_TRUTH_DB of its loudest band. Energy: the note rendered alone
 # (velocity 100, no reverb/chorus), first BAND_TRUTH_WINDOW_S after note-on, Hann window,

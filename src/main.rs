@@ -12,7 +12,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use tactus_dsp::Stem;
 use tactus_engine::render::{render, RenderRequest};
 use tactus_engine::{DrumMethod, EngineConfig, Mode, PitchMethod, SeparatorChoice};
-use tactus_glove::{write_atomic, GloveMap};
+use tactus_glove::{write_atomic, GloveMap, OutputSet};
 
 #[cfg(feature = "audio")]
 mod audio;
@@ -77,10 +77,10 @@ struct EngineArgs {
     #[arg(long = "stem", value_name = "NAME=PATH")]
     stems: Vec<String>,
     /// Bin length in milliseconds (default: 100 for render, as in the paper; 25 for play).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     bin_ms: Option<u32>,
-    /// Pitch levels per melodic stem.
-    #[arg(long, default_value_t = 8)]
+    /// Pitch levels per melodic stem (1..=8: a level raises one of a cell's 8 dots).
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u8).range(1..=8))]
     levels: u8,
     /// Glove map (TOML); the default is the paper's map.
     #[arg(long)]
@@ -95,6 +95,29 @@ struct EngineArgs {
     /// ONNX model for --drums adtlib (made by models/setup_adtlib.sh).
     #[arg(long)]
     drum_model: Option<PathBuf>,
+}
+
+impl EngineArgs {
+    /// The engine options given with other than their default values.
+    fn given(&self) -> Vec<&'static str> {
+        let mut v = Vec::new();
+        let mut add = |on: bool, name| {
+            if on {
+                v.push(name);
+            }
+        };
+        add(!matches!(self.separator, SepArg::Spectral), "--separator");
+        add(self.model.is_some(), "--model");
+        add(self.threads.is_some(), "--threads");
+        add(!self.stems.is_empty(), "--stem");
+        add(self.bin_ms.is_some(), "--bin-ms");
+        add(self.levels != 8, "--levels");
+        add(self.map.is_some(), "--map");
+        add(!matches!(self.pitch, PitchArg::Pyin), "--pitch");
+        add(!matches!(self.drums, DrumsArg::Classes), "--drums");
+        add(self.drum_model.is_some(), "--drum-model");
+        v
+    }
 }
 
 #[derive(Subcommand)]
@@ -139,7 +162,8 @@ enum Cmd {
         glove: String,
         /// Send frames this much earlier (positive) or later (negative), on top of the
         /// 50 ms pin rise and the link latency.
-        #[arg(long, default_value_t = 0, allow_hyphen_values = true)]
+        #[arg(long, default_value_t = 0, allow_hyphen_values = true,
+              value_parser = clap::value_parser!(i64).range(-60_000..=60_000))]
         offset_ms: i64,
         /// Play no sound and time frames on the wall clock. Without it, a build with the
         /// `audio` feature plays the song on the default output device and times frames on
@@ -163,7 +187,7 @@ enum Cmd {
         #[arg(long)]
         glove: String,
         /// Stop after this many seconds of captured audio (default: until Ctrl-C).
-        #[arg(long)]
+        #[arg(long, value_parser = seconds_parser(0.001, MAX_SECONDS))]
         seconds: Option<f64>,
         /// Show a one-line status: time, frames, dropped, overruns, link, input level.
         #[arg(long)]
@@ -180,13 +204,21 @@ enum Cmd {
         #[arg(long)]
         log: Option<PathBuf>,
         /// Stop after this many seconds (default: until Ctrl-C or the writer goes away).
-        #[arg(long)]
+        #[arg(long, value_parser = seconds_parser(0.0, MAX_SECONDS))]
         duration: Option<f64>,
+        /// Stop once frames have arrived and then none for 2 s (the player has closed the
+        /// link).
+        #[arg(long)]
+        until_idle: bool,
+        /// Also list every received pin frame in the JSON report on stdout (the actuation
+        /// log, --log, has them too).
+        #[arg(long)]
+        json_frames: bool,
     },
     /// List serial ports, BLE devices and audio devices.
     Devices {
-        /// Seconds to scan for BLE devices.
-        #[arg(long, default_value_t = 3.0)]
+        /// Seconds to scan for BLE devices (0..=600).
+        #[arg(long, default_value_t = 3.0, value_parser = seconds_parser(0.0, 600.0))]
         ble_scan_s: f64,
     },
     /// Score a features file against ground truth (a corpus song folder or truth.json), or
@@ -213,12 +245,65 @@ enum Cmd {
     },
 }
 
+/// The longest duration any option accepts: 10⁷ s (116 days).
+const MAX_SECONDS: f64 = 1e7;
+
+/// A parser for a duration in seconds: a finite number within `min..=max`.
+fn seconds_parser(min: f64, max: f64) -> impl Fn(&str) -> Result<f64, String> + Clone {
+    move |s: &str| {
+        let v: f64 = s
+            .trim()
+            .parse()
+            .map_err(|_| format!("{s:?} is not a number of seconds"))?;
+        if !v.is_finite() || v < min || v > max {
+            return Err(format!(
+                "must be a finite number of seconds from {min} to {max}"
+            ));
+        }
+        Ok(v)
+    }
+}
+
+/// clap's error as one line (its usage and help hints dropped), for the one-line rule.
+fn one_line(e: &clap::Error) -> String {
+    let text = e.render().to_string();
+    let mut parts = Vec::new();
+    for line in text.lines() {
+        let line = line.trim();
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        }
+        if !line.is_empty() {
+            parts.push(line.trim_start_matches("error: "));
+        }
+    }
+    parts.join(" ")
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if !e.use_stderr() => e.exit(), // --help, --version
+        Err(e) => {
+            eprintln!("tactus: error: {} (see tactus --help)", one_line(&e));
+            return ExitCode::from(2);
+        }
+    };
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            let msg = format!("{e:#}").replace('\n', " ");
+            // The causes, each once: a cause whose text the message already holds adds
+            // nothing (many errors quote their source).
+            let mut msg = String::new();
+            for cause in e.chain() {
+                let c = cause.to_string().replace('\n', " ");
+                if !msg.contains(&c) {
+                    if !msg.is_empty() {
+                        msg.push_str(": ");
+                    }
+                    msg.push_str(&c);
+                }
+            }
             eprintln!("tactus: error: {msg}");
             ExitCode::FAILURE
         }
@@ -270,7 +355,7 @@ fn engine_config(
         SepArg::Htdemucs => SeparatorChoice::HtDemucs(model("htdemucs")?),
     };
     let map = match &e.map {
-        Some(p) => GloveMap::from_path(p).with_context(|| format!("--map {}", p.display()))?,
+        Some(p) => GloveMap::from_name_or_path(p).context("--map")?,
         None => GloveMap::default(),
     };
     if e.levels == 0 {
@@ -400,7 +485,9 @@ fn run(cli: Cli) -> Result<()> {
             port,
             log,
             duration,
-        } => play::emulate(&port, log.as_deref(), duration),
+            until_idle,
+            json_frames,
+        } => play::emulate(&port, log.as_deref(), duration, until_idle, json_frames),
         Cmd::Devices { ble_scan_s } => {
             print!(
                 "{}",
@@ -438,6 +525,13 @@ fn run(cli: Cli) -> Result<()> {
                         .with_context(|| format!("reading {}", log.display()))?;
                     let l = tactus_eval::glove_log::parse_actuation_log(&l)
                         .with_context(|| log.display().to_string())?;
+                    for w in tactus_eval::glove_log::log_mismatch(
+                        &l,
+                        pat.frames.len(),
+                        pat.bin_ms,
+                    ) {
+                        eprintln!("tactus: warning: {}: {w}", log.display());
+                    }
                     let f = features.as_deref().map(read_features).transpose()?;
                     let r = tactus_eval::glove_log::glove_fidelity(
                         &l,
@@ -446,6 +540,13 @@ fn run(cli: Cli) -> Result<()> {
                         tactus_eval::glove_log::PAPER_BIN_S,
                     )
                     .context("scoring the glove log")?;
+                    if r.frames > 0 && r.frames_matching * 2 < r.frames {
+                        eprintln!(
+                            "tactus: warning: only {} of the pattern's {} frames appear in the \
+                             log as they are in the pattern: was this pattern the one played?",
+                            r.frames_matching, r.frames
+                        );
+                    }
                     (r.to_markdown(), r.to_json())
                 }
                 (None, None, Some(truth)) => {
@@ -491,17 +592,34 @@ fn run(cli: Cli) -> Result<()> {
                 ModeArg::Streaming => Mode::Streaming,
             };
             let (config, stems) = engine_config(&engine, mode, 100)?;
-            for p in [&output, &features, &plot, &html].into_iter().flatten() {
-                check_writable(p)?;
-            }
             let export_kinds = export
                 .iter()
-                .map(|p| {
-                    check_writable(p)?;
-                    export_kind(p)
-                })
+                .map(|p| export_kind(p))
                 .collect::<Result<Vec<_>>>()?;
+            // Outputs are one transaction: checked and their temporary files created now,
+            // renamed over their targets only when every one is complete.
+            let outputs: Vec<(&str, &Path)> = [
+                ("-o", output.as_deref()),
+                ("--features", features.as_deref()),
+                ("--plot", plot.as_deref()),
+                ("--html", html.as_deref()),
+            ]
+            .into_iter()
+            .chain(export.iter().map(|p| ("--export", Some(p.as_path()))))
+            .filter_map(|(label, p)| p.map(|p| (label, p)))
+            .collect();
+            let mut inputs: Vec<&Path> = vec![input.as_path()];
+            inputs.extend(stems.iter().map(|(_, p)| p.as_path()));
+            inputs.extend(engine.model.as_deref());
+            inputs.extend(engine.map.as_deref());
+            let mut out_set = OutputSet::prepare(&outputs, &inputs)?;
             let plot_format = plot.as_deref().map(plot::format_of).transpose()?;
+            // Ctrl-C: remove the temporary files and leave every existing file as it was.
+            let _ = ctrlc::set_handler(|| {
+                tactus_glove::atomic::remove_pending_temporaries();
+                eprintln!("tactus: interrupted: no output written");
+                std::process::exit(130);
+            });
             let req = RenderRequest {
                 input: input.clone(),
                 stems,
@@ -533,7 +651,7 @@ fn run(cli: Cli) -> Result<()> {
                 eprintln!("tactus: warning: {w}");
             }
             // Everything is drawn before anything is written, so a failure leaves no output.
-            let plot_bytes = match (&plot, plot_format) {
+            let mut plot_bytes = match (&plot, plot_format) {
                 (Some(p), Some(format)) => {
                     let svg = plot::render_svg(&out.pattern, &out.features);
                     Some(match format {
@@ -554,41 +672,49 @@ fn run(cli: Cli) -> Result<()> {
                 }
                 _ => None,
             };
-            let html_bytes = match &html {
+            let mut html_bytes = match &html {
                 Some(p) => Some(
                     html_page(&input, &out.pattern, &out.features)
                         .with_context(|| format!("--html {}", p.display()))?,
                 ),
                 None => None,
             };
-            let export_bytes: Vec<String> = export_kinds
-                .iter()
-                .map(|k| match k {
-                    ExportKind::Csv => tactus_glove::export::to_csv(&out.pattern),
-                    ExportKind::Ahap => tactus_glove::export::to_ahap(&out.pattern, &out.features),
-                })
-                .collect();
-            if let Some(p) = &output {
-                let json = out.pattern.to_json_string()?;
-                write_atomic(p, |w| w.write_all(json.as_bytes()))
-                    .with_context(|| format!("writing {}", p.display()))?;
+            let mut export_bytes = export_kinds.iter().map(|k| match k {
+                ExportKind::Csv => tactus_glove::export::to_csv(&out.pattern).into_bytes(),
+                ExportKind::Ahap => {
+                    tactus_glove::export::to_ahap(&out.pattern, &out.features).into_bytes()
+                }
+            });
+            let mut stdout_bytes = None;
+            for (i, &(label, p)) in outputs.iter().enumerate() {
+                let bytes = match label {
+                    "-o" => out.pattern.to_json_string()?.into_bytes(),
+                    "--features" => out.features.to_json_string()?.into_bytes(),
+                    "--html" => html_bytes.take().unwrap_or_default(),
+                    "--export" => export_bytes.next().unwrap_or_default(),
+                    _ => plot_bytes.take().unwrap_or_default(),
+                };
+                if p == Path::new("-") {
+                    stdout_bytes = Some(bytes);
+                } else {
+                    out_set.write(i, &bytes)?;
+                }
             }
-            if let Some(p) = &features {
-                let json = out.features.to_json_string()?;
-                write_atomic(p, |w| w.write_all(json.as_bytes()))
-                    .with_context(|| format!("writing {}", p.display()))?;
+            out_set.commit()?;
+            if let Some(bytes) = stdout_bytes {
+                write_atomic(Path::new("-"), |w| w.write_all(&bytes))
+                    .context("writing the pattern to standard output")?;
             }
-            if let (Some(p), Some(bytes)) = (&plot, &plot_bytes) {
-                write_atomic(p, |w| w.write_all(bytes))
-                    .with_context(|| format!("writing {}", p.display()))?;
-            }
-            if let (Some(p), Some(bytes)) = (&html, &html_bytes) {
-                write_atomic(p, |w| w.write_all(bytes))
-                    .with_context(|| format!("writing {}", p.display()))?;
-            }
-            for (p, text) in export.iter().zip(&export_bytes) {
-                write_atomic(p, |w| w.write_all(text.as_bytes()))
-                    .with_context(|| format!("writing {}", p.display()))?;
+            if outputs.is_empty() {
+                eprintln!(
+                    "tactus: rendered {} ({:.1} s, {} frames of {} ms) and wrote nothing: add \
+                     -o PATTERN.json (or -o - for standard output), --features FEAT.json or \
+                     --plot OUT.svg to keep the result",
+                    input.display(),
+                    out.duration_s,
+                    out.pattern.frames.len(),
+                    out.pattern.bin_ms
+                );
             }
             if verbose {
                 eprintln!(

@@ -34,7 +34,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
+
+/// What the sink's "dropped" counter means, printed next to it.
+const DROPPED: &str = "frames replaced by a newer one before the link could send them; \
+                       each frame carries the whole glove state, so nothing is lost but time";
 use tactus_engine::render::{render_with, RenderRequest};
 use tactus_engine::Mode;
 use tactus_glove::{Frame, Pattern};
@@ -78,7 +82,15 @@ pub fn run(
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
     let lead = lead_ms(&spec, offset_ms);
     if is_pattern {
-        reject_engine_options(engine)?;
+        let given = engine.given();
+        if !given.is_empty() {
+            bail!(
+                "{}: a pattern file is played as rendered, so {} cannot apply: render it again \
+                 with them (tactus render SONG -o PATTERN.json ...), or play the song itself",
+                input.display(),
+                given.join(", ")
+            );
+        }
         let pattern = Pattern::from_path(input)?;
         if !no_audio && cfg!(feature = "audio") {
             let song = pattern_song(input, &pattern, audio)?;
@@ -129,7 +141,7 @@ pub fn run(
         }
         let stats = sink.close();
         eprintln!(
-            "tactus: played {} frames to {}: jitter p95 {:.2} ms, max {:.2} ms; sent {}, dropped {}, reconnects {}{}",
+            "tactus: played {} frames to {}: jitter p95 {:.2} ms, max {:.2} ms; sent {}, dropped {} ({DROPPED}), reconnects {}{}",
             report.frames_sent,
             spec,
             report.jitter_p95_ms,
@@ -240,43 +252,11 @@ fn send_and_report(
     let stats = sink.close();
     let (sent, skipped) = outcome?;
     eprintln!(
-        "tactus: streamed {sent} frames ({skipped} not ready in time) to {spec}; sink sent {}, dropped {}, reconnects {}",
+        "tactus: streamed {sent} frames ({skipped} not ready in time) to {spec}; sink sent {}, dropped {} ({DROPPED}), reconnects {}",
         stats.sent, stats.dropped, stats.reconnects
     );
     if let Some(line) = audio_line {
         eprintln!("{line}");
-    }
-    Ok(())
-}
-
-/// Engine options make no sense with a pattern file, whose frames are already rendered.
-fn reject_engine_options(e: &EngineArgs) -> Result<()> {
-    let mut given = Vec::new();
-    for (set, name) in [
-        (
-            !matches!(e.separator, crate::SepArg::Spectral),
-            "--separator",
-        ),
-        (e.model.is_some(), "--model"),
-        (e.threads.is_some(), "--threads"),
-        (!e.stems.is_empty(), "--stem"),
-        (e.bin_ms.is_some(), "--bin-ms"),
-        (e.levels != 8, "--levels"),
-        (e.map.is_some(), "--map"),
-        (!matches!(e.pitch, crate::PitchArg::Pyin), "--pitch"),
-        (!matches!(e.drums, crate::DrumsArg::Classes), "--drums"),
-        (e.drum_model.is_some(), "--drum-model"),
-    ] {
-        if set {
-            given.push(name);
-        }
-    }
-    if !given.is_empty() {
-        anyhow::bail!(
-            "{} given with a pattern file, whose frames are already rendered: drop {}, or play the song itself",
-            given.join(", "),
-            if given.len() == 1 { "it" } else { "them" }
-        );
     }
     Ok(())
 }
@@ -538,6 +518,9 @@ pub fn live(
             out[0].clear();
             rs.process(&[&raw], &mut out);
             eng.process(&out[0], &out[0], &[]);
+            if let Some(e) = eng.take_separator_error() {
+                break Err(e.into());
+            }
             let ready = eng.ready_bins();
             let first = cap.first_callback();
             while delivered < ready {
@@ -618,7 +601,7 @@ pub fn live(
         .map(|(t, n0)| (t.elapsed().as_secs_f64(), n0))
         .unwrap_or((0.0, 0));
     eprintln!(
-        "tactus: captured {:.3} s ({} callbacks, overruns {} samples; capture clock {:+.1} ms vs wall since the first callback), {delivered} frames to {spec}; sink sent {}, dropped {}, reconnects {}",
+        "tactus: captured {:.3} s ({} callbacks, overruns {} samples; capture clock {:+.1} ms vs wall since the first callback), {delivered} frames to {spec}; sink sent {}, dropped {} ({DROPPED}), reconnects {}",
         captured as f64 / f64::from(rate),
         cap.callbacks(),
         cap.overruns(),
@@ -630,26 +613,87 @@ pub fn live(
     Ok(())
 }
 
-pub fn emulate(port: &Path, log: Option<&Path>, duration: Option<f64>) -> Result<()> {
+pub fn emulate(
+    port: &Path,
+    log: Option<&Path>,
+    duration: Option<f64>,
+    until_idle: bool,
+    json_frames: bool,
+) -> Result<()> {
     let stop = stop_flag();
     let opts = tactus_transport::emulator::EmulatorOptions {
         max_duration: duration.map(|d| Duration::from_secs_f64(d.max(0.0))),
+        idle_stop: until_idle.then_some(Duration::from_secs(2)),
         ..Default::default()
     };
-    let r = tactus_transport::run_emulator_on_port(port, log, &stop, &opts)?;
-    let report = serde_json::json!({
+    let tty = std::io::stderr().is_terminal();
+    let t0 = Instant::now();
+    let mut last_line = Instant::now();
+    let r = tactus_transport::emulator::run_emulator_on_port_with(
+        port,
+        log,
+        &stop,
+        &opts,
+        &mut |c, open| {
+            let line = format!(
+                "{:>7.1} s  packets {}  crc errors {}  sequence gaps {}  actuations {}  port {}",
+                t0.elapsed().as_secs_f64(),
+                c.packets,
+                c.crc_errors,
+                c.sequence_gaps,
+                c.actuations,
+                if open { "open" } else { "GONE" }
+            );
+            if tty {
+                eprint!("\r{line}   ");
+            } else if last_line.elapsed() >= Duration::from_secs(10) {
+                // Not a terminal (a log file): one line every 10 s.
+                last_line = Instant::now();
+                eprintln!("tactus: emulate: {line}");
+            }
+        },
+    )?;
+    if tty {
+        eprintln!();
+    }
+    eprintln!(
+        "tactus: emulated glove: {} packets ({} pin frames, {} all-down, {} keep-alive), \
+         {} CRC errors, {} malformed, {} sequence gaps, {} garbage bytes, {} pin changes; \
+         final frame {}",
+        r.packets,
+        r.frames.len(),
+        r.all_downs,
+        r.keep_alives,
+        r.crc_errors,
+        r.malformed,
+        r.sequence_gaps,
+        r.garbage_bytes,
+        r.actuations,
+        r.final_frame.to_hex()
+    );
+    let mut report = serde_json::json!({
         "packets": r.packets,
+        "pin_frames": r.frames.len(),
         "crc_errors": r.crc_errors,
         "malformed": r.malformed,
         "sequence_gaps": r.sequence_gaps,
         "garbage_bytes": r.garbage_bytes,
         "all_downs": r.all_downs,
+        "keep_alives": r.keep_alives,
         "actuations": r.actuations,
         "final_frame": r.final_frame.to_hex(),
-        "frames": r.frames.iter().map(|f| serde_json::json!({
-            "arrival_ms": f.arrival_ms, "seq": f.seq, "time_ms": f.time_ms, "frame": f.frame.to_hex()
-        })).collect::<Vec<_>>(),
     });
+    if json_frames {
+        report["frames"] = r
+            .frames
+            .iter()
+            .map(|f| {
+                serde_json::json!({
+                    "arrival_ms": f.arrival_ms, "seq": f.seq, "time_ms": f.time_ms, "frame": f.frame.to_hex()
+                })
+            })
+            .collect();
+    }
     println!("{report}");
     Ok(())
 }

@@ -6,6 +6,8 @@
 use std::path::Path;
 use std::process::Command;
 
+mod common;
+
 fn tactus(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_tactus"))
         .args(args)
@@ -38,7 +40,9 @@ fn spleeter_render_beats_the_spectral_default_on_vocals() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let model = root.join("models/spleeter-2stems.onnx");
     if std::env::var_os("ORT_DYLIB_PATH").is_none() || !model.exists() {
-        eprintln!("SKIPPED: run models/setup_models.sh and export ORT_DYLIB_PATH (CI does)");
+        common::skip(
+            "spleeter_render: run models/setup_models.sh and export ORT_DYLIB_PATH (CI does)",
+        );
         return;
     }
     let song = root.join("corpus/fixtures/bwv347_120bpm");
@@ -85,7 +89,9 @@ fn htdemucs_verbose_reports_segments_and_threads_is_checked() {
     let model =
         root.join("crates/tactus-separate/tests/fixtures/onnx/htdemucs_golden/htdemucs-tiny.onnx");
     if std::env::var_os("ORT_DYLIB_PATH").is_none() || !model.exists() {
-        eprintln!("SKIPPED: run models/setup_onnxruntime.sh and export ORT_DYLIB_PATH (CI does)");
+        common::skip(
+            "htdemucs_verbose: run models/setup_onnxruntime.sh and export ORT_DYLIB_PATH (CI does)",
+        );
         return;
     }
     let mix = root.join("corpus/fixtures/bwv347_120bpm/mix.flac");
@@ -125,4 +131,40 @@ fn htdemucs_verbose_reports_segments_and_threads_is_checked() {
     let o = run(args("0"));
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("--threads"));
+}
+
+/// A separator that fails at run time fails the render with one line naming the stage and
+/// the cause, and leaves no output (issue 11). The model is a deliberately broken Spleeter
+/// stand-in whose `vocals` output has the wrong shape (models/make_broken_spleeter.py).
+#[test]
+fn a_failing_network_fails_the_render_with_one_line() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model = root.join("crates/tactus-separate/tests/fixtures/onnx/spleeter_wrong_output.onnx");
+    if std::env::var_os("ORT_DYLIB_PATH").is_none() {
+        common::skip("a_failing_network_fails_the_render: export ORT_DYLIB_PATH (CI does)");
+        return;
+    }
+    let mix = root.join("corpus/fixtures/bwv347_120bpm/mix.flac");
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("p.json");
+    std::fs::write(&out, b"old").unwrap();
+    let o = tactus(&[
+        "render",
+        mix.to_str().unwrap(),
+        "--separator",
+        "spleeter",
+        "--model",
+        model.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("separation (spleeter) failed") && err.contains("output `vocals`"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), b"old");
+    assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1);
 }

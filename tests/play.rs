@@ -7,6 +7,8 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+mod common;
+
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_tactus")
 }
@@ -30,7 +32,9 @@ fn play_pattern_over_a_pty_into_the_emulator() {
         .status()
         .is_err()
     {
-        eprintln!("SKIPPED: socat is not installed (apt-get install socat; CI does)");
+        common::skip(
+            "play_pattern_over_a_pty: socat is not installed (apt-get install socat; CI does)",
+        );
         return;
     }
     let d = tempfile::tempdir().unwrap();
@@ -82,6 +86,8 @@ fn play_pattern_over_a_pty_into_the_emulator() {
             log.to_str().unwrap(),
             "--duration",
             "30",
+            "--until-idle",
+            "--json-frames",
         ])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -99,10 +105,25 @@ fn play_pattern_over_a_pty_into_the_emulator() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    std::thread::sleep(Duration::from_millis(300));
+    // --until-idle: the emulator stops by itself 2 s after the player's last packet, with
+    // the link (socat) still up.
+    let mut emu = emu;
+    let t_played = Instant::now();
+    while emu.try_wait().unwrap().is_none() {
+        assert!(
+            t_played.elapsed() < Duration::from_secs(10),
+            "emulate --until-idle did not stop"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
     let _ = socat.kill();
     let _ = socat.wait();
     let out = emu.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("tactus: emulated glove:") && err.contains("CRC errors"),
+        "{err}"
+    );
     assert!(
         out.status.success(),
         "{}",

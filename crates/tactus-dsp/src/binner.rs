@@ -26,7 +26,7 @@
 //! Allocation-free after construction. The offline functions [`bin_levels`] and [`bin_beats`]
 //! run the same code and allocate their output `Vec`.
 //!
-//! **Defaults.** 100 ms bins offline (paper), 25 ms live (DESIGN.md); the caller passes both
+//! **Defaults.** 100 ms bins offline (paper), 25 ms live (docs/design.md); the caller passes both
 //! sizes in samples (e.g. hop 441, bin 4410 at 44.1 kHz).
 
 use crate::ConfigError;

@@ -4,7 +4,7 @@
 //! §4: "only the non-zero pitch ranges are considered"). The stem's non-zero pitch range
 //! `[lo, hi]` is cut into `levels` equal-width intervals and a voiced hop gets the 1-based index
 //! of the interval holding its pitch: `level = ⌊levels · t⌋ + 1`, clamped to `1..=levels`, where
-//! * [`Scale::Semitones`] (default, DESIGN.md): `t = log2(f0 / lo) / log2(hi / lo)`, i.e. equal
+//! * [`Scale::Semitones`] (default, docs/design.md): `t = log2(f0 / lo) / log2(hi / lo)`, i.e. equal
 //!   musical intervals (100–400 Hz with 8 levels: 3 semitones per level);
 //! * [`Scale::LinearHz`]: `t = (f0 − lo) / (hi − lo)`, equal widths in Hz (closer to the paper's
 //!   literal "percentile relative to the maximum pitch").
@@ -21,7 +21,7 @@
 //! pitch, after the gate and Tukey's fences. Streaming ([`RunningRange`]): running min and max of
 //! the voiced pitches seen so far (it only widens; call `reset()` between songs).
 //!
-//! **Defaults.** [`DEFAULT_LEVELS`] = 8 (paper), semitone scale (DESIGN.md). **Latency:** none.
+//! **Defaults.** [`DEFAULT_LEVELS`] = 8 (paper), semitone scale (docs/design.md). **Latency:** none.
 
 use crate::ConfigError;
 

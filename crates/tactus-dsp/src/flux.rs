@@ -57,7 +57,7 @@
 //! | `log_compression` | γ = 1000 | |
 //! | `delta` | 0.15 | |
 //! | `mean_before_hops` | 100 ms | 20 |
-//! | `min_interval_s` | 0.05 (DESIGN.md) | ≥ 11 hops (55 ms) |
+//! | `min_interval_s` | 0.05 (docs/design.md) | ≥ 11 hops (55 ms) |
 //! | `lookahead_hops` | 0 (causal), 15 ms (look-ahead) | 0 / 3 |
 //!
 //! # Latency
@@ -105,7 +105,7 @@ pub struct OnsetConfig {
     pub delta: f32,
     /// Hops before the current one in the local mean window.
     pub mean_before_hops: usize,
-    /// Minimum time between two onsets, in seconds (DESIGN.md: 0.05).
+    /// Minimum time between two onsets, in seconds (docs/design.md: 0.05).
     pub min_interval_s: f32,
     /// 0 = causal (rising edge); `L > 0` = the peak must be a local maximum over ±`L` hops,
     /// and the local mean also covers the `L` hops ahead.

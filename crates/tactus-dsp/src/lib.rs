@@ -125,7 +125,7 @@ impl Stem {
         Stem::ALL.into_iter().find(|x| x.name() == s)
     }
 
-    /// Default pitch search range in Hz (DESIGN.md: bass 35–400, vocals 70–1400, other 50–2000).
+    /// Default pitch search range in Hz (docs/design.md: bass 35–400, vocals 70–1400, other 50–2000).
     /// `None` for drums, which get onset detection instead of pitch.
     pub fn pitch_range_hz(self) -> Option<(f32, f32)> {
         match self {

@@ -7,7 +7,7 @@
 //! latency. It keeps the window twice: a ring in arrival order and a sorted copy. Each new
 //! sample overwrites the oldest one in the sorted copy (found by binary search) and is moved
 //! to its place by adjacent swaps: O(log w + distance moved) per sample, O(w) worst case, no
-//! allocation after construction. Window 3 (the default, DESIGN.md) takes a branch-only fast
+//! allocation after construction. Window 3 (the default, docs/design.md) takes a branch-only fast
 //! path; window 1 is the identity.
 //!
 //! Samples are ordered with [`f32::total_cmp`], so the result equals sorting the window and
@@ -18,12 +18,12 @@
 //! [`median_centered`] is the offline, zero-latency form for whole signals.
 //!
 //! ## Defaults and latency
-//! Window 3 samples (DESIGN.md, after the denoising high-pass). Latency `(w − 1) / 2` samples.
+//! Window 3 samples (docs/design.md, after the denoising high-pass). Latency `(w − 1) / 2` samples.
 
 use crate::sanitize::sanitize_sample;
 use crate::{ConfigError, SampleStage};
 
-/// The window DESIGN.md uses after the denoising high-pass.
+/// The window docs/design.md uses after the denoising high-pass.
 pub const DEFAULT_WINDOW: usize = 3;
 
 /// Streaming median over the last `window` samples. See the module docs.

@@ -36,7 +36,7 @@
 //!
 //! ## The paper's drum bands, and clamping
 //! [`SosFilter::band`] builds the paper's kick 30–150, snare 150–800, toms 800–5000 and cymbals
-//! 5000–12000 Hz bands as order-4 band-passes (8 poles each; DESIGN.md). An edge is *usable*
+//! 5000–12000 Hz bands as order-4 band-passes (8 poles each; docs/design.md). An edge is *usable*
 //! when it is below [`MAX_EDGE_FRACTION`] × Nyquist (0.9 × Nyquist). The rule:
 //!
 //! * both edges usable → band-pass `[lo, hi]`;
@@ -54,7 +54,7 @@
 //!
 //! ## Defaults and latency
 //! Drum bands: order 4. Denoising high-pass ([`SosFilter::highpass`]): order 4, 30 Hz for bass
-//! and drums, 60 Hz for vocals and other (DESIGN.md). [`SampleStage::latency_samples`] is 0 by
+//! and drums, 60 Hz for vocals and other (docs/design.md). [`SampleStage::latency_samples`] is 0 by
 //! convention for IIR filters (their group delay depends on frequency).
 
 use realfft::num_complex::Complex64;
@@ -65,10 +65,10 @@ use crate::{Band, ConfigError, SampleStage};
 /// Band edges at or above this fraction of Nyquist are not used (see the module docs).
 pub const MAX_EDGE_FRACTION: f64 = 0.9;
 
-/// Drum band filter order (prototype order; 8 poles for a band-pass). DESIGN.md.
+/// Drum band filter order (prototype order; 8 poles for a band-pass). docs/design.md.
 pub const BAND_ORDER: usize = 4;
 
-/// Denoising high-pass order. DESIGN.md.
+/// Denoising high-pass order. docs/design.md.
 pub const DENOISE_ORDER: usize = 4;
 
 /// Highest order accepted by [`butterworth`]; far beyond any use, it bounds the work done
@@ -387,7 +387,7 @@ impl SosFilter {
     }
 
     /// Denoising high-pass: Butterworth, `order` poles, −3 dB at `cutoff_hz`.
-    /// DESIGN.md defaults: order 4, 30 Hz for bass and drums, 60 Hz for vocals and other.
+    /// docs/design.md defaults: order 4, 30 Hz for bass and drums, 60 Hz for vocals and other.
     pub fn highpass(cutoff_hz: f64, order: usize, sample_rate: u32) -> Result<Self, ConfigError> {
         Self::butterworth(order, Response::HighPass { cutoff_hz }, sample_rate)
     }

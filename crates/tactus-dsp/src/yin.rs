@@ -33,7 +33,7 @@
 //!   but clearly pitched tones (SNR ≥ 0 dB) below 0.5.
 //!
 //! ## Defaults
-//! `threshold = 0.1` (DESIGN.md), `voicing_ceiling = 0.5`, `hop = round(sr × 10 ms)` (the
+//! `threshold = 0.1` (docs/design.md), `voicing_ceiling = 0.5`, `hop = round(sr × 10 ms)` (the
 //! features-file contract), `frame` = the smallest power of two ≥ `2 (τmax + 1)`: the window
 //! `W = N/2` must hold at least one whole longest period (the paper's requirement
 //! `W ≥ τmax`), and the lags up to `τmax + 1` (one past for interpolation) must fit in `N − W`.

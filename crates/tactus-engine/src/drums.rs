@@ -223,12 +223,13 @@ impl ClassTrack {
         Ok(Self::with_detector(geo, det, hop)?)
     }
 
-    /// The first network error of the ADTLib detector, if any (the render fails on it).
-    pub fn error(&self) -> Option<String> {
-        match &self.det {
+    /// The first network error of the ADTLib detector since the last call, if any (the
+    /// drivers stop on it, see [`crate::Engine::take_separator_error`]).
+    pub fn take_error(&mut self) -> Option<String> {
+        match &mut self.det {
             Detector::Embedded(_) => None,
             #[cfg(feature = "onnx")]
-            Detector::AdtLib(a) => a.error.clone(),
+            Detector::AdtLib(a) => a.error.take(),
         }
     }
 

@@ -461,6 +461,20 @@ impl Engine {
         self.separator.as_ref().and_then(|s| s.segment_stats())
     }
 
+    /// The separator's run-time failure since the last call, if any
+    /// ([`Separator::take_error`]), or the ADTLib drum network's: drivers check after
+    /// every block and after [`Engine::finish`], and stop with [`EngineError::Separator`]
+    /// or [`EngineError::Drums`].
+    pub fn take_separator_error(&mut self) -> Option<EngineError> {
+        if let Some(e) = self.separator.as_mut().and_then(|s| s.take_error()) {
+            return Some(EngineError::Separator(e));
+        }
+        self.chains
+            .iter_mut()
+            .find_map(|c| c.classes.as_mut().and_then(|t| t.take_error()))
+            .map(EngineError::Drums)
+    }
+
     /// Feeds one block of the mix (planar stereo; pass the same slice twice for mono) and
     /// the same span of every supplied stem. All slices must have the same length.
     pub fn process(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {

@@ -33,9 +33,16 @@ pub enum EngineError {
     /// Resampler construction failed.
     #[error(transparent)]
     Resample(#[from] resample::ResampleError),
-    /// A stage was configured with impossible parameters.
-    #[error("configuration: {0}")]
+    /// A stage was configured with impossible parameters (the message says which).
+    #[error("{0}")]
     Config(String),
+    /// The separator failed while running (an ONNX Runtime error, a model output of the
+    /// wrong shape): the stems it produced cannot be trusted.
+    #[error(transparent)]
+    Separator(tactus_separate::SeparateError),
+    /// The ADTLib drum transcriber's network failed while running.
+    #[error("drum transcription (adtlib) failed: {0}")]
+    Drums(String),
     /// Reading a file failed.
     #[error("{path}: {source}", path = .0.display(), source = .1)]
     Io(PathBuf, std::io::Error),

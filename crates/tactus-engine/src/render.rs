@@ -250,6 +250,10 @@ pub fn render_with(
             feed(&mut engine, &out[0][..len], &out[1][..len], &mut supplied);
             out[0].clear();
             out[1].clear();
+            if let Some(e) = engine.take_separator_error() {
+                result = Err(e);
+                break;
+            }
             if req.config.mode == crate::Mode::Streaming {
                 let ready = engine.ready_bins();
                 while delivered < ready {
@@ -283,6 +287,9 @@ pub fn render_with(
     })?;
     t_decode += t_dec;
     engine.finish();
+    if let Some(e) = engine.take_separator_error() {
+        return Err(e);
+    }
     progress(1.0);
 
     if source.non_finite() > 0 {

@@ -68,6 +68,9 @@ pub enum SourceError {
     /// The file has zero bytes, or a valid container that holds zero audio frames.
     #[error("{}: file is empty (no audio in it)", .0.display())]
     Empty(PathBuf),
+    /// The path is a directory.
+    #[error("{}: is a directory, not an audio file (render takes one song; name the file)", .0.display())]
+    Directory(PathBuf),
     /// No container format recognised the file.
     #[error("{}: not a recognised audio file (unsupported or corrupt container)", .path.display())]
     UnsupportedFormat {
@@ -202,6 +205,9 @@ impl AudioSource {
                 source: e,
             },
         })?;
+        if meta.is_dir() {
+            return Err(SourceError::Directory(p));
+        }
         if meta.is_file() && meta.len() == 0 {
             return Err(SourceError::Empty(p));
         }

@@ -1,4 +1,4 @@
-//! A minimal reader for the features file (DESIGN.md "Files", `render --features`).
+//! A minimal reader for the features file (docs/design.md "Files", `render --features`).
 //! `tactus-glove` owns the canonical reader and writer; this one only takes what the
 //! metrics need and ignores every other key. Missing stems or bands are simply absent.
 use std::collections::BTreeMap;

@@ -295,6 +295,37 @@ fn rhythm(y: &[bool], y_hat: &[bool]) -> Result<f64, EvalError> {
     paper::rhythm_accuracy(&pad(y.to_vec(), n, false), &pad(y_hat.to_vec(), n, false))
 }
 
+/// Signs that `log` is not a recording of `pattern` being played, one sentence each (empty
+/// when they agree): the log's span differs from the pattern's length by more than
+/// max(3 bins, 5 %), or its first pin frame comes later than max(3 bins, 200 ms) (a player
+/// may supersede the first few frames, never more).
+pub fn log_mismatch(log: &[LoggedFrame], pattern_frames: usize, bin_ms: u32) -> Vec<String> {
+    let bin = u64::from(bin_ms.max(1));
+    let pins: Vec<&LoggedFrame> = log.iter().filter(|f| !f.all_down).collect();
+    let (Some(first), Some(last)) = (pins.first(), pins.last()) else {
+        return vec!["the log holds no pin frames: was the pattern played into this log?".into()];
+    };
+    let mut w = Vec::new();
+    let span = (last.time_ms / bin + 1) as usize;
+    let slack = 3usize.max(pattern_frames / 20);
+    if span.abs_diff(pattern_frames) > slack {
+        w.push(format!(
+            "the log covers {span} bins ({:.1} s) but the pattern has {pattern_frames} \
+             ({:.1} s): is this the pattern that was played, played to the end?",
+            span as f64 * bin as f64 / 1e3,
+            pattern_frames as f64 * bin as f64 / 1e3
+        ));
+    }
+    if first.time_ms > (3 * bin).max(200) {
+        w.push(format!(
+            "the log's first frame is at {} ms, the pattern's at 0 ms: was it played from \
+             the start?",
+            first.time_ms
+        ));
+    }
+    w
+}
+
 /// Scores an actuation log against the pattern it played and, if given, the features file
 /// rendered with it; see the module docs. `paper_bin_s` is normally [`PAPER_BIN_S`].
 pub fn glove_fidelity(

@@ -5,7 +5,7 @@
 //!   least half of its hops are voiced, and then holds the median of the voiced f0 values
 //!   (lower median for an even count); otherwise 0. This is the truth side's binning;
 //!   the engine's binner may differ, which the level accuracy then shows.
-//! * [`discretize`]: DESIGN.md's levels: `levels` equal-width steps in semitones over the
+//! * [`discretize`]: docs/design.md's levels: `levels` equal-width steps in semitones over the
 //!   contour's non-zero range `[lo, hi]`; level `1 + floor((st − lo)/(hi − lo)·levels)`,
 //!   clamped to `levels`; 0 = unvoiced. A constant contour maps to level 1.
 //! * [`level_accuracy`]: fraction of bins where the levels agree exactly, and within ±1.

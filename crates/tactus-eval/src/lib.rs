@@ -10,11 +10,11 @@
 //! | [`paper`] | normalized MAE of pitch, normalized DTW distance, rhythm accuracy per bin | the paper, §3.1.1–§3.1.3 |
 //! | [`melody`] | raw pitch / raw chroma accuracy (50 cents), voicing recall / false alarm | `mir_eval.melody` 0.8 |
 //! | [`onset`] | onset precision / recall / F-measure within ±50 ms, maximum bipartite matching | `mir_eval.onset` 0.8 |
-//! | [`levels`] | ground-truth pitch levels per bin, level accuracy (exact and ±1) | DESIGN.md "levels" |
+//! | [`levels`] | ground-truth pitch levels per bin, level accuracy (exact and ±1) | docs/design.md "levels" |
 //! | [`sdr`] | plain signal-to-distortion ratio, 10·log10(‖s‖² / ‖s − ŝ‖²) | — |
 //! | [`truth`] | reader for the corpus `truth.json` | `corpus/README.md` |
 //! | [`glove_log`] | the paper's Table 3 from a glove actuation log: levels and beats decoded through the map, scored against pattern and audio | the paper, §3 |
-//! | [`features`] | minimal reader for the features file | DESIGN.md "Files" |
+//! | [`features`] | minimal reader for the features file | docs/design.md "Files" |
 //! | [`report`] | [`evaluate`]: all of the above per stem and band, as Markdown or JSON | — |
 //!
 //! ```

@@ -12,7 +12,7 @@
 //!   replaced by exact truth.
 //!
 //! Per drum band (truth hits mapped from GM notes, features `onsets_s` / `beats`):
-//! * onset P/R/F within ±50 ms ([`crate::onset`]) against two truths (DESIGN.md "Known
+//! * onset P/R/F within ±50 ms ([`crate::onset`]) against two truths (docs/design.md "Known
 //!   weakness"): per instrument (`onsets`, the band's instruments: what a listener calls
 //!   "kick") and, when the truth file has `band_onsets`, per band (every hit loud in the
 //!   band: what band-pass detection can see);
@@ -28,7 +28,7 @@ use crate::{levels, melody, onset, paper, FeaturesLike, Truth};
 /// Knobs of [`evaluate_with`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EvalOptions {
-    /// Number of pitch levels used to discretize the truth (DESIGN.md: 8).
+    /// Number of pitch levels used to discretize the truth (docs/design.md: 8).
     pub levels: u8,
     /// Onset matching window in seconds (±50 ms).
     pub onset_window_s: f64,

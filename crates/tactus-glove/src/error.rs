@@ -95,6 +95,14 @@ pub enum GloveError {
     /// A map file is not valid TOML or has unknown keys.
     #[error("map: {0}")]
     MapSyntax(String),
+    /// `--map NAME`: neither a file nor a built-in map.
+    #[error("{name}: no such file, and no built-in map of that name (built-in: {known})")]
+    UnknownMap {
+        /// What was asked for.
+        name: String,
+        /// The built-in names, comma-separated.
+        known: String,
+    },
 }
 
 fn upgrade_hint(found: u64, supported: u64) -> &'static str {

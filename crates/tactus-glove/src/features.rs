@@ -1,4 +1,4 @@
-//! The features file (`render --features`, DESIGN.md "Files", a contract): the extracted
+//! The features file (`render --features`, docs/design.md "Files", a contract): the extracted
 //! features behind a pattern, for plots, evaluation and debugging.
 //!
 //! ```json

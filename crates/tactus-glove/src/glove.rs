@@ -1,4 +1,4 @@
-//! The glove: fingers, braille cells, dots and the 10-byte [`Frame`] (DESIGN.md, "The glove").
+//! The glove: fingers, braille cells, dots and the 10-byte [`Frame`] (docs/design.md, "The glove").
 //!
 //! The paper's glove (Electronics 2025, 14(18), 3658, §2) carries one pair of 8-dot piezo
 //! braille cells on each finger: 5 fingers × 2 cells × 8 dots = 80 pins. Tactus describes
@@ -154,7 +154,7 @@ pub fn dots_mask(numbers: &[u8]) -> u8 {
 }
 
 /// The dots of a pitch level, lowest to highest: left column bottom to top, then the right
-/// column bottom to top (DESIGN.md: "upwards, rightwards, upwards").
+/// column bottom to top (docs/design.md: "upwards, rightwards, upwards").
 pub const LEVEL_DOTS: [u8; 8] = [7, 3, 2, 1, 8, 6, 5, 4];
 
 /// The cell byte that shows pitch `level` out of `levels`: exactly one raised dot, or none

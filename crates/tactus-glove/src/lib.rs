@@ -69,14 +69,14 @@ pub mod map;
 pub mod pattern;
 pub mod protocol;
 
-pub use atomic::write_atomic;
+pub use atomic::{write_atomic, OutputError, OutputSet};
 pub use error::GloveError;
 pub use features::Features;
 pub use glove::{
     dots_mask, level_dots, Dot, Finger, Frame, HexError, Pin, CELLS, CELLS_PER_FINGER,
     DOTS_PER_CELL, PINS,
 };
-pub use map::{BinFeatures, CellSource, GloveMap, Needs};
+pub use map::{BinFeatures, CellSource, GloveMap, Needs, BUILTIN_MAPS};
 pub use pattern::{sha256_file, sha256_hex, Pattern, SourceInfo};
 pub use protocol::{crc8, Decoder, DecoderStats, Packet, PacketType, SYNC};
 pub use tactus_dsp::{Band, Stem};

@@ -2,7 +2,7 @@
 //!
 //! The paper (Electronics 2025, 14(18), 3658, §3) assigns fixed features to fingers: bass,
 //! vocals and other pitch levels plus the four drum bands. Tactus makes that assignment a
-//! small TOML file (DESIGN.md, "The glove"); the default, `maps/default.toml`, is the
+//! small TOML file (docs/design.md, "The glove"); the default, `maps/default.toml`, is the
 //! contract's table:
 //!
 //! | finger | cell 0 | cell 1 |
@@ -34,6 +34,13 @@ use crate::{Band, GloveError, Stem};
 
 /// The text of `maps/default.toml`, the contract's default map.
 pub const DEFAULT_MAP_TOML: &str = include_str!("../maps/default.toml");
+
+/// The built-in maps by name (the files in `maps/`, embedded): `--map NAME`.
+pub const BUILTIN_MAPS: [(&str, &str); 3] = [
+    ("default", DEFAULT_MAP_TOML),
+    ("drums-only", include_str!("../maps/drums-only.toml")),
+    ("melody", include_str!("../maps/melody.toml")),
+];
 /// The text of `maps/drums-only.toml`.
 pub const DRUMS_ONLY_MAP_TOML: &str = include_str!("../maps/drums-only.toml");
 /// The text of `maps/melody.toml`.
@@ -169,6 +176,29 @@ impl GloveMap {
             .map_err(GloveError::from)
             .and_then(|s| GloveMap::from_toml_str(&s))
             .map_err(|e| e.in_file(path))
+    }
+
+    /// A built-in map ([`BUILTIN_MAPS`]) by name, with or without `.toml`.
+    pub fn builtin(name: &str) -> Option<GloveMap> {
+        let name = name.strip_suffix(".toml").unwrap_or(name);
+        BUILTIN_MAPS
+            .iter()
+            .find(|(n, _)| *n == name)
+            .and_then(|(_, toml)| GloveMap::from_toml_str(toml).ok())
+    }
+
+    /// What `--map ARG` means: the file `arg` if it exists, else the built-in map of that
+    /// name ([`GloveMap::builtin`]), else [`GloveError::UnknownMap`].
+    pub fn from_name_or_path(arg: impl AsRef<Path>) -> Result<GloveMap, GloveError> {
+        let arg = arg.as_ref();
+        if arg.exists() {
+            return GloveMap::from_path(arg);
+        }
+        let name = arg.to_string_lossy();
+        GloveMap::builtin(&name).ok_or_else(|| GloveError::UnknownMap {
+            name: name.into_owned(),
+            known: BUILTIN_MAPS.map(|(n, _)| n).join(", "),
+        })
     }
 
     /// The map as TOML, one `[finger]` table per finger with inline cell tables, in the

@@ -1,4 +1,4 @@
-//! The pattern file v1 (`render -o`, DESIGN.md "Files", a contract): the glove frames of a
+//! The pattern file v1 (`render -o`, docs/design.md "Files", a contract): the glove frames of a
 //! whole song, one per bin, plus where they came from and the map that made them.
 //!
 //! ```json

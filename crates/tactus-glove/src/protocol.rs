@@ -1,4 +1,4 @@
-//! Wire protocol v1, host → glove (DESIGN.md, "Wire protocol v1", a contract).
+//! Wire protocol v1, host → glove (docs/design.md, "Wire protocol v1", a contract).
 //!
 //! Every packet is 16 bytes, so one fits a single 20-byte BLE write (service 0xFFE0,
 //! characteristic 0xFFE1, write without response) and the same bytes go over a UART

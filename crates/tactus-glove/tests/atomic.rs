@@ -106,3 +106,42 @@ fn keeps_permissions_of_replaced_file() {
         0o640
     );
 }
+
+#[test]
+fn output_set_is_all_or_nothing() {
+    use tactus_glove::{OutputError, OutputSet};
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.json"), dir.path().join("b.json"));
+    fs::write(&a, b"old").unwrap();
+    {
+        let mut set =
+            OutputSet::prepare(&[("-o", a.as_path()), ("--features", b.as_path())], &[]).unwrap();
+        assert_eq!(
+            entries(dir.path()).len(),
+            3,
+            "two temporaries next to a.json"
+        );
+        set.write(0, b"new").unwrap();
+        // Dropped before commit: the temporaries go, the old file stays.
+    }
+    assert_eq!(entries(dir.path()), vec!["a.json"]);
+    assert_eq!(fs::read(&a).unwrap(), b"old");
+    // An output that is an input, or named twice, is refused before anything is created.
+    let e = OutputSet::prepare(&[("-o", a.as_path())], &[a.as_path()])
+        .err()
+        .unwrap();
+    assert!(matches!(e, OutputError::IsInput { .. }), "{e}");
+    let e = OutputSet::prepare(&[("-o", b.as_path()), ("--plot", b.as_path())], &[])
+        .err()
+        .unwrap();
+    assert!(matches!(e, OutputError::Duplicate { .. }), "{e}");
+    assert_eq!(entries(dir.path()), vec!["a.json"]);
+    let mut set =
+        OutputSet::prepare(&[("-o", a.as_path()), ("--features", b.as_path())], &[]).unwrap();
+    set.write(0, b"A").unwrap();
+    set.write(1, b"B").unwrap();
+    set.commit().unwrap();
+    assert_eq!(fs::read(&a).unwrap(), b"A");
+    assert_eq!(fs::read(&b).unwrap(), b"B");
+    assert_eq!(entries(dir.path()), vec!["a.json", "b.json"]);
+}

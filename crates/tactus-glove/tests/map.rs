@@ -21,7 +21,7 @@ fn band(band: Band) -> CellSource {
     }
 }
 
-/// DESIGN.md's table, typed in by hand.
+/// docs/design.md's table, typed in by hand.
 fn contract_table() -> [[CellSource; 2]; 5] {
     [
         [pitch(Stem::Bass), notes(Stem::Bass)],

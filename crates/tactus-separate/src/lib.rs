@@ -210,6 +210,15 @@ pub trait Separator: Send {
     fn segment_stats(&self) -> Option<SegmentStats> {
         None
     }
+    /// Takes the error of a step that failed since the last call (a network call that
+    /// ONNX Runtime refused, an output of the wrong shape), if any. **Contract**: a backend
+    /// that cannot fail returns `None` (the default); one that can keeps appending
+    /// samples so the stream lengths still hold (the failed span is silent or unseparated,
+    /// so not to be used), and reports the failure here. Callers check after every
+    /// [`Separator::process`] and [`Separator::finish`] and end the stream on `Some`.
+    fn take_error(&mut self) -> Option<SeparateError> {
+        None
+    }
 }
 
 /// Per-segment instrumentation of a separator that runs a network in segments.
@@ -303,6 +312,14 @@ pub enum SeparateError {
     /// The backend cannot run at this sample rate.
     #[error("unsupported sample rate {0} Hz")]
     SampleRate(u32),
+    /// A processing step failed at run time ([`Separator::take_error`]).
+    #[error("separation ({backend}) failed: {message}")]
+    Failed {
+        /// The backend (`"htdemucs"`, `"spleeter"`, ...).
+        backend: &'static str,
+        /// What failed and why, in one line.
+        message: String,
+    },
 }
 
 /// Plain signal-to-distortion ratio in dB: `10 · log10(|s|² / |s − ŝ|²)`.

@@ -275,7 +275,10 @@ fn golden_parity_with_demucs() {
     let dir = support::fixture("htdemucs_golden");
     let model = dir.join("htdemucs-tiny.onnx");
     if !model.is_file() {
-        eprintln!("SKIPPED golden_parity_with_demucs: no {} (run models/export_htdemucs.py --tiny --golden)", model.display());
+        support::skip(&format!(
+            "golden_parity_with_demucs: no {} (run models/export_htdemucs.py --tiny --golden)",
+            model.display()
+        ));
         return;
     }
     let Some(mut sep) = open("golden_parity_with_demucs", &model, StemSet::all()) else {
@@ -330,10 +333,10 @@ fn stream(sep: &mut HtDemucsSeparator, mix: &common::Mix, block: usize) -> StemO
 fn only_requested_stems_are_synthesised() {
     let model = support::fixture("htdemucs_golden").join("htdemucs-tiny.onnx");
     if !model.is_file() {
-        eprintln!(
-            "SKIPPED only_requested_stems_are_synthesised: no {}",
+        support::skip(&format!(
+            "only_requested_stems_are_synthesised: no {}",
             model.display()
-        );
+        ));
         return;
     }
     let drums = StemSet::EMPTY.with(Stem::Drums);

@@ -56,7 +56,9 @@ pub fn devices_report(ble_timeout: Duration) -> String {
         }
     }
     if !cfg!(feature = "udev") {
-        out.push_str("  note: built without the `udev` feature: sysfs scan, no USB details\n");
+        out.push_str(
+            "  note: no USB details in this build (rebuild with `--features udev` for them)\n",
+        );
     }
     out.push_str("Bluetooth LE devices:\n");
     match list_ble_devices(ble_timeout) {

@@ -250,6 +250,14 @@ impl VirtualGlove {
 
     /// Everything seen so far.
     pub fn report(&self) -> EmulatorReport {
+        EmulatorReport {
+            frames: self.frames.clone(),
+            ..self.counters()
+        }
+    }
+
+    /// [`VirtualGlove::report`] without the frames (cheap: no allocation).
+    pub fn counters(&self) -> EmulatorReport {
         let s = self.decoder.stats();
         EmulatorReport {
             packets: s.packets,
@@ -261,7 +269,7 @@ impl VirtualGlove {
             keep_alives: self.keep_alives,
             actuations: self.actuations,
             final_frame: self.commanded,
-            frames: self.frames.clone(),
+            frames: Vec::new(),
         }
     }
 }
@@ -306,6 +314,9 @@ pub struct EmulatorOptions {
     pub rise_ms: f64,
     /// Time zero of the arrival times; `None` = when the emulator starts.
     pub epoch: Option<Instant>,
+    /// Stop once packets have arrived and then none for this long (the player has closed
+    /// the link: `tactus emulate --until-idle`). Default `None`.
+    pub idle_stop: Option<Duration>,
 }
 
 impl Default for EmulatorOptions {
@@ -316,6 +327,7 @@ impl Default for EmulatorOptions {
             poll: Duration::from_millis(20),
             rise_ms: RISE_MS,
             epoch: None,
+            idle_stop: None,
         }
     }
 }
@@ -339,6 +351,21 @@ pub fn run_emulator_on_port(
     stop: &AtomicBool,
     opts: &EmulatorOptions,
 ) -> Result<EmulatorReport, TransportError> {
+    run_emulator_on_port_with(path, log, stop, opts, &mut |_, _| {})
+}
+
+/// How often [`run_emulator_on_port_with`] reports progress.
+pub const PROGRESS_EVERY: Duration = Duration::from_millis(500);
+
+/// [`run_emulator_on_port`], calling `progress(counters, port_open)` every
+/// [`PROGRESS_EVERY`] ([`VirtualGlove::counters`]: no frames).
+pub fn run_emulator_on_port_with(
+    path: &Path,
+    log: Option<&Path>,
+    stop: &AtomicBool,
+    opts: &EmulatorOptions,
+    progress: &mut dyn FnMut(&EmulatorReport, bool),
+) -> Result<EmulatorReport, TransportError> {
     let name = path.to_string_lossy().into_owned();
     let mut glove =
         VirtualGlove::with_epoch(log, opts.rise_ms, opts.epoch.unwrap_or_else(Instant::now))?;
@@ -351,10 +378,27 @@ pub fn run_emulator_on_port(
     let started = Instant::now();
     let mut gone_since: Option<Instant> = None;
     let mut buf = [0u8; 1024];
+    let mut last_progress = Instant::now();
+    let mut last_packet: Option<Instant> = None;
     while !stop.load(Ordering::Relaxed) && opts.max_duration.is_none_or(|d| started.elapsed() < d) {
+        if last_progress.elapsed() >= PROGRESS_EVERY {
+            last_progress = Instant::now();
+            progress(&glove.counters(), port.is_some());
+        }
+        if let (Some(idle), Some(t)) = (opts.idle_stop, last_packet) {
+            if t.elapsed() >= idle {
+                break;
+            }
+        }
         match &mut port {
             Some(p) => match p.read(&mut buf) {
-                Ok(n) if n > 0 => glove.push_now(&buf[..n]),
+                Ok(n) if n > 0 => {
+                    let before = glove.decoder.stats().packets;
+                    glove.push_now(&buf[..n]);
+                    if glove.decoder.stats().packets > before {
+                        last_packet = Some(Instant::now());
+                    }
+                }
                 Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
                 // Ok(0) (end of file) or a real error (EIO: the other side hung up).

@@ -38,7 +38,10 @@ pub enum TransportError {
     #[error("bluetooth: {0}")]
     Ble(String),
     /// This build lacks the cargo feature a request needs.
-    #[error("{what} needs tactus-transport built with the cargo feature `{feature}`")]
+    #[error(
+        "{what} is not in this build of tactus: rebuild it with `cargo build --release \
+         --features {feature}` (see README, \"Live setup\")"
+    )]
     NotBuilt {
         /// What was asked for.
         what: &'static str,

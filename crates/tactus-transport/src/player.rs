@@ -3,7 +3,7 @@
 //! ## Algorithm
 //! Frame `k` holds the pins for `[k·bin_ms, (k+1)·bin_ms)` of the song (pattern file v1).
 //! To make a pin *reach* the finger when its sound plays, it must be commanded early by the
-//! link latency plus the 50 ms pin rise (DESIGN.md, "Latency"). So frame `k` is handed to the
+//! link latency plus the 50 ms pin rise (docs/design.md, "Latency"). So frame `k` is handed to the
 //! sink at clock time `k·bin_ms − offset_ms`; [`lead_ms`] computes the usual `offset_ms`
 //! (pin rise + the link's typical latency + the user's `--offset-ms`). Frames whose time is
 //! already past when playback starts (the first ones, when `offset_ms > 0`) are sent at

@@ -5,7 +5,7 @@
 //! The producer (player, live engine) talks to a sink through a [`SinkHandle`]. Commands go
 //! into a **bounded mailbox** that holds at most one pending *state* command (a frame or
 //! all-down), one keep-alive request and the stop flag. Because every pins packet carries
-//! the full 80-pin state (DESIGN.md, wire protocol v1), a newer state supersedes an older one
+//! the full 80-pin state (docs/design.md, wire protocol v1), a newer state supersedes an older one
 //! that has not been written yet: it is overwritten and counted in [`SinkStats::dropped`].
 //! So the producer never blocks on a slow or dead link (it only takes an uncontended lock
 //! for a few instructions; the sink thread never holds it during I/O), and a link that comes

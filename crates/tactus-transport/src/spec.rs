@@ -1,4 +1,4 @@
-//! The `--glove SINK` syntax (DESIGN.md, "CLI", a contract):
+//! The `--glove SINK` syntax (docs/design.md, "CLI", a contract):
 //!
 //! ```text
 //! SINK = serial:PATH[@BAUD] | ble[:NAME|ADDRESS] | file:LOG.jsonl | emulator[:LOG.jsonl] | null
@@ -21,7 +21,7 @@ use std::str::FromStr;
 
 use crate::TransportError;
 
-/// Default UART speed of the glove's serial link (DESIGN.md, "Wire protocol v1").
+/// Default UART speed of the glove's serial link (docs/design.md, "Wire protocol v1").
 pub const DEFAULT_BAUD: u32 = 115_200;
 
 /// Which BLE device a `ble` sink connects to.

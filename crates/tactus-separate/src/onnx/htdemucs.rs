@@ -39,7 +39,8 @@
 //! **Latency**: a segment runs when its last sample has arrived; then the first
 //! `STRIDE_SAMPLES` of it are final: `SEGMENT_SAMPLES − 1` = 343 979 samples (7.8 s).
 //! Only 44.1 kHz is accepted. A failed network call (it should not happen) yields silence
-//! for that segment and is reported by [`HtDemucsSeparator::last_error`].
+//! for that segment and is reported by [`Separator::take_error`] (and
+//! [`HtDemucsSeparator::last_error`]), which fails a render.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -341,7 +342,10 @@ impl HtDemucsSeparator {
             Ok(())
         })();
         if let Err(e) = result {
-            self.last_error = Some(e);
+            // The first failure is the one to report (see `Separator::take_error`).
+            if self.last_error.is_none() {
+                self.last_error = Some(format!("network call {}: {e}", self.stats.segments));
+            }
         }
         for (s, &w) in self.wsum[..len].iter_mut().zip(&self.weight) {
             *s += w;
@@ -509,5 +513,12 @@ impl Separator for HtDemucsSeparator {
 
     fn segment_stats(&self) -> Option<SegmentStats> {
         Some(self.stats)
+    }
+
+    fn take_error(&mut self) -> Option<SeparateError> {
+        self.last_error.take().map(|message| SeparateError::Failed {
+            backend: "htdemucs",
+            message,
+        })
     }
 }

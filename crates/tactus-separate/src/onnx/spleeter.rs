@@ -43,7 +43,8 @@
 //!
 //! **Failure at run time**: if ONNX Runtime fails on a segment (it should not), that
 //! segment's vocal mask is 0 (everything goes to the accompaniment) and the message is
-//! kept in [`SpleeterSeparator::last_error`].
+//! kept in [`SpleeterSeparator::last_error`] and reported by [`Separator::take_error`],
+//! which fails a render.
 
 use std::time::Instant;
 
@@ -292,7 +293,11 @@ impl Core {
                     .ok_or_else(|| format!("no output `{name}`"))?;
                 let (_, data) = v.try_extract_tensor::<f32>().map_err(|e| e.to_string())?;
                 if data.len() != SEG_LEN {
-                    return Err(format!("output `{name}` has {} values", data.len()));
+                    return Err(format!(
+                        "output `{name}` has {} values, expected {SEG_LEN} (shape [1, 2, \
+                         {SEGMENT_FRAMES}, {NET_BINS}]): is the model a Spleeter export?",
+                        data.len()
+                    ));
                 }
                 Ok(data)
             };
@@ -322,7 +327,10 @@ impl Core {
             Ok(())
         })();
         if let Err(e) = result {
-            self.last_error = Some(e);
+            // The first failure is the one to report (see `Separator::take_error`).
+            if self.last_error.is_none() {
+                self.last_error = Some(format!("network call {}: {e}", self.stats.segments));
+            }
         }
     }
 
@@ -547,5 +555,15 @@ impl Separator for SpleeterSeparator {
 
     fn segment_stats(&self) -> Option<SegmentStats> {
         Some(self.core.stats)
+    }
+
+    fn take_error(&mut self) -> Option<SeparateError> {
+        self.core
+            .last_error
+            .take()
+            .map(|message| SeparateError::Failed {
+                backend: "spleeter",
+                message,
+            })
     }
 }
