@@ -114,6 +114,8 @@ impl EngineArgs {
         add(self.levels != 8, "--levels");
         add(self.map.is_some(), "--map");
         add(!matches!(self.pitch, PitchArg::Pyin), "--pitch");
+        add(!matches!(self.drums, DrumsArg::Classes), "--drums");
+        add(self.drum_model.is_some(), "--drum-model");
         v
     }
 }
@@ -133,6 +135,15 @@ enum Cmd {
         /// Plot to write (.svg, or .png rasterised with the system's fonts).
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// Browser preview to write: one self-contained page that plays the song (embedded)
+        /// and animates the glove in sync with it.
+        #[arg(long, value_name = "PAGE.html")]
+        html: Option<PathBuf>,
+        /// Export for other tools, by extension (repeatable): .csv (one row per bin, one 0/1
+        /// column per dot) or .ahap (Apple Core Haptics: drums as transients, bass as
+        /// continuous sharpness).
+        #[arg(long, value_name = "FILE.csv|FILE.ahap")]
+        export: Vec<PathBuf>,
         #[command(flatten)]
         engine: EngineArgs,
         /// Statistics: offline (whole track, paper) or streaming (causal, as live).
@@ -159,6 +170,10 @@ enum Cmd {
         /// the audio clock.
         #[arg(long)]
         no_audio: bool,
+        /// The song of a pattern file, when it is not at the pattern's recorded path; it
+        /// must match the pattern's SHA-256.
+        #[arg(long, value_name = "FILE", conflicts_with = "no_audio")]
+        audio: Option<PathBuf>,
         #[command(flatten)]
         engine: EngineArgs,
     },
@@ -378,6 +393,52 @@ fn engine_config(
     Ok((cfg, stems))
 }
 
+enum ExportKind {
+    Csv,
+    Ahap,
+}
+
+fn export_kind(p: &Path) -> Result<ExportKind> {
+    match p
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .as_deref()
+    {
+        Some("csv") => Ok(ExportKind::Csv),
+        Some("ahap") => Ok(ExportKind::Ahap),
+        _ => bail!(
+            "--export {}: unknown format (use a .csv or .ahap file name)",
+            p.display()
+        ),
+    }
+}
+
+/// The `--html` page: the song file's own bytes (checked against the pattern's SHA-256, so
+/// the page plays what was rendered) embedded with the pattern and features.
+fn html_page(
+    input: &Path,
+    pattern: &tactus_glove::Pattern,
+    features: &tactus_glove::Features,
+) -> Result<Vec<u8>> {
+    let audio = std::fs::read(input).with_context(|| format!("reading {}", input.display()))?;
+    if tactus_glove::sha256_hex(&audio[..])? != pattern.source.sha256 {
+        bail!("{} changed while it was rendered", input.display());
+    }
+    let page =
+        tactus_glove::html::render_page(pattern, features, &audio, &input.display().to_string());
+    if let Some(why) = &page.audio.unplayable {
+        eprintln!("tactus: warning: --html: browsers may not play this audio ({why}); the page's glove runs on the wall clock");
+    }
+    eprintln!(
+        "tactus: --html: page {:.1} MB, of which audio {:.1} MB ({}, the source file as base64)",
+        page.html.len() as f64 / 1e6,
+        page.audio_bytes as f64 * 4.0 / 3.0 / 1e6,
+        page.audio.name
+    );
+    Ok(page.html.into_bytes())
+}
+
 fn stop_flag() -> Arc<AtomicBool> {
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
@@ -393,8 +454,16 @@ fn run(cli: Cli) -> Result<()> {
             glove,
             offset_ms,
             no_audio,
+            audio,
             engine,
-        } => play::run(&input, &glove, offset_ms, no_audio, &engine),
+        } => play::run(
+            &input,
+            &glove,
+            offset_ms,
+            no_audio,
+            audio.as_deref(),
+            &engine,
+        ),
         Cmd::Live {
             input,
             glove,
@@ -512,6 +581,8 @@ fn run(cli: Cli) -> Result<()> {
             output,
             features,
             plot,
+            html,
+            export,
             engine,
             mode,
             verbose,
@@ -521,14 +592,20 @@ fn run(cli: Cli) -> Result<()> {
                 ModeArg::Streaming => Mode::Streaming,
             };
             let (config, stems) = engine_config(&engine, mode, 100)?;
+            let export_kinds = export
+                .iter()
+                .map(|p| export_kind(p))
+                .collect::<Result<Vec<_>>>()?;
             // Outputs are one transaction: checked and their temporary files created now,
             // renamed over their targets only when every one is complete.
             let outputs: Vec<(&str, &Path)> = [
                 ("-o", output.as_deref()),
                 ("--features", features.as_deref()),
                 ("--plot", plot.as_deref()),
+                ("--html", html.as_deref()),
             ]
             .into_iter()
+            .chain(export.iter().map(|p| ("--export", Some(p.as_path()))))
             .filter_map(|(label, p)| p.map(|p| (label, p)))
             .collect();
             let mut inputs: Vec<&Path> = vec![input.as_path()];
@@ -595,11 +672,26 @@ fn run(cli: Cli) -> Result<()> {
                 }
                 _ => None,
             };
+            let mut html_bytes = match &html {
+                Some(p) => Some(
+                    html_page(&input, &out.pattern, &out.features)
+                        .with_context(|| format!("--html {}", p.display()))?,
+                ),
+                None => None,
+            };
+            let mut export_bytes = export_kinds.iter().map(|k| match k {
+                ExportKind::Csv => tactus_glove::export::to_csv(&out.pattern).into_bytes(),
+                ExportKind::Ahap => {
+                    tactus_glove::export::to_ahap(&out.pattern, &out.features).into_bytes()
+                }
+            });
             let mut stdout_bytes = None;
             for (i, &(label, p)) in outputs.iter().enumerate() {
                 let bytes = match label {
                     "-o" => out.pattern.to_json_string()?.into_bytes(),
                     "--features" => out.features.to_json_string()?.into_bytes(),
+                    "--html" => html_bytes.take().unwrap_or_default(),
+                    "--export" => export_bytes.next().unwrap_or_default(),
                     _ => plot_bytes.take().unwrap_or_default(),
                 };
                 if p == Path::new("-") {

@@ -13,6 +13,12 @@
 //! in time is skipped (the next frame carries the full state anyway). Every exit (end,
 //! Ctrl-C, error) sends "all pins down".
 //!
+//! A pattern file plays its own song: the file at `--audio` or at the pattern's recorded
+//! path (as given, then beside the pattern), refused unless its SHA-256 is the pattern's.
+//! Its frames are the queue, sent on the audio clock exactly as a song's; `--no-audio` (or
+//! a build without the `audio` feature) keeps the wall clock and needs no song. Engine
+//! options with a pattern file are an error, not ignored.
+//!
 //! ## live (feature `audio`)
 //! [`crate::audio::Capture`] hands mono samples through a lock-free ring to this thread,
 //! which resamples them to 44.1 kHz ([`StreamResampler`]), feeds the streaming engine in
@@ -65,6 +71,7 @@ pub fn run(
     glove: &str,
     offset_ms: i64,
     no_audio: bool,
+    audio: Option<&Path>,
     engine: &EngineArgs,
 ) -> Result<()> {
     let spec: SinkSpec = glove.parse().with_context(|| format!("--glove {glove}"))?;
@@ -84,10 +91,29 @@ pub fn run(
                 given.join(", ")
             );
         }
-        if !no_audio {
-            eprintln!("tactus: note: a pattern file has no audio; timing frames on the wall clock");
-        }
         let pattern = Pattern::from_path(input)?;
+        if !no_audio && cfg!(feature = "audio") {
+            let song = pattern_song(input, &pattern, audio)?;
+            let output = open_output(&song, lead.max(0) as u32, false, &stop);
+            let sink = open_sink(&spec, &SinkOptions::default())?;
+            // The whole pattern is the queue: nothing to render.
+            let shared: SharedQueue = Arc::new((
+                Mutex::new(Shared {
+                    frames: pattern.frames.iter().copied().collect(),
+                    base: 0,
+                    done: true,
+                    error: None,
+                }),
+                Condvar::new(),
+            ));
+            return send_and_report(&shared, output, sink, &spec, pattern.bin_ms, lead, &stop);
+        }
+        if !no_audio {
+            eprintln!("tactus: note: built without the `audio` feature: no sound; timing frames on the wall clock");
+        }
+        if audio.is_some() {
+            anyhow::bail!("--audio needs a build with the `audio` feature");
+        }
         let sink = open_sink(&spec, &SinkOptions::default())?;
         let tty = std::io::stderr().is_terminal();
         let report = play_frames(
@@ -126,6 +152,9 @@ pub fn run(
             if report.stopped { " (stopped)" } else { "" }
         );
         return Ok(());
+    }
+    if audio.is_some() {
+        anyhow::bail!("--audio is for a pattern file's song; a song plays itself");
     }
 
     let (config, stems) = engine_config(engine, Mode::Streaming, 25)?;
@@ -181,26 +210,46 @@ pub fn run(
             }
         })
     };
-    let outcome = wait_first_frame(&shared, &stop).and_then(|()| match &output {
+    if let Err(e) = wait_first_frame(&shared, &stop) {
+        stop.store(true, Ordering::SeqCst);
+        sink.close();
+        let _ = producer.join();
+        return Err(e);
+    }
+    let result = send_and_report(&shared, output, sink, &spec, bin_ms, lead, &stop);
+    let _ = producer.join();
+    result
+}
+
+/// Sends the queued frames on the audio clock (or the wall clock when `output` is `None`),
+/// then closes the sink and prints the report. Sets `stop` when done, which ends a producer.
+fn send_and_report(
+    shared: &SharedQueue,
+    output: Option<Output>,
+    sink: tactus_transport::SinkHandle,
+    spec: &SinkSpec,
+    bin_ms: u32,
+    lead: i64,
+    stop: &Arc<AtomicBool>,
+) -> Result<()> {
+    let outcome = match &output {
         #[cfg(feature = "audio")]
-        Some(out) => {
-            out.start()?;
+        Some(out) => out.start().and_then(|()| {
             let clock = || out.now_ms();
-            send_clocked(&shared, &sink, bin_ms, lead, &stop, &clock)
-        }
+            send_clocked(shared, &sink, bin_ms, lead, stop, &clock)
+        }),
         _ => {
             let t0 = Instant::now();
             let clock = || Some(t0.elapsed().as_secs_f64() * 1e3 - lead as f64);
-            send_clocked(&shared, &sink, bin_ms, lead, &stop, &clock)
+            send_clocked(shared, &sink, bin_ms, lead, stop, &clock)
         }
-    });
+    };
     #[cfg(feature = "audio")]
-    let audio_line = output.as_ref().map(|out| finish_audio(out, &stop));
+    let audio_line = output.as_ref().map(|out| finish_audio(out, stop));
     #[cfg(not(feature = "audio"))]
     let audio_line: Option<String> = None;
     stop.store(true, Ordering::SeqCst);
     let stats = sink.close();
-    let _ = producer.join();
     let (sent, skipped) = outcome?;
     eprintln!(
         "tactus: streamed {sent} frames ({skipped} not ready in time) to {spec}; sink sent {}, dropped {} ({DROPPED}), reconnects {}",
@@ -210,6 +259,45 @@ pub fn run(
         eprintln!("{line}");
     }
     Ok(())
+}
+
+/// The song of a pattern: `--audio FILE`, else the recorded path (as given, then relative
+/// to the pattern file's folder); its SHA-256 must be the pattern's.
+fn pattern_song(
+    pattern_path: &Path,
+    pattern: &Pattern,
+    audio: Option<&Path>,
+) -> Result<std::path::PathBuf> {
+    let recorded = Path::new(&pattern.source.path);
+    let song = match audio {
+        Some(a) => a.to_path_buf(),
+        None => {
+            let beside = pattern_path
+                .parent()
+                .map(|d| d.join(recorded))
+                .filter(|_| recorded.is_relative());
+            match std::iter::once(recorded.to_path_buf())
+                .chain(beside)
+                .find(|p| p.is_file())
+            {
+                Some(p) => p,
+                None => anyhow::bail!(
+                    "the pattern's song {} was not found (nor beside the pattern): pass --audio FILE, or --no-audio to play without sound",
+                    recorded.display()
+                ),
+            }
+        }
+    };
+    let sha =
+        tactus_glove::sha256_file(&song).with_context(|| format!("reading {}", song.display()))?;
+    if sha != pattern.source.sha256 {
+        anyhow::bail!(
+            "{}: SHA-256 {sha} does not match the pattern's {} (a different file?): pass the song it was rendered from with --audio FILE, or --no-audio",
+            song.display(),
+            pattern.source.sha256
+        );
+    }
+    Ok(song)
 }
 
 #[cfg(feature = "audio")]

@@ -7,6 +7,9 @@
 //!   (kick/snare) onsets every 500 ms.
 //! * `play_times_frames_on_the_audio_output`: `tactus play` plays a song into the null sink,
 //!   takes about its duration, and delivers every frame the streaming render produces.
+//! * `play_pattern_plays_its_song_on_the_audio_clock`: `tactus play PATTERN.json` finds the
+//!   pattern's song, plays it into the null sink and delivers the pattern's frames on its
+//!   clock; `play_pattern_refuses_a_wrong_or_missing_song_and_engine_options`: the errors.
 //!
 //! Skips (saying so on stderr) only when `pulseaudio` is not installed; CI installs it.
 #![cfg(feature = "audio")]
@@ -293,4 +296,116 @@ fn play_times_frames_on_the_audio_output() {
         wall >= duration_s && wall < duration_s + 8.0,
         "play took {wall:.3} s for a {duration_s} s song"
     );
+}
+
+/// Renders a 4 s hit track to `song.wav` and `song.json` (streaming, 25 ms bins: what
+/// `play SONG` would send) in `d`; returns (song, pattern, expected frames).
+fn song_and_pattern(d: &Path) -> (std::path::PathBuf, std::path::PathBuf, Vec<String>) {
+    let song = d.join("song.wav");
+    write_hits(&song, 44_100, 4.0, 0.1, 0.5);
+    let pattern = d.join("song.json");
+    let o = Command::new(bin())
+        .args(["render", "--mode", "streaming", "--bin-ms", "25", "-o"])
+        .arg(&pattern)
+        .arg(&song)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let pat: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&pattern).unwrap()).unwrap();
+    let frames = pat["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap().to_string())
+        .collect();
+    (song, pattern, frames)
+}
+
+#[test]
+fn play_pattern_plays_its_song_on_the_audio_clock() {
+    let Some(pulse) = Pulse::start("play_pattern_plays_its_song_on_the_audio_clock") else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let (_song, pattern, expected) = song_and_pattern(d.path());
+    let log = d.path().join("play.jsonl");
+    let t = Instant::now();
+    let out = pulse
+        .cmd(bin())
+        .arg("play")
+        .arg(&pattern)
+        .arg("--glove")
+        .arg(format!("file:{}", log.display()))
+        .output()
+        .unwrap();
+    let wall = t.elapsed().as_secs_f64();
+    let err = String::from_utf8_lossy(&out.stderr);
+    eprintln!("{err}  (process wall time {wall:.3} s)");
+    assert!(out.status.success(), "tactus play PATTERN failed: {err}");
+    assert!(
+        !err.contains("warning"),
+        "fell back to the wall clock: {err}"
+    );
+    assert!(err.contains("tactus: audio on "), "{err}");
+    // As for a song (see play_times_frames_on_the_audio_output): from 300 ms on, every
+    // frame of the pattern arrives, in order.
+    let got: Vec<String> = pins(&log).into_iter().map(|x| x.2).collect();
+    let tail = &expected[12..];
+    assert!(
+        got.len() >= tail.len() && got[got.len() - tail.len()..] == *tail,
+        "frames sent differ from the pattern: got {}, want {}",
+        got.len(),
+        expected.len()
+    );
+    // The audio clock cannot run faster than the sound.
+    assert!(
+        (4.0..12.0).contains(&wall),
+        "play took {wall:.3} s for a 4 s song"
+    );
+}
+
+#[test]
+fn play_pattern_refuses_a_wrong_or_missing_song_and_engine_options() {
+    let d = tempfile::tempdir().unwrap();
+    let (song, pattern, _) = song_and_pattern(d.path());
+    let play = |extra: &[&str]| {
+        let o = Command::new(bin())
+            .arg("play")
+            .arg(&pattern)
+            .args(["--glove", "null"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "play {extra:?} succeeded");
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert_eq!(err.lines().count(), 1, "{err}");
+        err
+    };
+    // A different file: refused by its SHA-256.
+    let other = d.path().join("other.wav");
+    write_hits(&other, 44_100, 4.0, 0.2, 0.5);
+    let err = play(&["--audio", other.to_str().unwrap()]);
+    assert!(err.contains("does not match the pattern's"), "{err}");
+    // Engine options with a pattern are an error, not ignored.
+    let err = play(&["--levels", "4", "--bin-ms", "10"]);
+    assert!(
+        err.contains("a pattern file is played as rendered") && err.contains("--levels"),
+        "{err}"
+    );
+    // The recorded song gone: a clear error naming the way out.
+    std::fs::remove_file(&song).unwrap();
+    let err = play(&[]);
+    assert!(
+        err.contains("was not found") && err.contains("--audio"),
+        "{err}"
+    );
+    // ... while --no-audio still plays on the wall clock, without the song.
+    let o = Command::new(bin())
+        .arg("play")
+        .arg(&pattern)
+        .args(["--glove", "null", "--no-audio"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }

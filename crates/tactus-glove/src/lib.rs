@@ -11,6 +11,8 @@
 //! | [`protocol`] | wire protocol v1: 16-byte [`Packet`]s, [`crc8`], the resynchronising [`Decoder`] |
 //! | [`pattern`] | the pattern file v1 (JSON): a song's frames |
 //! | [`features`] | the features file (JSON): pitch, levels, onsets, beats |
+//! | [`export`] | CSV (one row per bin, one column per dot) and Apple AHAP exports |
+//! | [`html`] | the browser preview page ([`html::render_page`]) |
 //! | [`atomic`] | [`write_atomic`]: every output file is replaced atomically |
 //!
 //! ## Tutorial
@@ -58,8 +60,10 @@
 
 pub mod atomic;
 mod error;
+pub mod export;
 pub mod features;
 pub mod glove;
+pub mod html;
 mod json;
 pub mod map;
 pub mod pattern;
