@@ -168,3 +168,74 @@ fn a_failing_network_fails_the_render_with_one_line() {
     assert_eq!(std::fs::read(&out).unwrap(), b"old");
     assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1);
 }
+
+/// `--drums adtlib` through the engine: on a held-out drum excerpt ADTLib's kick and
+/// hi-hat (filed under cymbals) find most hits, toms stay empty (it has no tom class), and
+/// the streaming window layout agrees with the offline one on the kick within a few hits.
+#[test]
+fn adtlib_drums_render_end_to_end() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model = root.join("models/adtlib.onnx");
+    if std::env::var_os("ORT_DYLIB_PATH").is_none() || !model.exists() {
+        common::skip(
+            "adtlib_drums_render_end_to_end: run models/setup_adtlib.sh and export ORT_DYLIB_PATH (CI does)",
+        );
+        return;
+    }
+    let song = root.join("crates/tactus-engine/tests/fixtures/drums/musescore_std00_s00");
+    let d = tempfile::tempdir().unwrap();
+    let mut kicks = Vec::new();
+    for mode in ["offline", "streaming"] {
+        let feat = d.path().join(format!("{mode}.json"));
+        let o = tactus(&[
+            "render",
+            song.join("mix.flac").to_str().unwrap(),
+            "--stem",
+            &format!("drums={}", song.join("drums.flac").display()),
+            "--map",
+            "drums-only",
+            "--drums",
+            "adtlib",
+            "--drum-model",
+            model.to_str().unwrap(),
+            "--mode",
+            mode,
+            "--features",
+            feat.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let f: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&feat).unwrap()).unwrap();
+        let t: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(song.join("truth.json")).unwrap())
+                .unwrap();
+        assert!(f["onsets_s"]["toms"].as_array().unwrap().is_empty());
+        for class in ["kick", "cymbals"] {
+            let est: Vec<f64> = f["onsets_s"][class]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect();
+            let truth: Vec<f64> = t["onsets"][class]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|h| h["time_s"].as_f64().unwrap())
+                .collect();
+            let found = truth
+                .iter()
+                .filter(|r| est.iter().any(|e| (*e - **r).abs() <= 0.05))
+                .count();
+            assert!(
+                found * 2 >= truth.len(),
+                "{mode} {class}: {found} of {} hits found",
+                truth.len()
+            );
+            if class == "kick" {
+                kicks.push(est.len() as i64);
+            }
+        }
+    }
+    assert!((kicks[0] - kicks[1]).abs() <= 3, "offline vs streaming kicks {kicks:?}");
+}
