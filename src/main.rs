@@ -11,7 +11,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use tactus_dsp::Stem;
 use tactus_engine::render::{render, RenderRequest};
-use tactus_engine::{EngineConfig, Mode, PitchMethod, SeparatorChoice};
+use tactus_engine::{EngineConfig, LevelRule, Mode, PitchMethod, SeparatorChoice};
 use tactus_glove::{write_atomic, GloveMap};
 
 #[cfg(feature = "audio")]
@@ -46,8 +46,18 @@ enum ModeArg {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum PitchArg {
+    /// pYIN, and harmonic-sum salience for the bass.
+    Auto,
     Yin,
     Pyin,
+    /// Harmonic-sum salience + Viterbi (made for a bass line in a mix) on every stem.
+    Shs,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum LevelRuleArg {
+    Follow,
+    Paper,
 }
 
 /// Settings shared by `render` and `play`: how the song becomes glove frames.
@@ -76,8 +86,12 @@ struct EngineArgs {
     #[arg(long)]
     map: Option<PathBuf>,
     /// Pitch tracker.
-    #[arg(long, value_enum, default_value = "pyin")]
+    #[arg(long, value_enum, default_value = "auto")]
     pitch: PitchArg,
+    /// How pitch becomes levels: follow (floored Tukey IQR, a streaming range prior) or the
+    /// paper's rule.
+    #[arg(long, value_enum, default_value = "follow")]
+    levels_rule: LevelRuleArg,
 }
 
 #[derive(Subcommand)]
@@ -262,6 +276,12 @@ fn engine_config(
         pitch: match e.pitch {
             PitchArg::Yin => PitchMethod::Yin,
             PitchArg::Pyin => PitchMethod::Pyin,
+            PitchArg::Shs => PitchMethod::Shs,
+            PitchArg::Auto => PitchMethod::Auto,
+        },
+        level_rule: match e.levels_rule {
+            LevelRuleArg::Follow => LevelRule::Follow,
+            LevelRuleArg::Paper => LevelRule::Paper,
         },
         map,
         separator,

@@ -46,6 +46,7 @@ pub mod median;
 pub mod pyin;
 pub mod rms;
 pub mod sanitize;
+pub mod shs;
 pub mod sos;
 pub mod tukey;
 pub mod yin;

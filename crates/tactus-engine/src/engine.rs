@@ -16,7 +16,7 @@ use tactus_separate::none::NoneSeparator;
 use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
 use tactus_separate::{SegmentStats, Separator, StemOutput, StemSet};
 
-use crate::track::{Denoise, Geometry, Mode, OnsetTrack, PitchMethod, PitchTrack};
+use crate::track::{Denoise, Geometry, LevelRule, Mode, OnsetTrack, PitchMethod, PitchTrack};
 use crate::EngineError;
 
 /// The engine's default sample rate; inputs are resampled to it.
@@ -53,6 +53,9 @@ pub struct EngineConfig {
     pub mode: Mode,
     /// Pitch tracker for melodic stems.
     pub pitch: PitchMethod,
+    /// How voiced pitch becomes levels ([`LevelRule::Follow`] by default; `Paper` is the
+    /// paper's rule as first implemented).
+    pub level_rule: LevelRule,
     /// The glove map: decides which stems, bands and features exist.
     pub map: GloveMap,
     /// Separator for the stems not supplied directly.
@@ -76,6 +79,7 @@ impl Default for EngineConfig {
             levels: 8,
             mode: Mode::Offline,
             pitch: PitchMethod::default(),
+            level_rule: LevelRule::default(),
             map: GloveMap::default(),
             separator: SeparatorChoice::default(),
             supplied: StemSet::default(),
@@ -345,12 +349,20 @@ impl Engine {
             bin_samples,
             levels: cfg.levels,
             mode: cfg.mode,
+            level_rule: cfg.level_rule,
         };
         let needs = cfg.map.needs();
         let mut chains = Vec::new();
         let mut separated = StemSet::default();
         for stem in cfg.map.stems() {
-            let pitch = needs.pitch.contains(&stem).then_some(cfg.pitch);
+            let pitch = needs
+                .pitch
+                .contains(&stem)
+                .then_some(match (cfg.pitch, stem) {
+                    (PitchMethod::Auto, Stem::Bass) => PitchMethod::Shs,
+                    (PitchMethod::Auto, _) => PitchMethod::Pyin,
+                    (m, _) => m,
+                });
             let notes = needs.note_onsets.contains(&stem);
             let bands: Vec<Band> = if stem == Stem::Drums {
                 needs.bands.clone()

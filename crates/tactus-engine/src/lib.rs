@@ -16,7 +16,7 @@ pub mod source;
 pub mod track;
 
 pub use engine::{Engine, EngineConfig, SeparatorChoice, ENGINE_RATE};
-pub use track::{Mode, PitchMethod};
+pub use track::{LevelRule, Mode, PitchMethod};
 
 use std::path::PathBuf;
 
