@@ -43,6 +43,7 @@ pub mod discretize;
 pub mod flux;
 pub mod framer;
 pub mod median;
+pub mod notes;
 pub mod pyin;
 pub mod rms;
 pub mod sanitize;

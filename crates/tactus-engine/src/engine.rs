@@ -16,6 +16,7 @@ use tactus_separate::none::NoneSeparator;
 use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
 use tactus_separate::{SegmentStats, Separator, StemOutput, StemSet};
 
+use crate::notes::{NoteTrack, PitchNotes};
 use crate::track::{Denoise, Geometry, LevelRule, Mode, OnsetTrack, PitchMethod, PitchTrack};
 use crate::EngineError;
 
@@ -112,7 +113,7 @@ struct StemChain {
     denoise: Denoise,
     buf: Vec<f32>,
     pitch: Option<PitchTrack>,
-    notes: Option<OnsetTrack>,
+    notes: Option<NoteTrack>,
     bands: Vec<BandChain>,
     samples: usize,
     t_denoise: Duration,
@@ -137,10 +138,10 @@ impl StemChain {
             (Some(m), Some((lo, hi))) => Some(PitchTrack::new(geo, lo, hi, m)?),
             _ => None,
         };
-        let notes = if notes {
-            Some(OnsetTrack::new(geo, None)?)
-        } else {
-            None
+        let notes = match (notes, &pitch) {
+            (false, _) => None,
+            (true, Some(p)) => Some(NoteTrack::Pitch(PitchNotes::new(geo, p.hop())?)),
+            (true, None) => Some(NoteTrack::Flux(OnsetTrack::new(geo, None)?)),
         };
         let mut chains = Vec::new();
         for &band in bands {
@@ -186,7 +187,11 @@ impl StemChain {
         }
         if let Some(n) = &mut self.notes {
             let t = Instant::now();
-            n.process(&self.buf);
+            match (n, &self.pitch) {
+                (NoteTrack::Pitch(n), Some(p)) => n.update(p),
+                (NoteTrack::Flux(n), _) => n.process(&self.buf),
+                (NoteTrack::Pitch(_), None) => {}
+            }
             self.t_notes += t.elapsed();
         }
         for b in &mut self.bands {
@@ -208,7 +213,11 @@ impl StemChain {
         }
         self.t_pitch += t.elapsed();
         if let Some(n) = &mut self.notes {
-            n.finish();
+            match (n, &self.pitch) {
+                (NoteTrack::Pitch(n), Some(p)) => n.finish(p),
+                (NoteTrack::Flux(n), _) => n.finish(),
+                (NoteTrack::Pitch(_), None) => {}
+            }
         }
         for b in &mut self.bands {
             let t = Instant::now();
@@ -222,8 +231,15 @@ impl StemChain {
         if let Some(p) = &self.pitch {
             l = l.max(p.latency_samples());
         }
-        if let Some(n) = &self.notes {
-            l = l.max(n.latency_samples());
+        match &self.notes {
+            // Pitch notes look ahead of the pitch track's own decision.
+            Some(n @ NoteTrack::Pitch(_)) => {
+                l = l.max(
+                    self.pitch.as_ref().map_or(0, |p| p.latency_samples()) + n.latency_samples(),
+                )
+            }
+            Some(n) => l = l.max(n.latency_samples()),
+            None => {}
         }
         for b in &self.bands {
             l = l.max(b.track.latency_samples());
@@ -533,7 +549,7 @@ impl Engine {
                 ready = ready.min(p.bins.len());
             }
             if let Some(n) = &c.notes {
-                ready = ready.min(n.bins.len());
+                ready = ready.min(n.bins().len());
             }
             for b in &c.bands {
                 ready = ready.min(b.track.bins.len());
@@ -555,7 +571,7 @@ impl Engine {
                 f.level[si] = p.bins.get(k).copied().unwrap_or(0);
             }
             if let Some(n) = &c.notes {
-                f.note_onset[si] = n.bins.get(k).copied().unwrap_or(false);
+                f.note_onset[si] = n.bins().get(k).copied().unwrap_or(false);
             }
             for b in &c.bands {
                 f.band_beat[b.band as usize] = b.track.bins.get(k).copied().unwrap_or(false);

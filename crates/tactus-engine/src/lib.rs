@@ -10,6 +10,7 @@
 #![forbid(unsafe_code)]
 
 pub mod engine;
+pub mod notes;
 pub mod render;
 pub mod resample;
 pub mod source;
