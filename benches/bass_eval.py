@@ -37,7 +37,8 @@ def audio(song, name):
 
 
 def run_one(binary, song, inp, mode, extra, out, eval_bin=None):
-    tag = f"{os.path.basename(song.rstrip('/'))}.{inp}.{mode}"
+    parent = os.path.basename(os.path.dirname(song.rstrip("/")))
+    tag = f"{parent}_{os.path.basename(song.rstrip('/'))}.{inp}.{mode}"
     feat = os.path.join(out, tag + ".features.json")
     rep = os.path.join(out, tag + ".report.json")
     cmd = [binary, "render", audio(song, "mix"), "-o", os.path.join(out, tag + ".pattern.json"),

@@ -124,6 +124,28 @@ pub fn range_offline(f0_hz: &[f32]) -> Option<(f32, f32)> {
     out
 }
 
+/// Offline range from quantiles: `(q(p), q(1 − p))` of the voiced (finite, > 0) values, the
+/// `round((n − 1)·p)`-th smallest and its mirror; `None` if there are none. `p = 0` is
+/// [`range_offline`]. Allocates a sorted copy of the voiced values.
+pub fn range_quantiles(f0_hz: &[f32], p: f32) -> Option<(f32, f32)> {
+    let mut v: Vec<f32> = f0_hz
+        .iter()
+        .copied()
+        .filter(|f| f.is_finite() && *f > 0.0)
+        .collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_unstable_by(f32::total_cmp);
+    let p = if p.is_finite() {
+        p.clamp(0.0, 0.5)
+    } else {
+        0.0
+    };
+    let k = ((v.len() - 1) as f32 * p).round() as usize;
+    Some((v[k], v[v.len() - 1 - k]))
+}
+
 /// Running min and max of the voiced pitches seen so far. Causal, allocation-free.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RunningRange {
