@@ -6,8 +6,9 @@
 //! and marks hop `j` as a **note onset** when the `stable` hops `j ..= j + stable − 1` are all
 //! voiced and lie within ± `tolerance_st` semitones of their median (a stable note), and
 //! either no note is current (voicing began, or resumed after more than `gap_hops` unvoiced
-//! hops) or that median is at least `jump_st` semitones from the current note's. The new
-//! note's pitch is that median. Vibrato (±35 cents) and scoops (−40 cents) stay inside one
+//! hops) or hop `j`'s pitch is at least `jump_st` semitones from the current note's. The new
+//! note's pitch is the window's median; while the note lasts, each later stable window pulls
+//! it 10 % of the way towards its own median, so it settles on the note's centre. Vibrato (±35 cents) and scoops (−40 cents) stay inside one
 //! note; a bend or glide only starts a note once it settles.
 //!
 //! In the spirit of note segmentation on pYIN's track (Mauch et al., "Computer-aided melody
@@ -22,6 +23,9 @@
 //! Allocation-free; O(stable) per hop.
 
 use crate::{hz_to_semitones, ConfigError};
+
+/// How fast the current note's pitch follows later stable windows (per hop).
+const FOLLOW: f32 = 0.1;
 
 /// Longest stability window accepted.
 pub const MAX_STABLE_HOPS: usize = 32;
@@ -124,6 +128,11 @@ impl NoteOnsets {
     /// cannot start a note).
     pub fn finish(&mut self, emit: &mut dyn FnMut(usize, bool)) {
         let n = self.cfg.stable_hops;
+        if self.len == n {
+            // A full window's oldest hop was decided when the window filled.
+            self.head = (self.head + 1) % n;
+            self.len -= 1;
+        }
         while self.len > 0 {
             // The window shrinks: the oldest hop is decided, then dropped.
             let onset = self.decide_partial();
@@ -183,7 +192,11 @@ impl NoteOnsets {
                 self.current = Some(med);
                 true
             }
-            Some(_) => false,
+            Some(c) => {
+                // Follow the note's centre slowly (vibrato averages out, a drift is followed).
+                self.current = Some(c + FOLLOW * (med - c));
+                false
+            }
         }
     }
 
