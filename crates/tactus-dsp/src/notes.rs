@@ -8,7 +8,7 @@
 //! either no note is current (voicing began, or resumed after more than `gap_hops` unvoiced
 //! hops) or hop `j`'s pitch is at least `jump_st` semitones from the current note's. The new
 //! note's pitch is the window's median; while the note lasts, each later stable window pulls
-//! it 10 % of the way towards its own median, so it settles on the note's centre. Vibrato (±35 cents) and scoops (−40 cents) stay inside one
+//! it 3 % of the way towards its own median, so it settles on the note's centre. Vibrato (±35 cents) and scoops (−40 cents) stay inside one
 //! note; a bend or glide only starts a note once it settles.
 //!
 //! In the spirit of note segmentation on pYIN's track (Mauch et al., "Computer-aided melody
@@ -25,7 +25,7 @@
 use crate::{hz_to_semitones, ConfigError};
 
 /// How fast the current note's pitch follows later stable windows (per hop).
-const FOLLOW: f32 = 0.1;
+const FOLLOW: f32 = 0.03;
 
 /// Longest stability window accepted.
 pub const MAX_STABLE_HOPS: usize = 32;

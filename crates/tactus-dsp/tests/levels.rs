@@ -101,7 +101,7 @@ fn oracle(f0: &[f32], c: NoteConfig) -> Vec<bool> {
             continue;
         }
         match cur {
-            Some(c0) if (x - c0).abs() < c.jump_st => cur = Some(c0 + 0.1 * (med - c0)),
+            Some(c0) if (x - c0).abs() < c.jump_st => cur = Some(c0 + 0.03 * (med - c0)),
             _ => {
                 out[j] = true;
                 cur = Some(med);
