@@ -127,8 +127,13 @@ fn melody() -> (Vec<f32>, Vec<usize>) {
     for (k, &(st, len, gap)) in notes.iter().enumerate() {
         starts.push(f.len());
         for i in 0..len {
-            // ±35 cent vibrato at 5.5 Hz, a −40 cent scoop over the first 5 hops.
-            let vib = 0.35 * (std::f32::consts::TAU * 5.5 * i as f32 * 0.01 + k as f32).sin();
+            // ±35 cent vibrato at 5.5 Hz from hop 15, a −40 cent scoop over the first 5 hops.
+            // As the corpus sings: vibrato from 150 ms into the note.
+            let vib = if i >= 15 {
+                0.35 * (std::f32::consts::TAU * 5.5 * i as f32 * 0.01 + k as f32).sin()
+            } else {
+                0.0
+            };
             let scoop = if i < 5 {
                 -0.4 * (1.0 - i as f32 / 5.0)
             } else {
