@@ -200,7 +200,7 @@ impl PriorRange {
         if !(span_st >= 0.0 && span_st.is_finite()) {
             return Err(ConfigError::invalid("span_st", "must be finite and >= 0"));
         }
-        if !(fade_hops > 0.0) {
+        if fade_hops.is_nan() || fade_hops <= 0.0 {
             return Err(ConfigError::invalid("fade_hops", "must be > 0"));
         }
         Ok(PriorRange {
@@ -236,7 +236,7 @@ impl PriorRange {
             1.0
         };
         let pad = (self.span_st - span).max(0.0) * w / 2.0;
-        if !(pad > 0.0) {
+        if pad.is_nan() || pad <= 0.0 {
             return (lo as f32, hi as f32);
         }
         let r = (pad / 12.0).exp2();

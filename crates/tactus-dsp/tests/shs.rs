@@ -257,6 +257,7 @@ fn salience_matches_the_direct_dft_oracle() {
 
 /// Naive whole-track Viterbi in f64 over M voiced states + 1 unvoiced, from the oracle's
 /// salience of every frame the framer cuts; returns the decoded state per hop.
+#[allow(clippy::needless_range_loop)] // the oracle reads like the textbook
 fn naive_viterbi(c: &ShsConfig, x: &[f32]) -> Vec<usize> {
     let m = c.n_bins().unwrap();
     let mut framer = Framer::new(c.frame, c.hop).unwrap();
@@ -461,7 +462,8 @@ fn chunking_and_reset_do_not_change_the_output() {
 
 #[test]
 fn invalid_configs_are_rejected() {
-    let bad: Vec<Box<dyn Fn(&mut ShsConfig)>> = vec![
+    type Edit = Box<dyn Fn(&mut ShsConfig)>;
+    let bad: Vec<Edit> = vec![
         Box::new(|c| c.fmin_hz = 0.0),
         Box::new(|c| c.fmax_hz = 3000.0),
         Box::new(|c| c.n_fft = c.frame / 2),

@@ -106,6 +106,7 @@ impl PitchNotes {
 }
 
 /// Where a melodic stem's note onsets come from. See the module docs.
+#[allow(clippy::large_enum_variant)] // one per stem, built once
 pub enum NoteTrack {
     /// From the stem's pitch track.
     Pitch(PitchNotes),
