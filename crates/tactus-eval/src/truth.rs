@@ -148,3 +148,26 @@ pub fn note_onsets_from_f0(f0_hz: &[f64], hop_s: f64) -> Vec<f64> {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn note_starts_from_f0() {
+        // 10 ms hops: a note, a scoop-free jump of a tone, a gap, the same note again,
+        // and vibrato of ±35 cents that must not start notes.
+        let a = 220.0;
+        let b = 220.0 * 2f64.powf(2.0 / 12.0);
+        let mut f = vec![0.0, a, a, a, b, b, 0.0, 0.0, b, b];
+        for i in 0..20 {
+            f.push(b * 2f64.powf(0.35 / 12.0 * (i as f64).sin()));
+        }
+        let t = note_onsets_from_f0(&f, 0.01);
+        let want = [0.01, 0.04, 0.08];
+        assert_eq!(t.len(), want.len(), "{t:?}");
+        for (x, y) in t.iter().zip(want) {
+            assert!((x - y).abs() < 1e-9);
+        }
+    }
+}
