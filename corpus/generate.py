@@ -289,6 +289,26 @@ def f0_track(mid: mido.MidiFile, n_frames: int, top_line=False):
     return f0
 
 
+def note_starts(mid: mido.MidiFile, top_line=False):
+    """Start times (s) of the notes written, rounded to 0.1 ms; with `top_line`, only notes that
+    become the highest sounding note when they start (the `other` stem's top line)."""
+    sec_per_tick = None
+    t = 0
+    active = set()
+    starts = []
+    for msg in mido.merge_tracks(mid.tracks):
+        t += msg.time
+        if msg.type == "set_tempo":
+            sec_per_tick = msg.tempo / 1e6 / mid.ticks_per_beat
+        elif msg.type == "note_on" and msg.velocity > 0:
+            if not top_line or not active or msg.note >= max(active):
+                starts.append(round(t * sec_per_tick, 4))
+            active.add(msg.note)
+        elif msg.type in ("note_off", "note_on"):
+            active.discard(msg.note)
+    return sorted(set(starts))
+
+
 # Per-band truth (docs/design.md "Known weakness"): the Tactus band edges in Hz, and the rule that
 # puts a hit in a band. A GM drum note belongs to band b when the energy of its isolated
 # sound in b is within BAND_TRUTH_DB of its loudest band. Energy: the note rendered alone
@@ -415,6 +435,11 @@ def build_song(sf2, name, work, bpm, vprog, bprog, oprog, seed, out_dir, seconds
             "other": [round(v, 4) for v in f0_track(mids["other"], n_frames, top_line=True)],
         },
         "f0_notes": {"other": "top line of the polyphonic alto + tenor accompaniment"},
+        "note_onsets_s": {
+            "vocals": [x for x in note_starts(mids["vocals"]) if x < n_samples / SR],
+            "bass": [x for x in note_starts(mids["bass"]) if x < n_samples / SR],
+            "other": [x for x in note_starts(mids["other"], top_line=True) if x < n_samples / SR],
+        },
         "onsets": drum_truth(arr["drums"], bpm),
     }
     add_band_truth(truth, drum_band_table(sf2, [n for _t, n, _v in arr["drums"]], tmp))

@@ -11,7 +11,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use tactus_dsp::Stem;
 use tactus_engine::render::{render, RenderRequest};
-use tactus_engine::{DrumMethod, EngineConfig, Mode, PitchMethod, SeparatorChoice};
+use tactus_engine::{DrumMethod, EngineConfig, LevelRule, Mode, PitchMethod, SeparatorChoice};
 use tactus_glove::{write_atomic, GloveMap, OutputSet};
 
 #[cfg(feature = "audio")]
@@ -56,8 +56,18 @@ enum DrumsArg {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum PitchArg {
+    /// pYIN, and harmonic-sum salience for the bass.
+    Auto,
     Yin,
     Pyin,
+    /// Harmonic-sum salience + Viterbi (made for a bass line in a mix) on every stem.
+    Shs,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum LevelRuleArg {
+    Follow,
+    Paper,
 }
 
 /// Settings shared by `render` and `play`: how the song becomes glove frames.
@@ -86,7 +96,7 @@ struct EngineArgs {
     #[arg(long)]
     map: Option<PathBuf>,
     /// Pitch tracker.
-    #[arg(long, value_enum, default_value = "pyin")]
+    #[arg(long, value_enum, default_value = "auto")]
     pitch: PitchArg,
     /// Drum transcription: classes (embedded per-instrument transcriber), bands (the
     /// paper's band-pass) or adtlib (ONNX, --drum-model models/adtlib.onnx).
@@ -95,6 +105,10 @@ struct EngineArgs {
     /// ONNX model for --drums adtlib (made by models/setup_adtlib.sh).
     #[arg(long)]
     drum_model: Option<PathBuf>,
+    /// How pitch becomes levels: follow (floored Tukey IQR, a streaming range prior) or the
+    /// paper's rule.
+    #[arg(long, value_enum, default_value = "follow")]
+    levels_rule: LevelRuleArg,
 }
 
 impl EngineArgs {
@@ -113,7 +127,8 @@ impl EngineArgs {
         add(self.bin_ms.is_some(), "--bin-ms");
         add(self.levels != 8, "--levels");
         add(self.map.is_some(), "--map");
-        add(!matches!(self.pitch, PitchArg::Pyin), "--pitch");
+        add(!matches!(self.pitch, PitchArg::Auto), "--pitch");
+        add(!matches!(self.levels_rule, LevelRuleArg::Follow), "--levels-rule");
         add(!matches!(self.drums, DrumsArg::Classes), "--drums");
         add(self.drum_model.is_some(), "--drum-model");
         v
@@ -377,6 +392,12 @@ fn engine_config(
         pitch: match e.pitch {
             PitchArg::Yin => PitchMethod::Yin,
             PitchArg::Pyin => PitchMethod::Pyin,
+            PitchArg::Shs => PitchMethod::Shs,
+            PitchArg::Auto => PitchMethod::Auto,
+        },
+        level_rule: match e.levels_rule {
+            LevelRuleArg::Follow => LevelRule::Follow,
+            LevelRuleArg::Paper => LevelRule::Paper,
         },
         map,
         separator,

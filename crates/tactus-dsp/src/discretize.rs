@@ -21,6 +21,15 @@
 //! pitch, after the gate and Tukey's fences. Streaming ([`RunningRange`]): running min and max of
 //! the voiced pitches seen so far (it only widens; call `reset()` between songs).
 //!
+//! **Streaming range with a prior** ([`PriorRange`], our addition). The running min and max
+//! start from one note: the first note lands on level 1 (a one-note range) and every new
+//! extreme shifts every level. `PriorRange` pads the running range, symmetrically in
+//! semitones, up to a prior span `span_st` (the width a melodic line usually covers, e.g.
+//! 20 semitones for a bass line), and lets the padding fade as voiced hops accumulate:
+//! `pad = max(0, span_st − (hi − lo)) · fade / (fade + n) / 2` semitones on each side after
+//! `n` voiced hops. A line wider than the prior is not padded at all; a narrower one
+//! converges to its own min and max. Causal, allocation-free, O(1) per hop.
+//!
 //! **Defaults.** [`DEFAULT_LEVELS`] = 8 (paper), semitone scale (docs/design.md). **Latency:** none.
 
 use crate::ConfigError;
@@ -115,6 +124,28 @@ pub fn range_offline(f0_hz: &[f32]) -> Option<(f32, f32)> {
     out
 }
 
+/// Offline range from quantiles: `(q(p), q(1 − p))` of the voiced (finite, > 0) values, the
+/// `round((n − 1)·p)`-th smallest and its mirror; `None` if there are none. `p = 0` is
+/// [`range_offline`]. Allocates a sorted copy of the voiced values.
+pub fn range_quantiles(f0_hz: &[f32], p: f32) -> Option<(f32, f32)> {
+    let mut v: Vec<f32> = f0_hz
+        .iter()
+        .copied()
+        .filter(|f| f.is_finite() && *f > 0.0)
+        .collect();
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_unstable_by(f32::total_cmp);
+    let p = if p.is_finite() {
+        p.clamp(0.0, 0.5)
+    } else {
+        0.0
+    };
+    let k = ((v.len() - 1) as f32 * p).round() as usize;
+    Some((v[k], v[v.len() - 1 - k]))
+}
+
 /// Running min and max of the voiced pitches seen so far. Causal, allocation-free.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct RunningRange {
@@ -148,5 +179,73 @@ impl RunningRange {
     /// Back to empty.
     pub fn reset(&mut self) {
         self.range = None;
+    }
+}
+
+/// Running range padded to a prior span that fades (module docs, "Streaming range with a
+/// prior"). Causal, allocation-free.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PriorRange {
+    range: RunningRange,
+    span_st: f64,
+    fade: f64,
+    n: u64,
+}
+
+impl PriorRange {
+    /// A range padded up to `span_st` semitones, the padding weighted by
+    /// `fade_hops / (fade_hops + n)` after `n` voiced hops (`fade_hops = ∞` never fades).
+    /// Errors unless `span_st ≥ 0` and `fade_hops > 0` (both not NaN).
+    pub fn new(span_st: f32, fade_hops: f32) -> Result<Self, ConfigError> {
+        if !(span_st >= 0.0 && span_st.is_finite()) {
+            return Err(ConfigError::invalid("span_st", "must be finite and >= 0"));
+        }
+        if fade_hops.is_nan() || fade_hops <= 0.0 {
+            return Err(ConfigError::invalid("fade_hops", "must be > 0"));
+        }
+        Ok(PriorRange {
+            range: RunningRange::new(),
+            span_st: f64::from(span_st),
+            fade: f64::from(fade_hops),
+            n: 0,
+        })
+    }
+
+    /// Feeds one hop's pitch (unvoiced values are ignored); returns the padded range so far,
+    /// `None` until a voiced value has arrived.
+    #[inline]
+    pub fn update(&mut self, f0_hz: f32) -> Option<(f32, f32)> {
+        if f0_hz.is_finite() && f0_hz > 0.0 {
+            self.n += 1;
+        }
+        let (lo, hi) = self.range.update(f0_hz)?;
+        Some(self.padded(lo, hi))
+    }
+
+    /// The padded range so far.
+    pub fn get(&self) -> Option<(f32, f32)> {
+        self.range.get().map(|(lo, hi)| self.padded(lo, hi))
+    }
+
+    fn padded(&self, lo: f32, hi: f32) -> (f32, f32) {
+        let (lo, hi) = (f64::from(lo), f64::from(hi));
+        let span = 12.0 * (hi / lo).log2();
+        let w = if self.fade.is_finite() {
+            self.fade / (self.fade + self.n as f64)
+        } else {
+            1.0
+        };
+        let pad = (self.span_st - span).max(0.0) * w / 2.0;
+        if pad.is_nan() || pad <= 0.0 {
+            return (lo as f32, hi as f32);
+        }
+        let r = (pad / 12.0).exp2();
+        ((lo / r) as f32, (hi * r) as f32)
+    }
+
+    /// Back to empty.
+    pub fn reset(&mut self) {
+        self.range.reset();
+        self.n = 0;
     }
 }

@@ -17,7 +17,8 @@ use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
 use tactus_separate::{SegmentStats, Separator, StemOutput, StemSet};
 
 use crate::drums::{ClassTrack, DrumMethod};
-use crate::track::{Denoise, Geometry, Mode, OnsetTrack, PitchMethod, PitchTrack};
+use crate::notes::{NoteTrack, PitchNotes};
+use crate::track::{Denoise, Geometry, LevelRule, Mode, OnsetTrack, PitchMethod, PitchTrack};
 use crate::EngineError;
 
 /// The engine's default sample rate; inputs are resampled to it.
@@ -54,6 +55,9 @@ pub struct EngineConfig {
     pub mode: Mode,
     /// Pitch tracker for melodic stems.
     pub pitch: PitchMethod,
+    /// How voiced pitch becomes levels ([`LevelRule::Follow`] by default; `Paper` is the
+    /// paper's rule as first implemented).
+    pub level_rule: LevelRule,
     /// The glove map: decides which stems, bands and features exist.
     pub map: GloveMap,
     /// Separator for the stems not supplied directly.
@@ -79,6 +83,7 @@ impl Default for EngineConfig {
             levels: 8,
             mode: Mode::Offline,
             pitch: PitchMethod::default(),
+            level_rule: LevelRule::default(),
             map: GloveMap::default(),
             separator: SeparatorChoice::default(),
             drums: DrumMethod::default(),
@@ -112,7 +117,7 @@ struct StemChain {
     denoise: Denoise,
     buf: Vec<f32>,
     pitch: Option<PitchTrack>,
-    notes: Option<OnsetTrack>,
+    notes: Option<NoteTrack>,
     bands: Vec<BandChain>,
     /// The per-instrument transcriber (drums with [`DrumMethod::Classes`]).
     classes: Option<ClassTrack>,
@@ -143,10 +148,10 @@ impl StemChain {
             (Some(m), Some((lo, hi))) => Some(PitchTrack::new(geo, lo, hi, m)?),
             _ => None,
         };
-        let notes = if notes {
-            Some(OnsetTrack::new(geo, None)?)
-        } else {
-            None
+        let notes = match (notes, &pitch) {
+            (false, _) => None,
+            (true, Some(p)) => Some(NoteTrack::Pitch(PitchNotes::new(geo, p.hop())?)),
+            (true, None) => Some(NoteTrack::Flux(OnsetTrack::new(geo, None)?)),
         };
         let mut chains = Vec::new();
         let (classes, class_bands) = match drums {
@@ -212,7 +217,11 @@ impl StemChain {
         }
         if let Some(n) = &mut self.notes {
             let t = Instant::now();
-            n.process(&self.buf);
+            match (n, &self.pitch) {
+                (NoteTrack::Pitch(n), Some(p)) => n.update(p),
+                (NoteTrack::Flux(n), _) => n.process(&self.buf),
+                (NoteTrack::Pitch(_), None) => {}
+            }
             self.t_notes += t.elapsed();
         }
         if let Some(c) = &mut self.classes {
@@ -239,7 +248,11 @@ impl StemChain {
         }
         self.t_pitch += t.elapsed();
         if let Some(n) = &mut self.notes {
-            n.finish();
+            match (n, &self.pitch) {
+                (NoteTrack::Pitch(n), Some(p)) => n.finish(p),
+                (NoteTrack::Flux(n), _) => n.finish(),
+                (NoteTrack::Pitch(_), None) => {}
+            }
         }
         if let Some(c) = &mut self.classes {
             let t = Instant::now();
@@ -258,8 +271,15 @@ impl StemChain {
         if let Some(p) = &self.pitch {
             l = l.max(p.latency_samples());
         }
-        if let Some(n) = &self.notes {
-            l = l.max(n.latency_samples());
+        match &self.notes {
+            // Pitch notes look ahead of the pitch track's own decision.
+            Some(n @ NoteTrack::Pitch(_)) => {
+                l = l.max(
+                    self.pitch.as_ref().map_or(0, |p| p.latency_samples()) + n.latency_samples(),
+                )
+            }
+            Some(n) => l = l.max(n.latency_samples()),
+            None => {}
         }
         for b in &self.bands {
             l = l.max(b.track.latency_samples());
@@ -391,12 +411,20 @@ impl Engine {
             bin_samples,
             levels: cfg.levels,
             mode: cfg.mode,
+            level_rule: cfg.level_rule,
         };
         let needs = cfg.map.needs();
         let mut chains = Vec::new();
         let mut separated = StemSet::default();
         for stem in cfg.map.stems() {
-            let pitch = needs.pitch.contains(&stem).then_some(cfg.pitch);
+            let pitch = needs
+                .pitch
+                .contains(&stem)
+                .then_some(match (cfg.pitch, stem) {
+                    (PitchMethod::Auto, Stem::Bass) => PitchMethod::Shs,
+                    (PitchMethod::Auto, _) => PitchMethod::Pyin,
+                    (m, _) => m,
+                });
             let notes = needs.note_onsets.contains(&stem);
             let bands: Vec<Band> = if stem == Stem::Drums {
                 needs.bands.clone()
@@ -581,7 +609,7 @@ impl Engine {
                 ready = ready.min(p.bins.len());
             }
             if let Some(n) = &c.notes {
-                ready = ready.min(n.bins.len());
+                ready = ready.min(n.bins().len());
             }
             for b in &c.bands {
                 ready = ready.min(b.track.bins.len());
@@ -606,7 +634,7 @@ impl Engine {
                 f.level[si] = p.bins.get(k).copied().unwrap_or(0);
             }
             if let Some(n) = &c.notes {
-                f.note_onset[si] = n.bins.get(k).copied().unwrap_or(false);
+                f.note_onset[si] = n.bins().get(k).copied().unwrap_or(false);
             }
             for b in &c.bands {
                 f.band_beat[b.band as usize] = b.track.bins.get(k).copied().unwrap_or(false);

@@ -12,6 +12,7 @@
 
 pub mod drums;
 pub mod engine;
+pub mod notes;
 pub mod render;
 pub mod resample;
 pub mod source;
@@ -19,7 +20,7 @@ pub mod track;
 
 pub use drums::DrumMethod;
 pub use engine::{Engine, EngineConfig, SeparatorChoice, ENGINE_RATE};
-pub use track::{Mode, PitchMethod};
+pub use track::{LevelRule, Mode, PitchMethod};
 
 use std::path::PathBuf;
 

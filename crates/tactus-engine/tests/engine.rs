@@ -3,7 +3,7 @@
 //! measures how closely `streaming` (causal statistics) follows `offline` (whole track).
 
 use proptest::prelude::*;
-use tactus_engine::{Engine, EngineConfig, Mode, PitchMethod};
+use tactus_engine::{Engine, EngineConfig, LevelRule, Mode, PitchMethod};
 use tactus_glove::Frame;
 
 /// A 3 s test song: a kick every 0.4 s, a stepping bass line, a melody.
@@ -57,7 +57,7 @@ fn run(engine: &mut Engine, x: &[f32], chunks: &[usize]) -> Run {
 fn config(mode: Mode) -> EngineConfig {
     EngineConfig {
         mode,
-        pitch: PitchMethod::Pyin,
+        pitch: PitchMethod::default(), // SHS for the bass, pYIN for the others
         ..EngineConfig::default()
     }
 }
@@ -87,11 +87,19 @@ proptest! {
 #[test]
 fn streaming_follows_offline() {
     let x = song(44_100 * 3);
-    let off = Engine::new(config(Mode::Offline)).map(|mut e| {
+    // The paper's level rule: the default (`Follow`) pads the streaming range to a prior
+    // span of 20 semitones that fades over ~30 s of voicing, so on this 3 s bass line of
+    // 7 semitones its streaming levels are compressed against offline (0.47 within ±1),
+    // by design; the corpus tables in README.md measure that trade-off on real lengths.
+    let paper = |mode| EngineConfig {
+        level_rule: LevelRule::Paper,
+        ..config(mode)
+    };
+    let off = Engine::new(paper(Mode::Offline)).map(|mut e| {
         run(&mut e, &x, &[4096]);
         e.features()
     });
-    let st = Engine::new(config(Mode::Streaming)).map(|mut e| {
+    let st = Engine::new(paper(Mode::Streaming)).map(|mut e| {
         run(&mut e, &x, &[4096]);
         e.features()
     });

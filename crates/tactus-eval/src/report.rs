@@ -71,6 +71,21 @@ pub struct StemRow {
     pub paper_dtw: Option<f64>,
     /// Plain SDR of the separated stem in dB, filled by [`Report::set_sdr`].
     pub sdr_db: Option<f64>,
+    /// Note starts in the truth ([`Truth::note_onset_times`]).
+    #[serde(default)]
+    pub truth_notes: Option<usize>,
+    /// Note onsets in the features (`onsets_s.<stem>`), None if absent.
+    #[serde(default)]
+    pub est_notes: Option<usize>,
+    /// Note-onset precision (±50 ms).
+    #[serde(default)]
+    pub note_precision: Option<f64>,
+    /// Note-onset recall (±50 ms).
+    #[serde(default)]
+    pub note_recall: Option<f64>,
+    /// Note-onset F-measure (±50 ms).
+    #[serde(default)]
+    pub note_f_measure: Option<f64>,
 }
 
 /// Scores of one drum band.
@@ -169,7 +184,23 @@ fn stem_row(
         paper_mae: None,
         paper_dtw: None,
         sdr_db: None,
+        truth_notes: None,
+        est_notes: None,
+        note_precision: None,
+        note_recall: None,
+        note_f_measure: None,
     };
+    if let Some(reference) = truth.note_onset_times(stem) {
+        row.truth_notes = Some(reference.len());
+        if let Some(est) = features.onsets_s.get(stem.name()) {
+            row.est_notes = Some(est.len());
+            if let Ok(s) = onset::onset_scores(&reference, est, opts.onset_window_s) {
+                row.note_precision = Some(s.precision);
+                row.note_recall = Some(s.recall);
+                row.note_f_measure = Some(s.f_measure);
+            }
+        }
+    }
     if let Some(est) = features.pitch(stem) {
         let est = if (features.hop_s - truth.hop_s).abs() < 1e-12 {
             Ok(est.to_vec())
@@ -317,11 +348,11 @@ impl Report {
             self.song,
             (self.bin_s * 1000.0).round()
         );
-        s.push_str("| stem | voiced hops | RPA | RCA | voicing recall | voicing FA | level exact | level ±1 | paper MAE | paper DTW | SDR dB |\n");
-        s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
+        s.push_str("| stem | voiced hops | RPA | RCA | voicing recall | voicing FA | level exact | level ±1 | paper MAE | paper DTW | SDR dB | notes | note onsets | note P | note R | note F |\n");
+        s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
         for r in &self.stems {
             s.push_str(&format!(
-                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |\n",
                 r.stem,
                 r.truth_voiced_hops,
                 cell(r.rpa),
@@ -332,7 +363,12 @@ impl Report {
                 cell(r.level_within_1),
                 cell(r.paper_mae),
                 cell(r.paper_dtw),
-                cell(r.sdr_db)
+                cell(r.sdr_db),
+                r.truth_notes.map_or("–".to_string(), |n| n.to_string()),
+                r.est_notes.map_or("–".to_string(), |n| n.to_string()),
+                cell(r.note_precision),
+                cell(r.note_recall),
+                cell(r.note_f_measure)
             ));
         }
         s.push_str("\n| band | est onsets | instrument truth onsets | P | R | F | band truth onsets | band P | band R | band F | paper rhythm acc |\n");

@@ -49,6 +49,11 @@ pub struct Truth {
     /// `band_truth_rule`); a hit may be in several bands. Absent in older truth files.
     #[serde(default)]
     pub band_onsets: Option<BTreeMap<String, Vec<DrumHit>>>,
+    /// Note start times in seconds per melodic stem (`other`: its top line), from the MIDI
+    /// events rendered. Absent in older truth files: [`Truth::note_onset_times`] then derives
+    /// them from `f0_hz`.
+    #[serde(default)]
+    pub note_onsets_s: Option<BTreeMap<String, Vec<f64>>>,
 }
 
 impl Truth {
@@ -72,6 +77,9 @@ impl Truth {
         }
         for v in t.f0_hz.values() {
             crate::check_finite("truth f0_hz", v)?;
+        }
+        for v in t.note_onsets_s.iter().flat_map(|m| m.values()) {
+            crate::check_finite("truth note_onsets_s", v)?;
         }
         for hits in t
             .onsets
@@ -110,5 +118,56 @@ impl Truth {
             .unwrap_or_default();
         t.sort_by(f64::total_cmp);
         t
+    }
+
+    /// Sorted note start times of a melodic stem: `note_onsets_s` when the file has it, else
+    /// derived from the f0 contour by [`note_onsets_from_f0`]. `None` without an f0 contour.
+    pub fn note_onset_times(&self, stem: Stem) -> Option<Vec<f64>> {
+        if let Some(v) = self.note_onsets_s.as_ref().and_then(|m| m.get(stem.name())) {
+            let mut t = v.clone();
+            t.sort_by(f64::total_cmp);
+            return Some(t);
+        }
+        self.f0(stem).map(|f0| note_onsets_from_f0(f0, self.hop_s))
+    }
+}
+
+/// Note starts of a monophonic f0 contour (Hz per hop, 0 = silent): a hop where voicing
+/// begins, or where the pitch moves by at least half a semitone from the previous hop (a new
+/// note; vibrato and scoops move by far less per 10 ms hop). Repeated notes of the same pitch
+/// without a gap are invisible here, which is why the corpus writes `note_onsets_s`.
+pub fn note_onsets_from_f0(f0_hz: &[f64], hop_s: f64) -> Vec<f64> {
+    let mut out = Vec::new();
+    let mut prev = 0.0f64;
+    for (i, &f) in f0_hz.iter().enumerate() {
+        let voiced = f > 0.0 && f.is_finite();
+        if voiced && (prev <= 0.0 || (12.0 * (f / prev).log2()).abs() >= 0.5) {
+            out.push(i as f64 * hop_s);
+        }
+        prev = if voiced { f } else { 0.0 };
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn note_starts_from_f0() {
+        // 10 ms hops: a note, a scoop-free jump of a tone, a gap, the same note again,
+        // and vibrato of ±35 cents that must not start notes.
+        let a = 220.0;
+        let b = 220.0 * 2f64.powf(2.0 / 12.0);
+        let mut f = vec![0.0, a, a, a, b, b, 0.0, 0.0, b, b];
+        for i in 0..20 {
+            f.push(b * 2f64.powf(0.35 / 12.0 * (i as f64).sin()));
+        }
+        let t = note_onsets_from_f0(&f, 0.01);
+        let want = [0.01, 0.04, 0.08];
+        assert_eq!(t.len(), want.len(), "{t:?}");
+        for (x, y) in t.iter().zip(want) {
+            assert!((x - y).abs() < 1e-9);
+        }
     }
 }

@@ -1,0 +1,116 @@
+#!/usr/bin/env python3
+"""Melodic-stem scores (bass and vocals) of one tactus binary on corpus songs, as a table.
+
+For every song folder (`mix.*`, stems, `truth.json`, as written by corpus/generate.py or
+corpus/drums.py) and every input (isolated stems / the mix through the default separator)
+and statistics mode, runs
+
+    tactus render SONG/mix.* -o P.json --features F.json [--stem NAME=SONG/NAME.* ...] --mode M [EXTRA]
+    tactus eval F.json --truth SONG --json R.json
+
+and prints the mean over songs, per group (tuned / held-out), of RPA, levels ±1 and
+note-onset F for bass and vocals. Raw per-song rows go to OUT/rows.json.
+
+    python3 benches/bass_eval.py --bin target/release/tactus --out /tmp/be \\
+        --tuned /work/data/chorales/bwv66-6_96bpm ... --held-out /work/data/chorales/bwv7-7_84bpm ... \\
+        [--extra "--pitch yin"] [--label before]
+"""
+import argparse
+import glob
+import json
+import os
+import shlex
+import subprocess
+import sys
+
+STEMS = ("drums", "bass", "vocals", "other")
+METRICS = (("bass", "rpa"), ("bass", "level_within_1"), ("bass", "note_f_measure"),
+           ("vocals", "rpa"), ("vocals", "level_within_1"), ("vocals", "note_f_measure"))
+
+
+def audio(song, name):
+    for ext in ("wav", "flac", "mp3", "ogg"):
+        p = os.path.join(song, f"{name}.{ext}")
+        if os.path.exists(p):
+            return p
+    return None
+
+
+def run_one(binary, song, inp, mode, extra, out, eval_bin=None):
+    parent = os.path.basename(os.path.dirname(song.rstrip("/")))
+    tag = f"{parent}_{os.path.basename(song.rstrip('/'))}.{inp}.{mode}"
+    feat = os.path.join(out, tag + ".features.json")
+    rep = os.path.join(out, tag + ".report.json")
+    cmd = [binary, "render", audio(song, "mix"), "-o", os.path.join(out, tag + ".pattern.json"),
+           "--features", feat, "--mode", mode] + extra
+    if inp == "isolated":
+        for s in STEMS:
+            p = audio(song, s)
+            if p:
+                cmd += ["--stem", f"{s}={p}"]
+    subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    subprocess.run([eval_bin or binary, "eval", feat, "--truth", song, "--json", rep], check=True,
+                   stdout=subprocess.DEVNULL)
+    with open(rep) as fh:
+        r = json.load(fh)
+    row = {"song": r["song"], "input": inp, "mode": mode}
+    for st in r["stems"]:
+        for _s, m in METRICS:
+            if st["stem"] == _s:
+                row[f"{_s}.{m}"] = st.get(m)
+    return row
+
+
+def mean(v):
+    v = [x for x in v if x is not None]
+    return sum(v) / len(v) if v else None
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--bin", default="target/release/tactus")
+    ap.add_argument("--eval-bin", default=None, help="binary for `tactus eval` (default: --bin)")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--tuned", nargs="*", default=[])
+    ap.add_argument("--held-out", nargs="*", default=[])
+    ap.add_argument("--inputs", default="isolated,mix")
+    ap.add_argument("--modes", default="offline,streaming")
+    ap.add_argument("--extra", default="", help="extra render options, one string")
+    ap.add_argument("--label", default="")
+    ap.add_argument("--per-song", action="store_true")
+    a = ap.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    extra = shlex.split(a.extra)
+    rows = []
+    groups = [("tuned", s) for s in a.tuned] + [("held-out", s) for s in a.held_out]
+    for group, song in groups:
+        for inp in a.inputs.split(","):
+            for mode in a.modes.split(","):
+                r = run_one(a.bin, song, inp, mode, extra, a.out, a.eval_bin)
+                r["group"] = group
+                rows.append(r)
+    with open(os.path.join(a.out, "rows.json"), "w") as fh:
+        json.dump(rows, fh, indent=1)
+    hdr = "| " + " | ".join(["label", "group", "songs", "input", "mode"] +
+                            [f"{s} {m.replace('level_within_1', 'levels ±1').replace('note_f_measure', 'note F').replace('rpa', 'RPA')}"
+                             for s, m in METRICS]) + " |"
+    print(hdr)
+    print("|" + "---|" * (5 + len(METRICS)))
+    for group in ("tuned", "held-out"):
+        for inp in a.inputs.split(","):
+            for mode in a.modes.split(","):
+                sel = [r for r in rows if r["group"] == group and r["input"] == inp and r["mode"] == mode]
+                if not sel:
+                    continue
+                cells = [mean([r.get(f"{s}.{m}") for r in sel]) for s, m in METRICS]
+                print("| " + " | ".join([a.label, group, str(len(sel)), inp, mode] +
+                                        ["–" if c is None else f"{c:.3f}" for c in cells]) + " |")
+    if a.per_song:
+        print()
+        for r in rows:
+            print(r["group"], r["song"], r["input"], r["mode"],
+                  " ".join(f"{k}={r.get(k) if r.get(k) is None else round(r[k], 3)}" for k in (f"{s}.{m}" for s, m in METRICS)))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,695 @@
+//! Bass-line tracking for mixtures: harmonic-sum (subharmonic summation) salience with
+//! fixed-lag Viterbi over the candidates.
+//!
+//! After Hermes, "Measurement of pitch by subharmonic summation", JASA 83(1), 1988 (the
+//! salience), Klapuri, "Multiple fundamental frequency estimation by summing harmonic
+//! amplitudes", ISMIR 2006 (the max over each harmonic's neighbourhood, decaying weights)
+//! and Goto, "A real-time music-scene-description system: predominant-F0 estimation for
+//! detecting melody and bass lines in real-world audio signals", Speech Communication 43(4),
+//! 2004 (a bass line is the lowest strong harmonic source, tracked with continuity). The
+//! Viterbi is pYIN's idea ([`crate::pyin`]): the pitch of a frame is decided together with its
+//! neighbours, with a fixed lag when streaming.
+//!
+//! ## Algorithm (per hop)
+//! 1. **Spectrum.** The frame (`frame` samples centred on the hop, see [`Framer`]) minus its
+//!    mean, scaled to unit peak, times a Hann window, zero-padded to `n_fft`, real FFT;
+//!    `A_k = |X_k|^compress`.
+//! 2. **Salience** of each candidate f0 on a log grid (`bins_per_semitone` per semitone over
+//!    `[fmin, fmax]`):
+//!    `S(f) = tilt(f) · Σ_{h=1..H, h·f ≤ max_harmonic_hz} w^{h−1} · max_{k ∈ K(h·f)} A_k`, where
+//!    `K(x)` are the FFT bins within ± `harmonic_width_st` semitones of `x` (below Nyquist),
+//!    `w` = `harmonic_decay` and `tilt(f) = (f / fmin)^(−low_tilt)` can favour the lowest of
+//!    several harmonic sources (off by default: it pulls plucked basses an octave down).
+//!    Decaying weights make `f` beat both `f/2` (which only collects every other harmonic)
+//!    and `2f`.
+//! 3. **Observation.** Voiced candidate `c`: `log(V · p_c)` with
+//!    `p_c = (S_c / max S)^γ` (γ = `sharpness`); unvoiced: `log(1 − V)`. The voicing evidence
+//!    `V = σ((ln(peak / floor) − ln r0) / 0.5)` compares the best harmonic sum with what noise
+//!    of the same spectrum level would give (`floor` = mean `A_k` over the searched band times
+//!    `Σ w^{h−1}`), clamped to `[0.02, 0.98]`; a silent frame has `V = 0.02`.
+//! 4. **HMM** with `M` voiced states (the candidates) and one unvoiced state. Voiced → voiced:
+//!    triangular weights over `±max_jump_bins`, 1 for staying (peak-normalised, so that the
+//!    voiced layer pays nothing for having a pitch that the unvoiced state lacks), times
+//!    `1 − switch_prob`; voiced ↔ unvoiced (into any bin): `switch_prob`.
+//! 5. **Decoding**: Viterbi in the log domain, O(M · (2·max_jump_bins + 1)) per hop, with a
+//!    fixed lag: once hop `t` is observed, hop `t − lag_hops` is decided by backtracking from
+//!    the best current state (exactly offline Viterbi when `lag_hops ≥` the track's hops).
+//! 6. **Output.** A voiced hop reports the candidate's f0 refined by a parabola through the
+//!    salience of the decided candidate and its neighbours (the grid is 1/`bins_per_semitone`
+//!    of a semitone).
+//!
+//! ## Defaults ([`ShsConfig::new`])
+//! Range 35–400 Hz (the bass stem of DESIGN.md); hop 10 ms; frame = the power of two nearest
+//! 200 ms (1024 samples at the bass chain's 4.9 kHz: a 3 Hz semitone at 50 Hz needs the
+//! length); `n_fft` = 2 × frame (4 × gains nothing measurable and costs about 4 % more CPU per render);
+//! H = 6 harmonics, w = 0.8, each searched ± 1/4 semitone,
+//! **only harmonics below 320 Hz** (the spectral separator's bass band ends there, so an
+//! isolated stem and a separated one look alike; with the whole band a bassoon's formant
+//! pulls the sum to its 2nd and 3rd harmonics: isolated-stem RPA 0.60 instead of 0.96 on the
+//! tuned songs); no low tilt, no compression; 3 bins per semitone, γ = 2, r0 = 3, max jump
+//! 36 bins (an octave), switch probability 0.02, lag 10 hops. Tuned on 4 chorales of the
+//! corpus (`benches/bass_eval.py`), never on the held-out songs.
+//!
+//! ## Latency
+//! `frame − frame / 2` (the framer) + `lag_hops × hop` samples, stated by
+//! [`HopStage::latency_samples`] and checked against a step in the tests.
+//!
+//! No allocation after [`Shs::new`]: FFT plan, scratch, the harmonic-bin table, the Viterbi
+//! scores and a ring of `lag_hops + 1` hops of backpointers and salience are allocated up
+//! front.
+
+use std::sync::Arc;
+
+use realfft::num_complex::Complex;
+use realfft::{RealFftPlanner, RealToComplex};
+
+use crate::framer::Framer;
+use crate::yin::PitchEstimate;
+use crate::{ConfigError, HopStage};
+
+/// Floor for probabilities before the logarithm.
+const P_FLOOR: f32 = 1e-30;
+
+/// Parameters of [`Shs`]. Build with [`ShsConfig::new`]; [`Shs::new`] validates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShsConfig {
+    /// Sample rate in Hz.
+    pub sample_rate: u32,
+    /// Samples per analysis frame (Hann window length).
+    pub frame: usize,
+    /// FFT length (≥ frame; zero padding).
+    pub n_fft: usize,
+    /// Samples between hops.
+    pub hop: usize,
+    /// Lowest candidate f0, Hz.
+    pub fmin_hz: f32,
+    /// Highest candidate f0, Hz.
+    pub fmax_hz: f32,
+    /// Harmonics summed.
+    pub harmonics: usize,
+    /// Weight ratio between consecutive harmonics.
+    pub harmonic_decay: f32,
+    /// Exponent of the low-pitch preference `(f / fmin)^(−low_tilt)`.
+    pub low_tilt: f32,
+    /// Magnitude compression: the salience sums `|X_k|^compress` (1 = plain magnitudes;
+    /// below 1 whitens the spectrum, so a weak fundamental under a strong formant counts).
+    pub compress: f32,
+    /// Harmonics above this frequency (Hz) are not summed: the salience sees the same band
+    /// whether the stem is isolated or comes from a separator's low band.
+    pub max_harmonic_hz: f32,
+    /// Half-width, in semitones, of the neighbourhood searched around each harmonic.
+    pub harmonic_width_st: f32,
+    /// Candidate bins per semitone.
+    pub bins_per_semitone: u32,
+    /// Exponent γ turning salience into candidate probabilities.
+    pub sharpness: f32,
+    /// Peak-to-noise ratio of the harmonic sum at which the voicing evidence is 0.5.
+    pub voicing_ratio: f32,
+    /// Largest pitch change between hops, in bins.
+    pub max_jump_bins: usize,
+    /// Probability of switching voiced ↔ unvoiced between hops.
+    pub switch_prob: f32,
+    /// Fixed Viterbi lag in hops.
+    pub lag_hops: usize,
+}
+
+impl ShsConfig {
+    /// The defaults of the module docs for a search range at `sample_rate`.
+    pub fn new(sample_rate: u32, fmin_hz: f32, fmax_hz: f32) -> Self {
+        let target = (sample_rate as f64 * 0.2).max(8.0);
+        let up = (target as usize).next_power_of_two();
+        let frame = if (up as f64) / target > 1.5 {
+            up / 2
+        } else {
+            up
+        };
+        ShsConfig {
+            sample_rate,
+            frame,
+            n_fft: 2 * frame,
+            hop: ((sample_rate as f64 * 0.010).round() as usize).max(1),
+            fmin_hz,
+            fmax_hz,
+            harmonics: 6,
+            harmonic_decay: 0.8,
+            low_tilt: 0.0,
+            compress: 1.0,
+            harmonic_width_st: 0.25,
+            max_harmonic_hz: 320.0,
+            bins_per_semitone: 3,
+            sharpness: 2.0,
+            voicing_ratio: 3.0,
+            max_jump_bins: 36,
+            switch_prob: 0.02,
+            lag_hops: 10,
+        }
+    }
+
+    /// Number of candidates M, or why the configuration is invalid.
+    pub fn n_bins(&self) -> Result<usize, ConfigError> {
+        if self.sample_rate == 0 {
+            return Err(ConfigError::invalid("sample_rate", "must be positive"));
+        }
+        if !(self.fmin_hz.is_finite() && self.fmin_hz > 0.0) {
+            return Err(ConfigError::invalid("fmin_hz", "must be finite and > 0"));
+        }
+        if !(self.fmax_hz.is_finite()
+            && self.fmax_hz > self.fmin_hz
+            && (self.fmax_hz as f64) < self.sample_rate as f64 / 2.0)
+        {
+            return Err(ConfigError::invalid(
+                "fmax_hz",
+                "must be finite, > fmin_hz and below Nyquist",
+            ));
+        }
+        if !(8..=1 << 20).contains(&self.frame) {
+            return Err(ConfigError::invalid("frame", "must be in [8, 2^20]"));
+        }
+        if self.n_fft < self.frame || self.n_fft > 1 << 22 || !self.n_fft.is_multiple_of(2) {
+            return Err(ConfigError::invalid(
+                "n_fft",
+                "must be even, ≥ frame and ≤ 2^22",
+            ));
+        }
+        if self.hop == 0 {
+            return Err(ConfigError::invalid("hop", "must be at least 1 sample"));
+        }
+        if !(1..=32).contains(&self.harmonics) {
+            return Err(ConfigError::invalid("harmonics", "must be in 1..=32"));
+        }
+        if !(self.harmonic_decay > 0.0 && self.harmonic_decay <= 1.0) {
+            return Err(ConfigError::invalid("harmonic_decay", "must be in (0, 1]"));
+        }
+        if !(self.low_tilt.is_finite() && self.low_tilt >= 0.0) {
+            return Err(ConfigError::invalid("low_tilt", "must be finite and ≥ 0"));
+        }
+        if !(self.compress.is_finite() && self.compress > 0.0 && self.compress <= 2.0) {
+            return Err(ConfigError::invalid("compress", "must be in (0, 2]"));
+        }
+        if self.max_harmonic_hz.is_nan() || self.max_harmonic_hz <= 0.0 {
+            return Err(ConfigError::invalid("max_harmonic_hz", "must be > 0"));
+        }
+        if !(self.harmonic_width_st > 0.0 && self.harmonic_width_st <= 1.0) {
+            return Err(ConfigError::invalid(
+                "harmonic_width_st",
+                "must be in (0, 1]",
+            ));
+        }
+        if !(self.sharpness.is_finite() && self.sharpness > 0.0) {
+            return Err(ConfigError::invalid("sharpness", "must be finite and > 0"));
+        }
+        if !(self.voicing_ratio.is_finite() && self.voicing_ratio > 0.0) {
+            return Err(ConfigError::invalid(
+                "voicing_ratio",
+                "must be finite and > 0",
+            ));
+        }
+        if !(self.switch_prob > 0.0 && self.switch_prob < 1.0) {
+            return Err(ConfigError::invalid("switch_prob", "must be in (0, 1)"));
+        }
+        if !(1..=100).contains(&self.bins_per_semitone) {
+            return Err(ConfigError::invalid(
+                "bins_per_semitone",
+                "must be in 1..=100",
+            ));
+        }
+        let span = 12.0
+            * self.bins_per_semitone as f64
+            * (self.fmax_hz as f64 / self.fmin_hz as f64).log2();
+        let m = span.floor() as usize + 1;
+        if m + 1 > u16::MAX as usize {
+            return Err(ConfigError::invalid("bins_per_semitone", "too many bins"));
+        }
+        if self.max_jump_bins >= m {
+            return Err(ConfigError::invalid(
+                "max_jump_bins",
+                "must be below the number of candidates",
+            ));
+        }
+        if self.lag_hops > 1 << 20 {
+            return Err(ConfigError::invalid("lag_hops", "too large"));
+        }
+        Ok(m)
+    }
+
+    /// Candidate f0 of bin `c`.
+    pub fn bin_hz(&self, c: usize) -> f32 {
+        self.fmin_hz * (c as f32 / (12.0 * self.bins_per_semitone as f32)).exp2()
+    }
+}
+
+/// Salience of one analysed frame, and the frame's voicing evidence.
+struct Salience {
+    fwd: Arc<dyn RealToComplex<f32>>,
+    window: Vec<f32>,
+    buf: Vec<f32>,
+    spec: Vec<Complex<f32>>,
+    scratch: Vec<Complex<f32>>,
+    mag: Vec<f32>,
+    /// `(k_lo, k_hi)` per (candidate, harmonic), `k_hi < k_lo` when above Nyquist.
+    ranges: Vec<(u32, u32)>,
+    /// `tilt(f_c) · w^{h−1}` per (candidate, harmonic).
+    weights: Vec<f32>,
+    /// FFT bins of the searched band, for the noise floor.
+    band: (usize, usize),
+    weight_sum: f32,
+    harmonics: usize,
+    sharp: f32,
+    ln_r0: f32,
+    compress: f32,
+}
+
+impl std::fmt::Debug for Salience {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Salience")
+            .field("n_fft", &self.buf.len())
+            .field("harmonics", &self.harmonics)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Salience {
+    fn new(cfg: &ShsConfig, m: usize) -> Self {
+        let mut planner = RealFftPlanner::<f32>::new();
+        let fwd = planner.plan_fft_forward(cfg.n_fft);
+        let spec = fwd.make_output_vec();
+        let scratch = fwd.make_scratch_vec();
+        let n = cfg.frame;
+        let window = (0..n)
+            .map(|i| {
+                let x = std::f64::consts::PI * 2.0 * (i as f64 + 0.5) / n as f64;
+                (0.5 - 0.5 * x.cos()) as f32
+            })
+            .collect();
+        let df = cfg.sample_rate as f64 / cfg.n_fft as f64;
+        let nyq = cfg.n_fft / 2;
+        let half = 2f64.powf(cfg.harmonic_width_st as f64 / 12.0);
+        let h_n = cfg.harmonics;
+        let mut ranges = Vec::with_capacity(m * h_n);
+        let mut weights = Vec::with_capacity(m * h_n);
+        for c in 0..m {
+            let f = cfg.bin_hz(c) as f64;
+            let tilt = (f / cfg.fmin_hz as f64).powf(-(cfg.low_tilt as f64));
+            for h in 1..=h_n {
+                let x = f * h as f64;
+                let lo = (x / half / df).round().max(1.0) as usize;
+                let hi = ((x * half / df).round() as usize).min(nyq);
+                ranges.push((lo as u32, hi as u32));
+                let w = if lo <= hi && x <= cfg.max_harmonic_hz as f64 {
+                    tilt * (cfg.harmonic_decay as f64).powi(h as i32 - 1)
+                } else {
+                    0.0
+                };
+                weights.push(w as f32);
+            }
+        }
+        let band_lo = ((cfg.fmin_hz as f64 / df).floor() as usize).max(1);
+        let band_hi = ((cfg.fmax_hz as f64 * h_n as f64 / df).ceil() as usize)
+            .min(nyq)
+            .max(band_lo);
+        let weight_sum = (0..h_n).map(|h| cfg.harmonic_decay.powi(h as i32)).sum();
+        Salience {
+            fwd,
+            window,
+            buf: vec![0.0; cfg.n_fft],
+            spec,
+            scratch,
+            mag: vec![0.0; nyq + 1],
+            ranges,
+            weights,
+            band: (band_lo, band_hi),
+            weight_sum,
+            harmonics: h_n,
+            sharp: cfg.sharpness,
+            ln_r0: cfg.voicing_ratio.ln(),
+            compress: cfg.compress,
+        }
+    }
+
+    /// Magnitude spectrum of `frame` into `mag`; false when the frame is silent.
+    fn spectrum(&mut self, frame: &[f32]) -> bool {
+        let n = frame.len();
+        let mean = frame.iter().map(|&x| f64::from(x)).sum::<f64>() / n.max(1) as f64;
+        let mut peak = 0.0f32;
+        for (i, (b, &x)) in self.buf.iter_mut().zip(frame).enumerate() {
+            let v = (f64::from(x) - mean) as f32;
+            peak = peak.max(v.abs());
+            *b = v * self.window[i];
+        }
+        self.buf[n..].fill(0.0);
+        if peak.is_nan() || peak <= 1e-9 {
+            return false;
+        }
+        for b in &mut self.buf[..n] {
+            *b /= peak;
+        }
+        if self
+            .fwd
+            .process_with_scratch(&mut self.buf, &mut self.spec, &mut self.scratch)
+            .is_err()
+        {
+            return false;
+        }
+        let e = 0.5 * self.compress;
+        for (m, c) in self.mag.iter_mut().zip(&self.spec) {
+            let p = c.re * c.re + c.im * c.im;
+            *m = if e == 0.5 { p.sqrt() } else { p.powf(e) };
+        }
+        true
+    }
+
+    /// Salience per candidate into `out`; returns the voicing evidence V.
+    fn salience(&self, out: &mut [f32]) -> f32 {
+        let h_n = self.harmonics;
+        let mut best = 0.0f32;
+        for (c, s) in out.iter_mut().enumerate() {
+            let mut acc = 0.0f32;
+            for h in 0..h_n {
+                let (lo, hi) = self.ranges[c * h_n + h];
+                if lo > hi {
+                    continue;
+                }
+                let mut mx = 0.0f32;
+                for &a in &self.mag[lo as usize..=hi as usize] {
+                    mx = mx.max(a);
+                }
+                acc += self.weights[c * h_n + h] * mx;
+            }
+            *s = acc;
+            best = best.max(acc);
+        }
+        let (b0, b1) = self.band;
+        let floor = self.mag[b0..=b1].iter().sum::<f32>() / (b1 + 1 - b0) as f32 * self.weight_sum;
+        if !(floor > 0.0 && best > 0.0) {
+            return 0.02;
+        }
+        let z = ((best / floor).ln() - self.ln_r0) / 0.5;
+        (1.0 / (1.0 + (-z).exp())).clamp(0.02, 0.98)
+    }
+}
+
+/// Everything but the framer, so the framer's callback can borrow it.
+#[derive(Debug)]
+struct Tracker {
+    sal: Salience,
+    m: usize,
+    lag: usize,
+    ring: usize,
+    max_jump: usize,
+    l_stay: f32,
+    l_switch: f32,
+    l_enter: f32,
+    /// `ln` of the triangular transition weight for a jump of `d` bins (normalised).
+    l_jump: Vec<f32>,
+    cfg_bin0: f32,
+    bins_per_octave: f32,
+    s: Vec<f32>,
+    obs: Vec<f32>,
+    /// Viterbi scores: `delta[..m]` voiced bins, `delta[m]` unvoiced.
+    delta: Vec<f32>,
+    next: Vec<f32>,
+    /// Backpointers, `ring × (m + 1)`.
+    bp: Vec<u16>,
+    /// Salience per hop (ring × m), for the f0 refinement.
+    sal_ring: Vec<f32>,
+    silent: Vec<bool>,
+    voicing: Vec<f32>,
+    path: Vec<u16>,
+    hops_seen: usize,
+    next_emit: usize,
+}
+
+impl Tracker {
+    fn new(cfg: &ShsConfig) -> Result<Self, ConfigError> {
+        let m = cfg.n_bins()?;
+        let ring = cfg.lag_hops + 1;
+        let j = cfg.max_jump_bins;
+        // Peak-normalised (staying costs nothing): the unvoiced state has no pitch to choose,
+        // so a voiced state must not pay for choosing one either.
+        let l_jump = (0..=j)
+            .map(|d| ((j + 1 - d) as f32 / (j + 1) as f32).ln())
+            .collect();
+        Ok(Tracker {
+            sal: Salience::new(cfg, m),
+            m,
+            lag: cfg.lag_hops,
+            ring,
+            max_jump: j,
+            l_stay: (1.0 - cfg.switch_prob).ln(),
+            l_switch: cfg.switch_prob.ln(),
+            l_enter: cfg.switch_prob.ln(),
+            l_jump,
+            cfg_bin0: cfg.fmin_hz,
+            bins_per_octave: 12.0 * cfg.bins_per_semitone as f32,
+            s: vec![0.0; m],
+            obs: vec![0.0; m],
+            delta: vec![0.0; m + 1],
+            next: vec![0.0; m + 1],
+            bp: vec![0; ring * (m + 1)],
+            sal_ring: vec![0.0; ring * m],
+            silent: vec![true; ring],
+            voicing: vec![0.0; ring],
+            path: vec![0; ring],
+            hops_seen: 0,
+            next_emit: 0,
+        })
+    }
+
+    fn reset(&mut self) {
+        self.hops_seen = 0;
+        self.next_emit = 0;
+    }
+
+    /// Observation log-probabilities of the current salience `s` with evidence `v` into `obs`;
+    /// returns the unvoiced one.
+    fn observe(&mut self, v: f32) -> f32 {
+        let peak = self.s.iter().fold(0.0f32, |a, &b| a.max(b));
+        if peak > 0.0 {
+            for (o, &s) in self.obs.iter_mut().zip(&self.s) {
+                *o = (v * (s.max(0.0) / peak).powf(self.sal.sharp))
+                    .max(P_FLOOR)
+                    .ln();
+            }
+        } else {
+            self.obs.fill(P_FLOOR.ln());
+        }
+        (1.0 - v).max(P_FLOOR).ln()
+    }
+
+    fn on_frame(&mut self, frame: &[f32], emit: &mut dyn FnMut(usize, PitchEstimate)) {
+        let t = self.hops_seen;
+        let slot = t % self.ring;
+        let m = self.m;
+        let silent = !self.sal.spectrum(frame);
+        let v = if silent {
+            self.s.fill(0.0);
+            0.02
+        } else {
+            let mut s = std::mem::take(&mut self.s);
+            let v = self.sal.salience(&mut s);
+            self.s = s;
+            v
+        };
+        let l_unvoiced = self.observe(v);
+        self.sal_ring[slot * m..(slot + 1) * m].copy_from_slice(&self.s);
+        self.silent[slot] = silent;
+        self.voicing[slot] = v;
+        if t == 0 {
+            self.delta[..m].copy_from_slice(&self.obs);
+            self.delta[m] = l_unvoiced;
+        } else {
+            self.step(slot, l_unvoiced);
+        }
+        self.hops_seen = t + 1;
+        if t >= self.lag {
+            let mut s = self.best_state();
+            for h in (t - self.lag + 1..=t).rev() {
+                s = self.bp[(h % self.ring) * (m + 1) + s] as usize;
+            }
+            let h = t - self.lag;
+            emit(h, self.output(h, s));
+            self.next_emit = h + 1;
+        }
+    }
+
+    /// One Viterbi step into `next` (then swapped into `delta`), backpointers into `slot`.
+    #[allow(clippy::needless_range_loop)] // k indexes delta, next, obs and bp alike
+    fn step(&mut self, slot: usize, l_unvoiced: f32) {
+        let m = self.m;
+        let j = self.max_jump;
+        let bp = &mut self.bp[slot * (m + 1)..(slot + 1) * (m + 1)];
+        let du = self.delta[m];
+        let mut best = f32::NEG_INFINITY;
+        for k in 0..m {
+            let lo = k.saturating_sub(j);
+            let hi = (k + j).min(m - 1);
+            let mut bv = f32::NEG_INFINITY;
+            let mut arg = k;
+            for src in lo..=hi {
+                let v = self.delta[src] + self.l_jump[src.abs_diff(k)];
+                if v > bv {
+                    bv = v;
+                    arg = src;
+                }
+            }
+            let stay = bv + self.l_stay;
+            let enter = du + self.l_enter;
+            let (sv, pv) = if stay >= enter {
+                (stay, arg)
+            } else {
+                (enter, m)
+            };
+            self.next[k] = sv + self.obs[k];
+            bp[k] = pv as u16;
+            best = best.max(self.next[k]);
+        }
+        // Into the unvoiced state: from itself or from the best voiced bin.
+        let mut bv = f32::NEG_INFINITY;
+        let mut arg = 0;
+        for (src, &d) in self.delta[..m].iter().enumerate() {
+            if d > bv {
+                bv = d;
+                arg = src;
+            }
+        }
+        let (su, pu) = if du + self.l_stay >= bv + self.l_switch {
+            (du + self.l_stay, m)
+        } else {
+            (bv + self.l_switch, arg)
+        };
+        self.next[m] = su + l_unvoiced;
+        bp[m] = pu as u16;
+        best = best.max(self.next[m]);
+        if best.is_finite() {
+            for v in self.next.iter_mut() {
+                *v -= best;
+            }
+        }
+        std::mem::swap(&mut self.delta, &mut self.next);
+    }
+
+    fn best_state(&self) -> usize {
+        let mut best = 0;
+        for (s, &v) in self.delta.iter().enumerate() {
+            if v > self.delta[best] {
+                best = s;
+            }
+        }
+        best
+    }
+
+    fn flush(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
+        let (start, end) = (self.next_emit, self.hops_seen);
+        if end <= start {
+            return;
+        }
+        let m = self.m;
+        let mut s = self.best_state();
+        for h in (start..end).rev() {
+            self.path[h - start] = s as u16;
+            if h > start {
+                s = self.bp[(h % self.ring) * (m + 1) + s] as usize;
+            }
+        }
+        for h in start..end {
+            emit(h, self.output(h, self.path[h - start] as usize));
+        }
+        self.next_emit = end;
+    }
+
+    fn output(&self, hop: usize, state: usize) -> PitchEstimate {
+        let slot = hop % self.ring;
+        let v = self.voicing[slot];
+        if self.silent[slot] || state >= self.m {
+            return PitchEstimate {
+                f0_hz: 0.0,
+                aperiodicity: 1.0 - v,
+                voiced_prob: v,
+            };
+        }
+        let s = &self.sal_ring[slot * self.m..(slot + 1) * self.m];
+        let mut off = 0.0f32;
+        if state > 0 && state + 1 < self.m {
+            let (a, b, c) = (s[state - 1], s[state], s[state + 1]);
+            let den = a - 2.0 * b + c;
+            if den < 0.0 {
+                off = (0.5 * (a - c) / den).clamp(-0.5, 0.5);
+            }
+        }
+        PitchEstimate {
+            f0_hz: self.cfg_bin0 * ((state as f32 + off) / self.bins_per_octave).exp2(),
+            aperiodicity: 1.0 - v,
+            voiced_prob: v,
+        }
+    }
+}
+
+/// Streaming bass tracker: harmonic-sum salience + fixed-lag Viterbi. See the module docs.
+#[derive(Debug)]
+pub struct Shs {
+    cfg: ShsConfig,
+    framer: Framer,
+    tracker: Tracker,
+}
+
+impl Shs {
+    /// Validates `cfg` and allocates every buffer the stage will ever need.
+    pub fn new(cfg: ShsConfig) -> Result<Shs, ConfigError> {
+        let tracker = Tracker::new(&cfg)?;
+        let framer = Framer::new(cfg.frame, cfg.hop)?;
+        Ok(Shs {
+            cfg,
+            framer,
+            tracker,
+        })
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &ShsConfig {
+        &self.cfg
+    }
+
+    /// Number of candidates M.
+    pub fn n_bins(&self) -> usize {
+        self.tracker.m
+    }
+
+    /// Salience of one frame (`cfg.frame` samples) per candidate, and its voicing evidence,
+    /// computed like the stream's hops. Allocates the returned `Vec` (tests, plots).
+    pub fn frame_salience(&mut self, frame: &[f32]) -> (Vec<f32>, f32) {
+        let mut out = vec![0.0; self.tracker.m];
+        if frame.len() != self.cfg.frame || !self.tracker.sal.spectrum(frame) {
+            return (out, 0.02);
+        }
+        let v = self.tracker.sal.salience(&mut out);
+        (out, v)
+    }
+}
+
+impl HopStage for Shs {
+    type Out = PitchEstimate;
+
+    fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, PitchEstimate)) {
+        let tracker = &mut self.tracker;
+        self.framer.push(input, |_, fr| tracker.on_frame(fr, emit));
+    }
+
+    fn finish(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
+        let tracker = &mut self.tracker;
+        self.framer.finish(|_, fr| tracker.on_frame(fr, emit));
+        self.tracker.flush(emit);
+    }
+
+    fn reset(&mut self) {
+        self.framer.reset();
+        self.tracker.reset();
+    }
+
+    fn latency_samples(&self) -> usize {
+        self.framer.latency_samples() + self.cfg.lag_hops * self.cfg.hop
+    }
+
+    fn hop(&self) -> usize {
+        self.cfg.hop
+    }
+}

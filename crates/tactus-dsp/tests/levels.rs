@@ -1,0 +1,199 @@
+//! Tests for the "levels that follow the truth" pieces and pitch note onsets: Tukey fences
+//! with an IQR floor, the streaming range prior, the quantile range, and note onsets from a
+//! pitch track (against an obvious offline oracle, streaming = offline, stated latency).
+
+use tactus_dsp::discretize::{range_offline, range_quantiles, PriorRange};
+use tactus_dsp::notes::{note_onsets_offline, NoteConfig, NoteOnsets};
+use tactus_dsp::tukey::{reject_outliers_offline, reject_outliers_offline_min_iqr, SlidingTukey};
+use tactus_dsp::{hz_to_semitones, semitones_to_hz};
+
+fn hz(st: f32) -> f32 {
+    semitones_to_hz(st)
+}
+
+#[test]
+fn iqr_floor_keeps_a_real_leap_that_the_paper_rule_cuts() {
+    // A bass line on two neighbouring notes with a few real octave leaps.
+    let mut f: Vec<f32> = (0..200).map(|i| hz(40.0 + (i % 2) as f32)).collect();
+    f.extend((0..10).map(|_| hz(52.0)));
+    let mut paper = f.clone();
+    assert_eq!(
+        reject_outliers_offline(&mut paper, 1.5),
+        10,
+        "paper: IQR 1 → fences ±1.5"
+    );
+    let mut floored = f.clone();
+    assert_eq!(reject_outliers_offline_min_iqr(&mut floored, 1.5, 12.0), 0);
+    // A floor of 0 is the paper's rule exactly.
+    let mut zero = f.clone();
+    reject_outliers_offline_min_iqr(&mut zero, 1.5, 0.0);
+    assert_eq!(zero, paper);
+    // Streaming: the same decision once the window is warm.
+    let mut st = SlidingTukey::new(1000, 1.5, 20).unwrap().with_min_iqr(12.0);
+    let out: Vec<f32> = f.iter().map(|&x| st.process(x)).collect();
+    assert!(out.iter().all(|&x| x > 0.0));
+    let mut st = SlidingTukey::new(1000, 1.5, 20).unwrap();
+    let out: Vec<f32> = f.iter().map(|&x| st.process(x)).collect();
+    assert!(out[200..].iter().all(|&x| x == 0.0));
+}
+
+#[test]
+fn prior_range_pads_then_fades() {
+    let mut r = PriorRange::new(20.0, 100.0).unwrap();
+    assert_eq!(r.update(0.0), None);
+    // One note: padded to 20 semitones around it (weight 100/101).
+    let (lo, hi) = r.update(hz(40.0)).unwrap();
+    let span = hz_to_semitones(hi) - hz_to_semitones(lo);
+    assert!((span - 20.0 * 100.0 / 101.0).abs() < 1e-3, "span {span}");
+    assert!((hz_to_semitones(lo) + hz_to_semitones(hi) - 80.0).abs() < 1e-3);
+    // Many hops later the padding has faded towards the line's own range.
+    for i in 0..10_000 {
+        r.update(hz(38.0 + (i % 5) as f32));
+    }
+    let (lo, hi) = r.get().unwrap();
+    let span = hz_to_semitones(hi) - hz_to_semitones(lo);
+    assert!(span > 4.0 && span < 4.2, "span {span}");
+    // A line wider than the prior is not padded.
+    let mut r = PriorRange::new(5.0, f32::INFINITY).unwrap();
+    r.update(hz(30.0));
+    let (lo, hi) = r.update(hz(50.0)).unwrap();
+    assert!((hz_to_semitones(lo) - 30.0).abs() < 1e-3 && (hz_to_semitones(hi) - 50.0).abs() < 1e-3);
+    r.reset();
+    assert_eq!(r.get(), None);
+    assert!(PriorRange::new(-1.0, 1.0).is_err() && PriorRange::new(1.0, 0.0).is_err());
+}
+
+#[test]
+fn quantile_range_ignores_rare_extremes() {
+    let mut f: Vec<f32> = (0..1000).map(|i| 40.0 + (i % 7) as f32 * 10.0).collect();
+    f.extend([0.0, -1.0, f32::NAN, 5.0, 900.0]);
+    assert_eq!(range_quantiles(&f, 0.0), range_offline(&f));
+    assert_eq!(range_quantiles(&f, 0.01), Some((40.0, 100.0)));
+    assert_eq!(range_quantiles(&[0.0, f32::NAN], 0.01), None);
+}
+
+/// The obvious rule: for every hop, look at the next `stable` hops directly.
+fn oracle(f0: &[f32], c: NoteConfig) -> Vec<bool> {
+    let st: Vec<Option<f32>> = f0
+        .iter()
+        .map(|&f| (f > 0.0).then(|| hz_to_semitones(f)))
+        .collect();
+    let mut out = vec![false; f0.len()];
+    let mut cur: Option<f32> = None;
+    let mut unv = usize::MAX / 2;
+    for j in 0..f0.len() {
+        let Some(x) = st[j] else {
+            unv = unv.saturating_add(1);
+            if unv > c.gap_hops {
+                cur = None;
+            }
+            continue;
+        };
+        unv = 0;
+        if j + c.stable_hops > f0.len() {
+            continue;
+        }
+        let w: Option<Vec<f32>> = st[j..j + c.stable_hops].iter().copied().collect();
+        let Some(mut w) = w else { continue };
+        w.sort_by(f32::total_cmp);
+        let med = w[(w.len() - 1) / 2];
+        if w.iter().any(|v| (v - med).abs() > c.tolerance_st) {
+            continue;
+        }
+        match cur {
+            Some(c0) if (x - c0).abs() < c.jump_st => cur = Some(c0 + 0.03 * (med - c0)),
+            _ => {
+                out[j] = true;
+                cur = Some(med);
+            }
+        }
+    }
+    out
+}
+
+/// A melody at 10 ms hops: notes with vibrato and scoops, gaps, a glide and octave leaps.
+fn melody() -> (Vec<f32>, Vec<usize>) {
+    let mut f = Vec::new();
+    let mut starts = Vec::new();
+    let notes: [(f32, usize, usize); 7] = [
+        (60.0, 30, 0),
+        (62.0, 25, 5),
+        (62.0, 20, 0),
+        (67.0, 40, 3),
+        (55.0, 15, 0),
+        (67.0, 30, 10),
+        (43.0, 8, 2),
+    ];
+    for (k, &(st, len, gap)) in notes.iter().enumerate() {
+        starts.push(f.len());
+        for i in 0..len {
+            // ±35 cent vibrato at 5.5 Hz from hop 15, a −40 cent scoop over the first 5 hops.
+            // As the corpus sings: vibrato from 150 ms into the note.
+            let vib = if i >= 15 {
+                0.35 * (std::f32::consts::TAU * 5.5 * i as f32 * 0.01 + k as f32).sin()
+            } else {
+                0.0
+            };
+            let scoop = if i < 5 {
+                -0.4 * (1.0 - i as f32 / 5.0)
+            } else {
+                0.0
+            };
+            f.push(hz(st + vib + scoop));
+        }
+        f.extend(std::iter::repeat_n(0.0, gap));
+    }
+    (f, starts)
+}
+
+#[test]
+fn note_onsets_match_the_oracle_and_the_notes() {
+    let (f, starts) = melody();
+    let c = NoteConfig::default();
+    let got = note_onsets_offline(&f, c).unwrap();
+    assert_eq!(got, oracle(&f, c));
+    let on: Vec<usize> = (0..f.len()).filter(|&i| got[i]).collect();
+    // Every note (the repeated 62 follows a 50 ms gap) starts within 3 hops of its true
+    // start, and nothing else fires: vibrato and scoops stay inside their notes.
+    let expect = starts;
+    assert_eq!(on.len(), expect.len(), "onsets {on:?} vs {expect:?}");
+    for (a, b) in on.iter().zip(&expect) {
+        assert!(a.abs_diff(*b) <= 3, "onset {a} vs note start {b}");
+    }
+}
+
+#[test]
+fn streaming_note_onsets_equal_offline_with_the_stated_latency() {
+    let (f, _) = melody();
+    let c = NoteConfig {
+        stable_hops: 6,
+        ..NoteConfig::default()
+    };
+    let want = note_onsets_offline(&f, c).unwrap();
+    let mut d = NoteOnsets::new(c).unwrap();
+    let mut got = Vec::new();
+    for (i, &x) in f.iter().enumerate() {
+        d.push(x, &mut |j, o| {
+            assert_eq!(j + d_lat(c), i, "hop {j} decided at hop {i}");
+            got.push(o);
+        });
+    }
+    d.finish(&mut |_, o| got.push(o));
+    assert_eq!(got, want);
+    d.reset();
+    let mut again = Vec::new();
+    for &x in &f {
+        d.push(x, &mut |_, o| again.push(o));
+    }
+    d.finish(&mut |_, o| again.push(o));
+    assert_eq!(again, want);
+    assert!(NoteOnsets::new(NoteConfig {
+        stable_hops: 0,
+        ..c
+    })
+    .is_err());
+}
+
+fn d_lat(c: NoteConfig) -> usize {
+    c.stable_hops - 1
+}
