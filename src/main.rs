@@ -128,7 +128,10 @@ impl EngineArgs {
         add(self.levels != 8, "--levels");
         add(self.map.is_some(), "--map");
         add(!matches!(self.pitch, PitchArg::Auto), "--pitch");
-        add(!matches!(self.levels_rule, LevelRuleArg::Follow), "--levels-rule");
+        add(
+            !matches!(self.levels_rule, LevelRuleArg::Follow),
+            "--levels-rule",
+        );
         add(!matches!(self.drums, DrumsArg::Classes), "--drums");
         add(self.drum_model.is_some(), "--drum-model");
         v

@@ -12,7 +12,8 @@ use std::process::Command;
 const CLASSES: [&str; 4] = ["kick", "snare", "toms", "cymbals"];
 
 fn fixtures() -> Vec<PathBuf> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/tactus-engine/tests/fixtures/drums");
+    let root =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/tactus-engine/tests/fixtures/drums");
     let mut v: Vec<PathBuf> = std::fs::read_dir(&root)
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -29,9 +30,13 @@ fn score(song: &Path, isolated: bool, args: &[&str]) -> Vec<(f64, f64, f64)> {
     let feat = dir.path().join("f.json");
     let ev = dir.path().join("e.json");
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_tactus"));
-    cmd.arg("render").arg(song.join("mix.flac")).arg("--features").arg(&feat);
+    cmd.arg("render")
+        .arg(song.join("mix.flac"))
+        .arg("--features")
+        .arg(&feat);
     if isolated {
-        let map = Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/tactus-glove/maps/drums-only.toml");
+        let map =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/tactus-glove/maps/drums-only.toml");
         cmd.arg("--stem")
             .arg(format!("drums={}", song.join("drums.flac").display()))
             .arg("--map")
@@ -39,7 +44,11 @@ fn score(song: &Path, isolated: bool, args: &[&str]) -> Vec<(f64, f64, f64)> {
     }
     cmd.args(args);
     let out = cmd.output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let out = Command::new(env!("CARGO_BIN_EXE_tactus"))
         .arg("eval")
         .arg(&feat)
@@ -49,8 +58,13 @@ fn score(song: &Path, isolated: bool, args: &[&str]) -> Vec<(f64, f64, f64)> {
         .arg(&ev)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let e: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&ev).unwrap()).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let e: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&ev).unwrap()).unwrap();
     CLASSES
         .iter()
         .map(|c| {
@@ -84,7 +98,11 @@ fn pooled(isolated: bool, args: &[&str]) -> Vec<(f64, f64, f64)> {
         .map(|(tp, est, truth)| {
             let p = if est > 0.0 { tp / est } else { 0.0 };
             let r = if truth > 0.0 { tp / truth } else { 0.0 };
-            let f = if p + r > 0.0 { 2.0 * p * r / (p + r) } else { 0.0 };
+            let f = if p + r > 0.0 {
+                2.0 * p * r / (p + r)
+            } else {
+                0.0
+            };
             (p, r, f)
         })
         .collect()
@@ -93,13 +111,20 @@ fn pooled(isolated: bool, args: &[&str]) -> Vec<(f64, f64, f64)> {
 fn check(name: &str, got: &[(f64, f64, f64)], floors: [f64; 4]) {
     eprintln!("{name}: {:?}", got);
     for ((c, (p, r, f)), floor) in CLASSES.iter().zip(got).zip(floors) {
-        assert!(*f >= floor, "{name} {c}: F {f:.2} (P {p:.2} R {r:.2}) below {floor}");
+        assert!(
+            *f >= floor,
+            "{name} {c}: F {f:.2} (P {p:.2} R {r:.2}) below {floor}"
+        );
     }
 }
 
 #[test]
 fn held_out_isolated_drums() {
-    check("isolated, classes, offline", &pooled(true, &[]), ISOLATED_FLOORS);
+    check(
+        "isolated, classes, offline",
+        &pooled(true, &[]),
+        ISOLATED_FLOORS,
+    );
 }
 
 #[test]
@@ -112,7 +137,12 @@ fn streaming_is_within_a_few_hits_of_offline() {
     let off = pooled(true, &[]);
     let st = pooled(true, &["--mode", "streaming"]);
     for (c, (a, b)) in CLASSES.iter().zip(off.iter().zip(&st)) {
-        assert!((a.2 - b.2).abs() <= 0.05, "{c}: offline F {:.3}, streaming F {:.3}", a.2, b.2);
+        assert!(
+            (a.2 - b.2).abs() <= 0.05,
+            "{c}: offline F {:.3}, streaming F {:.3}",
+            a.2,
+            b.2
+        );
     }
 }
 
@@ -121,7 +151,10 @@ fn the_band_method_stays_available_and_is_worse() {
     let bands = pooled(true, &["--drums", "bands"]);
     let classes = pooled(true, &[]);
     let mean = |v: &[(f64, f64, f64)]| v.iter().map(|x| x.2).sum::<f64>() / 4.0;
-    assert!(mean(&bands) + 0.2 < mean(&classes), "bands {bands:?} vs classes {classes:?}");
+    assert!(
+        mean(&bands) + 0.2 < mean(&classes),
+        "bands {bands:?} vs classes {classes:?}"
+    );
 }
 
 /// Measured F on these two excerpts (kick, snare, toms, cymbals) minus about 0.1: isolated

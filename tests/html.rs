@@ -1,6 +1,6 @@
 //! The browser preview (`render --html`) in a real browser: Debian's headless Chromium opens
 //! the page at `#t=SECONDS`, and the dots carrying `up` in its DOM must equal the pattern
-//! file's frame `floor(t / bin_s)` (DESIGN.md "Browser preview"). Screenshots must show
+//! file's frame `floor(t / bin_s)` (docs/design.md "Files", browser preview). Screenshots must show
 //! the frame (the glove's pixels change with the frame and only with it). A last test plays
 //! the audio in headless Chromium and checks that the frame shown follows `currentTime`.
 //!

@@ -237,5 +237,8 @@ fn adtlib_drums_render_end_to_end() {
             }
         }
     }
-    assert!((kicks[0] - kicks[1]).abs() <= 3, "offline vs streaming kicks {kicks:?}");
+    assert!(
+        (kicks[0] - kicks[1]).abs() <= 3,
+        "offline vs streaming kicks {kicks:?}"
+    );
 }

@@ -20,7 +20,7 @@
 //!    and embedded in the binary ([`DrumModel::embedded`]).
 //! 5. **Peak picking** per class, causal: hop `i` is an onset of class `c` when the
 //!    activation `a_c[i] >= threshold_c`, the detector is *armed*, and at least
-//!    `min_interval` (50 ms, DESIGN.md) has passed since the last onset of that class. A
+//!    `min_interval` (50 ms, docs/design.md) has passed since the last onset of that class. A
 //!    class is disarmed by an onset and re-armed when its activation falls below the
 //!    threshold or below half the peak it reached since the onset (so two hits whose
 //!    activations overlap are both found). The onset's strength is `a_c[i]`.
@@ -119,7 +119,10 @@ impl DrumModel {
     pub fn from_bytes(mut bytes: &[u8]) -> Result<DrumModel, ConfigError> {
         let b = &mut bytes;
         if take(b, 8)? != MAGIC {
-            return Err(ConfigError::invalid("drum model", "not a Tactus drum model"));
+            return Err(ConfigError::invalid(
+                "drum model",
+                "not a Tactus drum model",
+            ));
         }
         let version = read_u32(b)?;
         if version != 1 {
@@ -137,8 +140,7 @@ impl DrumModel {
         if classes != CLASSES {
             return Err(ConfigError::invalid("drum model", "must have 4 classes"));
         }
-        if !(1..=512).contains(&bands) || past > 64 || future > 8 || !(1..=8).contains(&n_layers)
-        {
+        if !(1..=512).contains(&bands) || past > 64 || future > 8 || !(1..=8).contains(&n_layers) {
             return Err(ConfigError::invalid("drum model", "implausible shape"));
         }
         let mut layers = Vec::with_capacity(n_layers);
@@ -147,7 +149,10 @@ impl DrumModel {
             let n_in = read_u32(b)? as usize;
             let n_out = read_u32(b)? as usize;
             if n_in != expect || n_out == 0 || n_out > 4096 {
-                return Err(ConfigError::invalid("drum model", "layer shapes do not chain"));
+                return Err(ConfigError::invalid(
+                    "drum model",
+                    "layer shapes do not chain",
+                ));
             }
             let w = read_f32s(b, n_in * n_out)?;
             let bias = read_f32s(b, n_out)?;
@@ -160,7 +165,10 @@ impl DrumModel {
             expect = n_out;
         }
         if expect != CLASSES {
-            return Err(ConfigError::invalid("drum model", "last layer must have 4 outputs"));
+            return Err(ConfigError::invalid(
+                "drum model",
+                "last layer must have 4 outputs",
+            ));
         }
         let t = read_f32s(b, CLASSES)?;
         if !b.is_empty() {
@@ -312,7 +320,8 @@ impl Core {
                 onset: [false; CLASSES],
             };
             for c in 0..CLASSES {
-                f.onset[c] = self.pickers[c].step(i, act[c], self.model.thresholds[c], self.min_gap);
+                f.onset[c] =
+                    self.pickers[c].step(i, act[c], self.model.thresholds[c], self.min_gap);
             }
             self.next += 1;
             emit(i, f);
@@ -374,7 +383,8 @@ impl DrumTranscriber {
     /// Feeds a block; calls `emit(hop, frame)` for every decided hop, in order.
     pub fn process_frames(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
         let core = &mut self.core;
-        self.mel.process_bands(input, &mut |_, bands| core.push_frame(bands, emit));
+        self.mel
+            .process_bands(input, &mut |_, bands| core.push_frame(bands, emit));
     }
 
     /// Ends the stream: emits every remaining hop (`n.div_ceil(hop)` in all), holding the

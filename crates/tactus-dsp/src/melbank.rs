@@ -213,19 +213,18 @@ impl Core {
             *d = x * w;
         }
         // Lengths match by construction, so this cannot fail.
-        let _ = self
-            .fft
-            .process_with_scratch(&mut self.fft_in, &mut self.spectrum, &mut self.scratch);
+        let _ =
+            self.fft
+                .process_with_scratch(&mut self.fft_in, &mut self.spectrum, &mut self.scratch);
         for (p, c) in self.power.iter_mut().zip(&self.spectrum) {
             *p = (c.re * c.re + c.im * c.im).min(1e30);
         }
         for (o, t) in self.out.iter_mut().zip(&self.filters) {
-            let e: f32 = t
-                .w
-                .iter()
-                .zip(&self.power[t.start..t.start + t.w.len()])
-                .map(|(w, p)| w * p)
-                .sum();
+            let e: f32 =
+                t.w.iter()
+                    .zip(&self.power[t.start..t.start + t.w.len()])
+                    .map(|(w, p)| w * p)
+                    .sum();
             *o = (e + LOG_FLOOR).ln();
         }
     }

@@ -39,7 +39,7 @@
 //!    of a semitone).
 //!
 //! ## Defaults ([`ShsConfig::new`])
-//! Range 35–400 Hz (the bass stem of DESIGN.md); hop 10 ms; frame = the power of two nearest
+//! Range 35–400 Hz (the bass stem of docs/design.md); hop 10 ms; frame = the power of two nearest
 //! 200 ms (1024 samples at the bass chain's 4.9 kHz: a 3 Hz semitone at 50 Hz needs the
 //! length); `n_fft` = 2 × frame (4 × gains nothing measurable and costs about 4 % more CPU per render);
 //! H = 6 harmonics, w = 0.8, each searched ± 1/4 semitone,

@@ -81,7 +81,11 @@ fn kick_raw(len: usize) -> Vec<f32> {
             let t = i as f64 / SR as f64;
             let f = 50.0 + 100.0 * (-t / 0.03).exp();
             phase += 2.0 * std::f64::consts::PI * f / SR as f64;
-            let click = if i < 40 { 0.5 * (1.0 - i as f64 / 40.0) } else { 0.0 };
+            let click = if i < 40 {
+                0.5 * (1.0 - i as f64 / 40.0)
+            } else {
+                0.0
+            };
             ((phase.sin() * (-t / 0.15).exp()) * 0.8 + click) as f32
         })
         .collect()
@@ -253,7 +257,10 @@ fn mel_sees_exactly_its_lookahead() {
     let mut x = vec![0f32; 30_000];
     x[s] = 1.0;
     let got = mel_fast(&x, &cfg, 512);
-    let first = got.iter().position(|b| b[10] > LOG_FLOOR.ln() + 1.0).unwrap();
+    let first = got
+        .iter()
+        .position(|b| b[10] > LOG_FLOOR.ln() + 1.0)
+        .unwrap();
     let expect = (s + 1 - cfg.lookahead).div_ceil(cfg.hop);
     assert_eq!(first, expect);
     // And the stage emits hop `first` as soon as sample first*hop + lookahead - 1 has
@@ -293,7 +300,11 @@ fn naive_forward(m: &DrumModel, input: &[f32]) -> Vec<f64> {
             for c in 0..l.n_in {
                 s += l.w[r * l.n_in + c] as f64 * h[c];
             }
-            *out = if li + 1 == m.layers.len() { s } else { s.max(0.0) };
+            *out = if li + 1 == m.layers.len() {
+                s
+            } else {
+                s.max(0.0)
+            };
         }
         h = o;
     }
@@ -310,14 +321,21 @@ fn forward_matches_naive_f64() {
     a.iter_mut().for_each(|v| *v = 1e6);
     b.iter_mut().for_each(|v| *v = -1e6);
     for _ in 0..50 {
-        let window: Vec<f32> = (0..m.input_len()).map(|_| -10.0 + 10.0 * rng.next_f32()).collect();
+        let window: Vec<f32> = (0..m.input_len())
+            .map(|_| -10.0 + 10.0 * rng.next_f32())
+            .collect();
         let mut input = vec![0f32; m.input_len()];
         m.assemble(&window, &mut input);
         assert!(input.iter().all(|&v| v <= 0.0 && v >= m.floor));
         let fast = m.forward(&input, &mut a, &mut b);
         let slow = naive_forward(&m, &input);
         for c in 0..CLASSES {
-            assert!((fast[c] as f64 - slow[c]).abs() < 1e-4, "{} vs {}", fast[c], slow[c]);
+            assert!(
+                (fast[c] as f64 - slow[c]).abs() < 1e-4,
+                "{} vs {}",
+                fast[c],
+                slow[c]
+            );
         }
     }
 }
@@ -424,15 +442,24 @@ fn onset_comes_out_within_the_stated_latency() {
     let frames = transcribe(&x, 4096);
     let before = (s + 1).saturating_sub(lat) / hop;
     for f in &frames[..before.saturating_sub(1)] {
-        assert_eq!(f.activation, frames[0].activation, "nothing changes before the hit");
+        assert_eq!(
+            f.activation, frames[0].activation,
+            "nothing changes before the hit"
+        );
     }
     // The kick is found, within ±50 ms of the hit, and nothing fires elsewhere.
     assert!(!events.is_empty(), "the kick was not found");
     for &(i, c) in &events {
         let dt = (i * hop) as f64 - s as f64;
-        assert!(dt.abs() <= 0.05 * SR as f64, "class {c} onset {dt} samples from the hit");
+        assert!(
+            dt.abs() <= 0.05 * SR as f64,
+            "class {c} onset {dt} samples from the hit"
+        );
     }
-    assert!(events.iter().any(|&(_, c)| c == 0), "no kick onset: {events:?}");
+    assert!(
+        events.iter().any(|&(_, c)| c == 0),
+        "no kick onset: {events:?}"
+    );
 }
 
 #[test]
@@ -446,7 +473,9 @@ fn silence_and_hard_inputs() {
     bad[300] = f32::NEG_INFINITY;
     let b = transcribe(&bad, 777);
     assert!(b.iter().all(|f| f.activation.iter().all(|v| v.is_finite())));
-    let sq: Vec<f32> = (0..20_000).map(|i| if (i / 50) % 2 == 0 { 1.0 } else { -1.0 }).collect();
+    let sq: Vec<f32> = (0..20_000)
+        .map(|i| if (i / 50) % 2 == 0 { 1.0 } else { -1.0 })
+        .collect();
     let q = transcribe(&sq, 512);
     assert!(q.iter().all(|f| f.activation.iter().all(|v| v.is_finite())));
     assert!(transcribe(&[], 1).is_empty());

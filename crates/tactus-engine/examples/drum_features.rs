@@ -33,7 +33,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Err(format!("{}: needs 44.1 kHz, got {sr}", args[1]).into());
     }
     let mut x: Vec<f32> = match mode {
-        "iso" | "mix" => d.left.iter().zip(&d.right).map(|(l, r)| 0.5 * (l + r)).collect(),
+        "iso" | "mix" => d
+            .left
+            .iter()
+            .zip(&d.right)
+            .map(|(l, r)| 0.5 * (l + r))
+            .collect(),
         "sep" => {
             let stems = StemSet::default().with(Stem::Drums);
             let mut sep = SpectralSeparator::new(sr, stems, SpectralConfig::default())?;

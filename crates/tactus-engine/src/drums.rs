@@ -9,8 +9,8 @@
 
 use tactus_dsp::binner::{bin_beats, BeatBinner};
 use tactus_dsp::drums::{DrumFrame, DrumModel, DrumTranscriber, CLASSES};
-use tactus_dsp::rms::{gate_offline, Rms, StreamingGate, GATE_BELOW_DB};
 use tactus_dsp::melbank::MelConfig;
+use tactus_dsp::rms::{gate_offline, Rms, StreamingGate, GATE_BELOW_DB};
 use tactus_dsp::{Band, ConfigError, HopStage};
 
 use crate::track::{Geometry, Mode, GATE_DECAY_DB_PER_S};
@@ -187,7 +187,11 @@ impl ClassTrack {
     /// A track with a given model.
     pub fn with_model(geo: Geometry, model: DrumModel) -> Result<Self, ConfigError> {
         let det = DrumTranscriber::with_model(geo.sample_rate, model)?;
-        Self::with_detector(geo, Detector::Embedded(det), MelConfig::drums(geo.sample_rate).hop)
+        Self::with_detector(
+            geo,
+            Detector::Embedded(det),
+            MelConfig::drums(geo.sample_rate).hop,
+        )
     }
 
     /// A track running ADTLib (`model`: `models/adtlib.onnx`), in its streaming window

@@ -658,7 +658,7 @@ impl Engine {
         (0..self.total_bins()).map(|k| self.frame(k)).collect()
     }
 
-    /// Builds the features file contents (DESIGN.md "Files") of a finished stream.
+    /// Builds the features file contents (docs/design.md "Files") of a finished stream.
     pub fn features(&self) -> tactus_glove::Features {
         let mut out = tactus_glove::Features {
             hop_s: 0.01,

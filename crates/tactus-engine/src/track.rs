@@ -1,4 +1,4 @@
-//! Per-stem feature tracks: the chains of DESIGN.md from a mono stem signal to bins.
+//! Per-stem feature tracks: the chains of docs/design.md from a mono stem signal to bins.
 //!
 //! * [`PitchTrack`]: denoised melodic stem → pitch tracker (YIN or pYIN) + RMS per hop →
 //!   RMS gate → Tukey fences → discretizer → level per bin.
@@ -24,7 +24,7 @@ use tactus_dsp::tukey::{reject_outliers_offline_min_iqr, SlidingTukey, TUKEY_K};
 use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
 use tactus_dsp::{ConfigError, HopStage, SampleStage};
 
-/// Statistics mode (DESIGN.md "One engine, two drivers").
+/// Statistics mode (docs/design.md "One engine, two drivers").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Mode {
     /// Whole-track fences, ranges and gate reference: paper-faithful, for `render`.
@@ -125,7 +125,7 @@ pub struct Geometry {
     pub level_rule: LevelRule,
 }
 
-/// Denoising front end of a stem (DESIGN.md: Butterworth high-pass order 4, then a
+/// Denoising front end of a stem (docs/design.md: Butterworth high-pass order 4, then a
 /// 3-sample median).
 pub struct Denoise {
     hp: SosFilter,

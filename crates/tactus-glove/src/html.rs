@@ -1,4 +1,4 @@
-//! The browser preview (`render --html PAGE.html`, DESIGN.md "Browser preview", a contract):
+//! The browser preview (`render --html PAGE.html`, docs/design.md "Files", browser preview, a contract):
 //! one self-contained HTML page that plays the song and animates the glove in sync with it.
 //!
 //! [`render_page`] takes a [`Pattern`], its [`Features`] and the bytes of the song file and
