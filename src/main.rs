@@ -44,7 +44,7 @@ enum ModeArg {
     Streaming,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, Debug, ValueEnum)]
 enum DrumsArg {
     /// Per-instrument transcriber embedded in Tactus (default).
     Classes,
@@ -98,10 +98,11 @@ struct EngineArgs {
     /// Pitch tracker.
     #[arg(long, value_enum, default_value = "auto")]
     pitch: PitchArg,
-    /// Drum transcription: classes (embedded per-instrument transcriber), bands (the
-    /// paper's band-pass) or adtlib (ONNX, --drum-model models/adtlib.onnx).
-    #[arg(long, value_enum, default_value = "classes")]
-    drums: DrumsArg,
+    /// Drum transcription: classes (embedded per-instrument transcriber; the default for
+    /// render and play), bands (the paper's band-pass; the default for live) or adtlib
+    /// (ONNX, --drum-model models/adtlib.onnx).
+    #[arg(long, value_enum)]
+    drums: Option<DrumsArg>,
     /// ONNX model for --drums adtlib (made by models/setup_adtlib.sh).
     #[arg(long)]
     drum_model: Option<PathBuf>,
@@ -132,7 +133,7 @@ impl EngineArgs {
             !matches!(self.levels_rule, LevelRuleArg::Follow),
             "--levels-rule",
         );
-        add(!matches!(self.drums, DrumsArg::Classes), "--drums");
+        add(self.drums.is_some(), "--drums");
         add(self.drum_model.is_some(), "--drum-model");
         v
     }
@@ -356,10 +357,15 @@ fn check_writable(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// The engine configuration from the command line. `default_drums` applies when `--drums`
+/// is not given: the per-instrument transcriber for `render` and `play`, the band method for
+/// `live` (on audio captured through a sound server the transcriber caught about half of
+/// the sampled kicks in `tests/live.rs`; README, "Known weaknesses").
 fn engine_config(
     e: &EngineArgs,
     mode: Mode,
     default_bin_ms: u32,
+    default_drums: DrumsArg,
 ) -> Result<(EngineConfig, Vec<(Stem, PathBuf)>)> {
     let model = |name: &str| -> Result<PathBuf> {
         e.model.clone().ok_or_else(|| {
@@ -404,7 +410,7 @@ fn engine_config(
         },
         map,
         separator,
-        drums: match e.drums {
+        drums: match e.drums.unwrap_or(default_drums) {
             DrumsArg::Classes => DrumMethod::Classes,
             DrumsArg::Bands => DrumMethod::Bands,
             DrumsArg::Adtlib => DrumMethod::AdtLib(e.drum_model.clone().ok_or_else(|| {
@@ -615,7 +621,7 @@ fn run(cli: Cli) -> Result<()> {
                 ModeArg::Offline => Mode::Offline,
                 ModeArg::Streaming => Mode::Streaming,
             };
-            let (config, stems) = engine_config(&engine, mode, 100)?;
+            let (config, stems) = engine_config(&engine, mode, 100, DrumsArg::Classes)?;
             let export_kinds = export
                 .iter()
                 .map(|p| export_kind(p))
