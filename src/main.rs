@@ -96,8 +96,9 @@ struct EngineArgs {
     #[arg(long)]
     map: Option<PathBuf>,
     /// Pitch tracker.
-    #[arg(long, value_enum, default_value = "auto")]
-    pitch: PitchArg,
+    /// [default: auto for render and play; pyin for live]
+    #[arg(long, value_enum)]
+    pitch: Option<PitchArg>,
     /// Drum transcription: classes (embedded per-instrument transcriber; the default for
     /// render and play), bands (the paper's band-pass; the default for live) or adtlib
     /// (ONNX, --drum-model models/adtlib.onnx).
@@ -128,7 +129,7 @@ impl EngineArgs {
         add(self.bin_ms.is_some(), "--bin-ms");
         add(self.levels != 8, "--levels");
         add(self.map.is_some(), "--map");
-        add(!matches!(self.pitch, PitchArg::Auto), "--pitch");
+        add(self.pitch.is_some(), "--pitch");
         add(
             !matches!(self.levels_rule, LevelRuleArg::Follow),
             "--levels-rule",
@@ -357,15 +358,18 @@ fn check_writable(path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// The engine configuration from the command line. `default_drums` applies when `--drums`
-/// is not given: the per-instrument transcriber for `render` and `play`, the band method for
-/// `live` (on audio captured through a sound server the transcriber caught about half of
-/// the sampled kicks in `tests/live.rs`; README, "Known weaknesses").
+/// The engine configuration from the command line. With `live`, options not given default
+/// to what live capture has been validated with (README, "Known weaknesses"): drums by the
+/// band method (the per-instrument transcriber caught about half of the sampled kicks of
+/// `tests/live.rs` on captured audio) and pYIN for the bass (the harmonic-sum tracker's
+/// 204 ms look-ahead releases frames in bursts that the sink coalesces, losing one-bin
+/// drum pulses). `render` and `play` default to the per-instrument transcriber and the
+/// harmonic-sum bass tracker.
 fn engine_config(
     e: &EngineArgs,
     mode: Mode,
     default_bin_ms: u32,
-    default_drums: DrumsArg,
+    live: bool,
 ) -> Result<(EngineConfig, Vec<(Stem, PathBuf)>)> {
     let model = |name: &str| -> Result<PathBuf> {
         e.model.clone().ok_or_else(|| {
@@ -398,7 +402,11 @@ fn engine_config(
         bin_ms,
         levels: e.levels,
         mode,
-        pitch: match e.pitch {
+        pitch: match e.pitch.unwrap_or(if live {
+            PitchArg::Pyin
+        } else {
+            PitchArg::Auto
+        }) {
             PitchArg::Yin => PitchMethod::Yin,
             PitchArg::Pyin => PitchMethod::Pyin,
             PitchArg::Shs => PitchMethod::Shs,
@@ -410,7 +418,11 @@ fn engine_config(
         },
         map,
         separator,
-        drums: match e.drums.unwrap_or(default_drums) {
+        drums: match e.drums.unwrap_or(if live {
+            DrumsArg::Bands
+        } else {
+            DrumsArg::Classes
+        }) {
             DrumsArg::Classes => DrumMethod::Classes,
             DrumsArg::Bands => DrumMethod::Bands,
             DrumsArg::Adtlib => DrumMethod::AdtLib(e.drum_model.clone().ok_or_else(|| {
@@ -621,7 +633,7 @@ fn run(cli: Cli) -> Result<()> {
                 ModeArg::Offline => Mode::Offline,
                 ModeArg::Streaming => Mode::Streaming,
             };
-            let (config, stems) = engine_config(&engine, mode, 100, DrumsArg::Classes)?;
+            let (config, stems) = engine_config(&engine, mode, 100, false)?;
             let export_kinds = export
                 .iter()
                 .map(|p| export_kind(p))

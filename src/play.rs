@@ -44,7 +44,7 @@ use tactus_engine::Mode;
 use tactus_glove::{Frame, Pattern};
 use tactus_transport::{lead_ms, open_sink, play_frames, SinkOptions, SinkSpec, WallClock};
 
-use crate::{engine_config, stop_flag, DrumsArg, EngineArgs};
+use crate::{engine_config, stop_flag, EngineArgs};
 
 /// How far, in ms of song time, the renderer may run ahead of the play clock: it blocks
 /// when `RENDER_AHEAD_MS / bin_ms` frames (80 at 25 ms) wait to be sent.
@@ -157,7 +157,7 @@ pub fn run(
         anyhow::bail!("--audio is for a pattern file's song; a song plays itself");
     }
 
-    let (config, stems) = engine_config(engine, Mode::Streaming, 25, DrumsArg::Classes)?;
+    let (config, stems) = engine_config(engine, Mode::Streaming, 25, false)?;
     let bin_ms = config.bin_ms;
     let ahead = (RENDER_AHEAD_MS.div_ceil(bin_ms) as usize).max(8);
     let req = RenderRequest {
@@ -459,7 +459,7 @@ pub fn live(
     use tactus_engine::{Engine, ENGINE_RATE};
 
     let spec: SinkSpec = glove.parse().with_context(|| format!("--glove {glove}"))?;
-    let (config, stems) = engine_config(engine, Mode::Streaming, 25, DrumsArg::Bands)?;
+    let (config, stems) = engine_config(engine, Mode::Streaming, 25, true)?;
     if !stems.is_empty() {
         anyhow::bail!("--stem cannot be used with live: there is only the captured mix");
     }
