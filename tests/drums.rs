@@ -158,7 +158,7 @@ fn the_band_method_stays_available_and_is_worse() {
 }
 
 /// Measured F on these two excerpts (kick, snare, toms, cymbals) minus about 0.1: isolated
-/// 0.90 / 0.48 / 0.46 / 0.72, mix 0.91 / 0.50 / 0.39 / 0.69. The excerpts are short (4–26
+/// 0.96 / 0.60 / 0.63 / 0.85, mix 0.96 / 0.62 / 0.56 / 0.81. The excerpts are short (4–26
 /// hits per class), so these are regression guards; README's table has the corpus figures.
-const ISOLATED_FLOORS: [f64; 4] = [0.80, 0.38, 0.36, 0.62];
-const MIX_FLOORS: [f64; 4] = [0.81, 0.40, 0.29, 0.59];
+const ISOLATED_FLOORS: [f64; 4] = [0.86, 0.50, 0.53, 0.75];
+const MIX_FLOORS: [f64; 4] = [0.86, 0.52, 0.46, 0.71];

@@ -33,7 +33,7 @@ import numpy as np
 
 CLASSES = ["kick", "snare", "toms", "cymbals"]
 BANDS = 48
-PAST, FUTURE = 7, 1
+PAST, FUTURE = 7, 4
 FLOOR = -16.0
 LOG_FLOOR = float(np.log(np.float32(1e-20)))
 HOP_S = 0.01
@@ -350,15 +350,19 @@ def report(ps, thr, sets):
 
 
 def main():
+    global PAST, FUTURE
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
-    ap.add_argument("--epochs", type=int, default=12)
+    ap.add_argument("--epochs", type=int, default=20)
     ap.add_argument("--hidden", default="128,64")
     ap.add_argument("--conds", default="iso,sep")
     ap.add_argument("--out", default=DEFAULT_OUT)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--report-only", action="store_true")
     ap.add_argument("--no-augment", action="store_true")
+    ap.add_argument("--past", type=int, default=PAST, help="context frames before the hop")
+    ap.add_argument("--future", type=int, default=FUTURE,
+                    help="context frames after the hop (each adds 10 ms of latency)")
     ap.add_argument("--held-out", default=",".join(HELD_OUT),
                     help="families never trained or tuned on (comma-separated)")
     ap.add_argument("--report-md", default=None)
@@ -366,6 +370,7 @@ def main():
     if not os.path.exists(dumper_path()):
         sys.exit("build the feature dumper first: cargo build --release -p tactus-engine --example drum_features")
     conds = a.conds.split(",")
+    PAST, FUTURE = a.past, a.future
     HELD_OUT[:] = a.held_out.split(",")
     items = songs(a.data)
     tr, va, ho = split(items)

@@ -8,7 +8,7 @@
 //! # Algorithm
 //! 1. **Front end**: [`MelBank`] with [`MelConfig::drums`]: 48 log mel bands of a 2048-point
 //!    frame every 10 ms, frame `i` ending 512 samples (11.6 ms) after hop `i`.
-//! 2. **Context**: the mel frames `i - past ..= i + future` (7 + 1 at the defaults), oldest
+//! 2. **Context**: the mel frames `i - past ..= i + future` (7 + 4 in the embedded model), oldest
 //!    first, band inside. Frames before the stream are silence (`ln 1e-20`).
 //! 3. **Level invariance**: subtract the largest value of the whole context window and clip
 //!    at `floor` (-16, about 70 dB below it): a gain change of the input changes nothing
@@ -27,11 +27,12 @@
 //!
 //! # Latency
 //! Hop `i` is decided once mel frame `i + future` exists:
-//! `latency_samples() = lookahead + future · hop` = 512 + 441 = 953 samples = **21.6 ms**
-//! at 44.1 kHz. Peak picking adds nothing.
+//! `latency_samples() = lookahead + future · hop` = 512 + 4 · 441 = 2,276 samples =
+//! **51.6 ms** at 44.1 kHz with the embedded model (a model trained with `future = 1` gives
+//! 21.6 ms; `models/drums/README.md`). Peak picking adds nothing.
 //!
 //! # Cost
-//! One 2048-point real FFT and one network pass (about 60 k multiply-adds with the
+//! One 2048-point real FFT and one network pass (about 82 k multiply-adds with the
 //! embedded model) per 10 ms. No allocation after [`DrumTranscriber::new`].
 
 use crate::melbank::{MelBank, MelConfig, LOG_FLOOR};
