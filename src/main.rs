@@ -402,11 +402,10 @@ fn engine_config(
         bin_ms,
         levels: e.levels,
         mode,
-        pitch: match e.pitch.unwrap_or(if live {
-            PitchArg::Pyin
-        } else {
-            PitchArg::Auto
-        }) {
+        pitch: match e
+            .pitch
+            .unwrap_or(if live { PitchArg::Pyin } else { PitchArg::Auto })
+        {
             PitchArg::Yin => PitchMethod::Yin,
             PitchArg::Pyin => PitchMethod::Pyin,
             PitchArg::Shs => PitchMethod::Shs,

@@ -206,8 +206,8 @@ impl DrumModel {
         a[..input.len()].copy_from_slice(input);
         let (mut src, mut dst) = (a, b);
         for (li, l) in self.layers.iter().enumerate() {
-            for o in 0..l.n_out {
-                let row = &l.w[o * l.n_in..(o + 1) * l.n_in];
+            let rows = l.w.chunks_exact(l.n_in).zip(&l.b);
+            for (d, (row, bias)) in dst[..l.n_out].iter_mut().zip(rows) {
                 let mut acc = [0f32; 8];
                 let (rc, rr) = row.split_at(l.n_in / 8 * 8);
                 let (xc, xr) = src[..l.n_in].split_at(l.n_in / 8 * 8);
@@ -216,11 +216,11 @@ impl DrumModel {
                         acc[k] += wc[k] * xc[k];
                     }
                 }
-                let mut s: f32 = acc.iter().sum::<f32>() + l.b[o];
+                let mut s: f32 = acc.iter().sum::<f32>() + bias;
                 for (w, x) in rr.iter().zip(xr) {
                     s += w * x;
                 }
-                dst[o] = if li == last { s } else { s.max(0.0) };
+                *d = if li == last { s } else { s.max(0.0) };
             }
             std::mem::swap(&mut src, &mut dst);
         }
@@ -320,9 +320,9 @@ impl Core {
                 activation: act,
                 onset: [false; CLASSES],
             };
-            for c in 0..CLASSES {
-                f.onset[c] =
-                    self.pickers[c].step(i, act[c], self.model.thresholds[c], self.min_gap);
+            let thresholds = self.model.thresholds;
+            for (c, (onset, picker)) in f.onset.iter_mut().zip(&mut self.pickers).enumerate() {
+                *onset = picker.step(i, act[c], thresholds[c], self.min_gap);
             }
             self.next += 1;
             emit(i, f);

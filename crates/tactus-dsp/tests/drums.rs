@@ -291,6 +291,8 @@ fn dc_to_the_end_is_not_a_step() {
 // ---------------------------------------------------------------------------------------
 // The network.
 
+// The oracle is written the obvious way, with indices.
+#[allow(clippy::needless_range_loop)]
 fn naive_forward(m: &DrumModel, input: &[f32]) -> Vec<f64> {
     let mut h: Vec<f64> = input.iter().map(|&v| v as f64).collect();
     for (li, l) in m.layers.iter().enumerate() {
@@ -422,7 +424,11 @@ fn onset_comes_out_within_the_stated_latency() {
     add_at(&mut x, &kick(20_000), s);
     let mut t = DrumTranscriber::new(SR).unwrap();
     let lat = t.latency_samples();
-    assert_eq!(lat, 512 + 4 * 441, "11.6 ms frame look-ahead + 4 context hops");
+    assert_eq!(
+        lat,
+        512 + 4 * 441,
+        "11.6 ms frame look-ahead + 4 context hops"
+    );
     let hop = t.hop();
     let mut fed = 0usize;
     let mut events = Vec::new();

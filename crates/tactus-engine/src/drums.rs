@@ -307,8 +307,8 @@ impl ClassTrack {
                     }
                 }
             }
-            for c in 0..CLASSES {
-                self.bins[c] = bin_beats(&flags[c], self.hop, self.geo.bin_samples);
+            for (bins, f) in self.bins.iter_mut().zip(&flags) {
+                *bins = bin_beats(f, self.hop, self.geo.bin_samples);
             }
         }
     }
