@@ -78,7 +78,7 @@ use std::sync::Arc;
 use realfft::num_complex::Complex;
 use realfft::{RealFftPlanner, RealToComplex};
 
-use crate::framer::Framer;
+use crate::framer::{hann_unit_power, Framer};
 use crate::{ConfigError, HopStage};
 
 /// What the detector emits for every hop.
@@ -274,11 +274,7 @@ impl OnsetDetector {
         let framer = Framer::new(cfg.frame, cfg.hop)?;
         let n = cfg.frame;
         let fft = RealFftPlanner::<f32>::new().plan_fft_forward(n);
-        let hann: Vec<f64> = (0..n)
-            .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos())
-            .collect();
-        let norm = 1.0 / hann.iter().map(|w| w * w).sum::<f64>().sqrt();
-        let window = hann.iter().map(|w| (w * norm) as f32).collect();
+        let window = hann_unit_power(n);
         let (lo, hi) = cfg.bin_range();
         let bins = hi - lo;
         // The flux peak of an impulse comes about frame/4 samples before it (steepest part

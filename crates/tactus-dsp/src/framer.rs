@@ -9,6 +9,17 @@
 use crate::sanitize::sanitize_sample;
 use crate::ConfigError;
 
+/// The periodic Hann window of `n` samples scaled by `1 / sqrt(Σ w²)` (computed in f64), so
+/// that white noise of variance σ² has `E|X[k]|² = σ²` in every bin of its FFT: the window
+/// of the spectral front ends ([`crate::flux`], [`crate::melbank`]).
+pub fn hann_unit_power(n: usize) -> Vec<f32> {
+    let hann: Vec<f64> = (0..n)
+        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos())
+        .collect();
+    let norm = 1.0 / hann.iter().map(|w| w * w).sum::<f64>().sqrt();
+    hann.iter().map(|w| (w * norm) as f32).collect()
+}
+
 /// Cuts a sample stream into centred, overlapping frames. See the module docs.
 #[derive(Debug, Clone)]
 pub struct Framer {

@@ -46,7 +46,7 @@ use std::sync::Arc;
 use realfft::num_complex::Complex;
 use realfft::{RealFftPlanner, RealToComplex};
 
-use crate::framer::Framer;
+use crate::framer::{hann_unit_power, Framer};
 use crate::{ConfigError, HopStage};
 
 /// The floor inside the logarithm.
@@ -236,12 +236,8 @@ impl MelBank {
         cfg.validate()?;
         let n = cfg.frame;
         let fft = RealFftPlanner::<f32>::new().plan_fft_forward(n);
-        let hann: Vec<f64> = (0..n)
-            .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos())
-            .collect();
-        let norm = 1.0 / hann.iter().map(|w| w * w).sum::<f64>().sqrt();
         let core = Core {
-            window: hann.iter().map(|w| (w * norm) as f32).collect(),
+            window: hann_unit_power(n),
             fft_in: fft.make_input_vec(),
             spectrum: fft.make_output_vec(),
             scratch: fft.make_scratch_vec(),
