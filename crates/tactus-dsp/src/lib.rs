@@ -54,6 +54,7 @@ pub mod sanitize;
 pub mod shs;
 pub mod sos;
 pub mod tukey;
+mod viterbi;
 pub mod yin;
 
 /// Errors raised when a stage is constructed with impossible parameters.

@@ -471,13 +471,7 @@ impl Tracker {
     }
 
     fn best_state(&self) -> usize {
-        let mut best = 0;
-        for (s, &v) in self.delta.iter().enumerate() {
-            if v > self.delta[best] {
-                best = s;
-            }
-        }
-        best
+        crate::viterbi::best_state(&self.delta)
     }
 
     /// Emits every hop not yet decided, backtracking from the best final state.
@@ -487,14 +481,16 @@ impl Tracker {
         if end <= start {
             return;
         }
-        let m = self.n_bins;
-        let mut s = self.best_state();
-        for h in (start..end).rev() {
-            self.path[h - start] = s as u16;
-            if h > start {
-                s = self.bp[(h % self.ring) * 2 * m + s] as usize;
-            }
-        }
+        let last = self.best_state();
+        let states = 2 * self.n_bins;
+        crate::viterbi::backtrack(
+            &mut self.path,
+            &self.bp,
+            self.ring,
+            states,
+            (start, end),
+            last,
+        );
         for h in start..end {
             emit(h, self.output(h, self.path[h - start] as usize));
         }

@@ -569,13 +569,7 @@ impl Tracker {
     }
 
     fn best_state(&self) -> usize {
-        let mut best = 0;
-        for (s, &v) in self.delta.iter().enumerate() {
-            if v > self.delta[best] {
-                best = s;
-            }
-        }
-        best
+        crate::viterbi::best_state(&self.delta)
     }
 
     fn flush(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
@@ -583,14 +577,16 @@ impl Tracker {
         if end <= start {
             return;
         }
-        let m = self.m;
-        let mut s = self.best_state();
-        for h in (start..end).rev() {
-            self.path[h - start] = s as u16;
-            if h > start {
-                s = self.bp[(h % self.ring) * (m + 1) + s] as usize;
-            }
-        }
+        let last = self.best_state();
+        let states = self.m + 1;
+        crate::viterbi::backtrack(
+            &mut self.path,
+            &self.bp,
+            self.ring,
+            states,
+            (start, end),
+            last,
+        );
         for h in start..end {
             emit(h, self.output(h, self.path[h - start] as usize));
         }
