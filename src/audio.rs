@@ -173,6 +173,55 @@ struct CaptureShared {
     error: AtomicBool,
 }
 
+/// What the live profile asks of the capture device (issue 13). Both are requests: a
+/// device that cannot honour one keeps its default.
+///
+/// * `rate`: capture at the engine's rate where the device offers it, so no resampler
+///   stands between the device and the engine (ours needs 40 ms of look-ahead for
+///   48 → 44.1 kHz; PulseAudio's ALSA plugin converts with a few samples of delay).
+/// * `period_frames`: the ALSA period. The default of PulseAudio's ALSA plugin is large
+///   (the capture path alone measured about 350 ms with it, `benches/live_latency.py`); a
+///   short period hands each block to the engine as soon as it exists.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct CaptureRequest {
+    /// Sample rate to ask for, Hz.
+    pub rate: Option<u32>,
+    /// Period (callback block) to ask for, frames.
+    pub period_frames: Option<u32>,
+}
+
+impl CaptureRequest {
+    /// The device configuration to open: the default one with the requested rate (where a
+    /// supported range of the default sample format and channel count contains it) and the
+    /// requested period (clamped to what the range supports).
+    fn choose(
+        &self,
+        device: &cpal::Device,
+        default: cpal::SupportedStreamConfig,
+    ) -> (cpal::SupportedStreamConfig, cpal::StreamConfig) {
+        let mut sc = default;
+        if let (Some(rate), Ok(ranges)) = (self.rate, device.supported_input_configs()) {
+            let fits = ranges
+                .filter(|r| {
+                    r.sample_format() == sc.sample_format() && r.channels() == sc.channels()
+                })
+                .find_map(|r| r.try_with_sample_rate(rate));
+            if let Some(c) = fits {
+                sc = c;
+            }
+        }
+        let mut config = sc.config();
+        if let Some(p) = self.period_frames {
+            let p = match *sc.buffer_size() {
+                cpal::SupportedBufferSize::Range { min, max } => p.clamp(min, max),
+                cpal::SupportedBufferSize::Unknown => p,
+            };
+            config.buffer_size = cpal::BufferSize::Fixed(p);
+        }
+        (sc, config)
+    }
+}
+
 /// A running capture stream; see the module docs.
 pub struct Capture {
     _stream: cpal::Stream,
@@ -261,13 +310,16 @@ impl Capture {
     ///
     /// Errors: no input device, an unknown name (the message lists the available ones), a
     /// sample format cpal cannot convert, or the device refusing to open.
-    pub fn open(name: Option<&str>) -> Result<Capture> {
+    ///
+    /// Issue 13: `req` asks for a rate and a period (the live profile, see
+    /// [`CaptureRequest`]); what the device refuses falls back to its default.
+    pub fn open_with(name: Option<&str>, req: &CaptureRequest) -> Result<Capture> {
         let device = find_device(name, true)?;
         let label = device_id(&device);
         let sc = device
             .default_input_config()
             .with_context(|| format!("input device {label}"))?;
-        let config = sc.config();
+        let (sc, config) = req.choose(&device, sc);
         let rate = config.sample_rate;
         let capacity = ((rate as f64 * CAPTURE_RING_S) as usize).max(4096);
         let (producer, consumer) = rtrb::RingBuffer::new(capacity);

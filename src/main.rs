@@ -11,7 +11,9 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use tactus_dsp::Stem;
 use tactus_engine::render::{render, RenderRequest};
-use tactus_engine::{DrumMethod, EngineConfig, LevelRule, Mode, PitchMethod, SeparatorChoice};
+use tactus_engine::{
+    DrumMethod, EngineConfig, LevelRule, Mode, PitchMethod, Profile, SeparatorChoice,
+};
 use tactus_glove::{write_atomic, GloveMap, OutputSet};
 
 #[cfg(feature = "audio")]
@@ -64,6 +66,16 @@ enum PitchArg {
     Shs,
 }
 
+/// Latency profile (issue 13; `tactus_engine::profile`).
+#[derive(Clone, Copy, ValueEnum)]
+enum ProfileArg {
+    /// Quality first: every stage as documented (render and play).
+    Full,
+    /// Milliseconds first: drums on the mix, short frames, no look-ahead, 10 ms bins with
+    /// 50 ms pin pulses (the default for live).
+    Live,
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 enum LevelRuleArg {
     Follow,
@@ -86,7 +98,8 @@ struct EngineArgs {
     /// Supply a stem and skip separating it: NAME=PATH, NAME in drums, bass, vocals, other.
     #[arg(long = "stem", value_name = "NAME=PATH")]
     stems: Vec<String>,
-    /// Bin length in milliseconds (default: 100 for render, as in the paper; 25 for play).
+    /// Bin length in milliseconds (default: 100 for render, as in the paper; 25 for play;
+    /// 10 with the live profile).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     bin_ms: Option<u32>,
     /// Pitch levels per melodic stem (1..=8: a level raises one of a cell's 8 dots).
@@ -111,6 +124,10 @@ struct EngineArgs {
     /// paper's rule.
     #[arg(long, value_enum, default_value = "follow")]
     levels_rule: LevelRuleArg,
+    /// Latency profile: full (quality first) or live (under 40 ms to the rhythm pins;
+    /// 10 ms bins). [default: live for live, full for render and play]
+    #[arg(long, value_enum)]
+    profile: Option<ProfileArg>,
 }
 
 impl EngineArgs {
@@ -136,6 +153,7 @@ impl EngineArgs {
         );
         add(self.drums.is_some(), "--drums");
         add(self.drum_model.is_some(), "--drum-model");
+        add(self.profile.is_some(), "--profile");
         v
     }
 }
@@ -389,7 +407,16 @@ fn engine_config(
     if e.levels == 0 {
         bail!("--levels must be at least 1");
     }
-    let bin_ms = e.bin_ms.unwrap_or(default_bin_ms);
+    let profile = match e.profile {
+        Some(ProfileArg::Live) => Profile::Live,
+        Some(ProfileArg::Full) => Profile::Full,
+        None if live => Profile::Live,
+        None => Profile::Full,
+    };
+    let bin_ms = e.bin_ms.unwrap_or(match profile {
+        Profile::Live => tactus_engine::profile::BIN_MS,
+        Profile::Full => default_bin_ms,
+    });
     if bin_ms == 0 {
         bail!("--bin-ms must be at least 1");
     }
@@ -429,6 +456,7 @@ fn engine_config(
             })?),
         },
         threads: e.threads.map_or(0, |n| n as usize),
+        profile,
         ..EngineConfig::default()
     };
     Ok((cfg, stems))

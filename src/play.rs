@@ -446,6 +446,10 @@ fn send_clocked(
     Ok((sent, skipped))
 }
 
+/// Capture period the live profile asks for (issue 13): 256 frames, 5.8 ms at 44.1 kHz.
+#[cfg(feature = "audio")]
+const LIVE_PERIOD_FRAMES: u32 = 256;
+
 /// `tactus live`: capture → engine → glove, until Ctrl-C or `seconds` of captured audio.
 #[cfg(feature = "audio")]
 pub fn live(
@@ -464,9 +468,16 @@ pub fn live(
         anyhow::bail!("--stem cannot be used with live: there is only the captured mix");
     }
     let bin_ms = config.bin_ms;
+    let live_profile = config.profile == tactus_engine::Profile::Live;
     let mut eng = Engine::new(config)?;
     let stop = stop_flag();
-    let mut cap = crate::audio::Capture::open(input)?;
+    // Issue 13: the live profile asks the device for the engine's rate (no resampler) and
+    // a short period (PulseAudio's default period alone cost about 350 ms).
+    let request = crate::audio::CaptureRequest {
+        rate: live_profile.then_some(ENGINE_RATE),
+        period_frames: live_profile.then_some(LIVE_PERIOD_FRAMES),
+    };
+    let mut cap = crate::audio::Capture::open_with(input, &request)?;
     let rate = cap.rate();
     let mut rs = StreamResampler::new(rate, ENGINE_RATE, 1)?;
     let sink = open_sink(&spec, &SinkOptions::default())?;
@@ -521,11 +532,14 @@ pub fn live(
             if let Some(e) = eng.take_separator_error() {
                 break Err(e.into());
             }
-            let ready = eng.ready_bins();
+            // Issue 13: each finger group goes out as soon as it is final
+            // (Engine::live_frame); the pitch chains' look-ahead no longer holds back the
+            // rhythm pins.
+            let ready = eng.live_ready_bins();
             let first = cap.first_callback();
             while delivered < ready {
                 sink.send_frame(
-                    eng.frame(delivered),
+                    eng.live_frame(delivered),
                     (delivered as u64 * u64::from(bin_ms)) as u32,
                 );
                 if let Some((t0, n0)) = first {
@@ -567,23 +581,40 @@ pub fn live(
     result?;
 
     let ms = |n: usize, r: u32| n as f64 * 1e3 / f64::from(r);
-    let mut budget = vec![(
-        "resample to 44.1 kHz".to_string(),
-        ms(rs.latency_samples(), ENGINE_RATE),
-    )];
-    budget.extend(eng.latency_budget());
-    budget.push(("link".into(), (lead_ms(&spec, 0) - 50) as f64));
-    budget.push(("pin rise".into(), 50.0));
+    // Issue 13: the capture device's own buffering on its own line, then one budget per
+    // finger group (stages in samples at the engine rate and in ms).
+    let period = cap.first_callback().map_or(0, |(_, n)| n);
     eprintln!(
-        "tactus: latency budget (after the device's input buffer, {:.1} ms reported):",
+        "tactus: capture: {} at {} Hz, period {period} frames ({:.1} ms), input delay {:.1} ms reported by the device",
+        cap.device(),
+        rate,
+        ms(period as usize, rate),
         cap.input_delay_ms()
     );
-    let mut sum = 0.0;
-    for (name, v) in &budget {
-        sum += v;
-        eprintln!("    {name:<44} {v:>7.1} ms");
+    for (group, stages) in eng.latency_paths() {
+        let mut budget: Vec<(String, usize)> = Vec::new();
+        if rate != ENGINE_RATE {
+            budget.push((
+                format!("resample {rate} -> {ENGINE_RATE} Hz"),
+                rs.latency_samples(),
+            ));
+        }
+        budget.extend(stages);
+        eprintln!(
+            "tactus: latency budget, {group} fingers ({} profile; after the capture period):",
+            eng.config().profile.name()
+        );
+        let mut sum = 0.0;
+        for (name, n) in &budget {
+            let v = ms(*n, ENGINE_RATE);
+            sum += v;
+            eprintln!("    {name:<44} {n:>6} samples {v:>7.1} ms");
+        }
+        let link = (lead_ms(&spec, 0) - 50) as f64;
+        eprintln!("    {:<44} {:>14} {link:>7.1} ms", "link", "");
+        eprintln!("    {:<44} {:>14} {:>7.1} ms", "total to the glove", "", sum + link);
+        eprintln!("    {:<44} {:>14} {:>7.1} ms", "(then the pin rise)", "", 50.0);
     }
-    eprintln!("    {:<44} {sum:>7.1} ms", "total");
     latencies.sort_by(f64::total_cmp);
     if !latencies.is_empty() {
         let p = |q: f64| {

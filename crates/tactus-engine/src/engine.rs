@@ -18,6 +18,7 @@ use tactus_separate::{SegmentStats, Separator, StemOutput, StemSet};
 
 use crate::drums::{ClassTrack, DrumMethod};
 use crate::notes::{NoteTrack, PitchNotes};
+use crate::profile::{self, Profile};
 use crate::track::{Denoise, Geometry, LevelRule, Mode, OnsetTrack, PitchMethod, PitchTrack};
 use crate::EngineError;
 
@@ -73,6 +74,8 @@ pub struct EngineConfig {
     /// Intra-op threads for the ONNX separators (ONNX Runtime); 0 = the available cores
     /// ([`std::thread::available_parallelism`]). Nothing else uses it.
     pub threads: usize,
+    /// Latency profile ([`crate::profile`]): `Full` by default, `Live` for the live glove.
+    pub profile: Profile,
 }
 
 impl Default for EngineConfig {
@@ -90,6 +93,7 @@ impl Default for EngineConfig {
             supplied: StemSet::default(),
             pipeline: false,
             threads: 0,
+            profile: Profile::Full,
         }
     }
 }
@@ -144,7 +148,7 @@ impl StemChain {
         } else {
             60.0
         };
-        let pitch = match (pitch, stem.pitch_range_hz()) {
+        let pitch = match (pitch, profile::pitch_range_hz(geo.profile, stem)) {
             (Some(m), Some((lo, hi))) => Some(PitchTrack::new(geo, lo, hi, m)?),
             _ => None,
         };
@@ -392,6 +396,11 @@ pub struct Engine {
     t_separate: Duration,
     /// A separated block (with copies of the supplied stems) waiting for the chains.
     pending: Option<PendingBlock>,
+    /// The live profile's drums listen to the mono mix (`profile::DRUMS_ON_MIX`): its
+    /// samples of the current block.
+    mix: Vec<f32>,
+    /// Whether the drum chain takes the mix rather than a separated stem.
+    drums_on_mix: bool,
 }
 
 impl Engine {
@@ -412,6 +421,7 @@ impl Engine {
             levels: cfg.levels,
             mode: cfg.mode,
             level_rule: cfg.level_rule,
+            profile: cfg.profile,
         };
         let needs = cfg.map.needs();
         let mut chains = Vec::new();
@@ -421,6 +431,8 @@ impl Engine {
                 .pitch
                 .contains(&stem)
                 .then_some(match (cfg.pitch, stem) {
+                    // The harmonic-sum tracker's 200 ms frames do not fit the live budget.
+                    (PitchMethod::Auto, _) if cfg.profile == Profile::Live => PitchMethod::Pyin,
                     (PitchMethod::Auto, Stem::Bass) => PitchMethod::Shs,
                     (PitchMethod::Auto, _) => PitchMethod::Pyin,
                     (m, _) => m,
@@ -432,7 +444,9 @@ impl Engine {
                 Vec::new()
             };
             chains.push(StemChain::new(stem, geo, pitch, notes, &bands, &cfg.drums)?);
-            if !cfg.supplied.contains(stem) {
+            let on_mix =
+                stem == Stem::Drums && cfg.profile == Profile::Live && profile::DRUMS_ON_MIX;
+            if !cfg.supplied.contains(stem) && !on_mix {
                 separated = separated.with(stem);
             }
         }
@@ -441,8 +455,15 @@ impl Engine {
         } else {
             Some(match &cfg.separator {
                 SeparatorChoice::Spectral => Box::new(
-                    SpectralSeparator::new(cfg.sample_rate, separated, SpectralConfig::default())
-                        .map_err(|e| EngineError::Config(e.to_string()))?,
+                    SpectralSeparator::new(
+                        cfg.sample_rate,
+                        separated,
+                        match cfg.profile {
+                            Profile::Full => SpectralConfig::default(),
+                            Profile::Live => profile::separator(),
+                        },
+                    )
+                    .map_err(|e| EngineError::Config(e.to_string()))?,
                 ),
                 SeparatorChoice::Spleeter(model) => {
                     onnx_separator(false, model, cfg.sample_rate, separated, cfg.threads)?
@@ -456,7 +477,13 @@ impl Engine {
                 ),
             })
         };
+        let drums_on_mix = cfg.profile == Profile::Live
+            && profile::DRUMS_ON_MIX
+            && !cfg.supplied.contains(Stem::Drums)
+            && chains.iter().any(|c| c.stem == Stem::Drums);
         Ok(Engine {
+            mix: Vec::with_capacity(if drums_on_mix { PARALLEL_MIN_BLOCK * 4 } else { 0 }),
+            drums_on_mix,
             sep_out: StemOutput::with_capacity(separated, PARALLEL_MIN_BLOCK * 4),
             cfg,
             geo,
@@ -506,6 +533,22 @@ impl Engine {
     /// Feeds one block of the mix (planar stereo; pass the same slice twice for mono) and
     /// the same span of every supplied stem. All slices must have the same length.
     pub fn process(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {
+        if self.drums_on_mix {
+            // The live profile: the drum chain takes the mono mix, as if it were supplied.
+            let mut mix = std::mem::take(&mut self.mix);
+            mix.clear();
+            mix.extend(left.iter().zip(right).map(|(l, r)| 0.5 * (l + r)));
+            let mut with_mix: Vec<(Stem, &[f32])> = Vec::with_capacity(supplied.len() + 1);
+            with_mix.extend_from_slice(supplied);
+            with_mix.push((Stem::Drums, &mix));
+            self.process_inner(left, right, &with_mix);
+            self.mix = mix;
+        } else {
+            self.process_inner(left, right, supplied);
+        }
+    }
+
+    fn process_inner(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {
         self.n_in += left.len();
         if self.cfg.pipeline && self.separator.is_some() {
             self.process_pipelined(left, right, supplied);
@@ -625,23 +668,37 @@ impl Engine {
         }
     }
 
-    /// The features of bin `k` (missing values count as silent).
+    /// The features of bin `k` (missing values count as silent). In the live profile a
+    /// beat or onset stays on for [`Profile::pulse_bins`] bins (the minimum pin pulse).
     pub fn bin_features(&self, k: usize) -> BinFeatures {
+        self.features_shifted(k, &|_| 0)
+    }
+
+    /// Bin `k` with chain `c` contributing its bin `k − shift(c)` (silent before bin 0).
+    fn features_shifted(&self, k: usize, shift: &dyn Fn(&StemChain) -> usize) -> BinFeatures {
+        let hold = self.cfg.profile.pulse_bins(self.cfg.bin_ms);
+        // Any beat among the `hold` bins ending at `kb`.
+        let held = |bins: &[bool], kb: usize| {
+            (kb.saturating_sub(hold - 1)..=kb).any(|j| bins.get(j).copied().unwrap_or(false))
+        };
         let mut f = BinFeatures::default();
         for c in &self.chains {
+            let Some(kb) = k.checked_sub(shift(c)) else {
+                continue;
+            };
             let si = c.stem as usize;
             if let Some(p) = &c.pitch {
-                f.level[si] = p.bins.get(k).copied().unwrap_or(0);
+                f.level[si] = p.bins.get(kb).copied().unwrap_or(0);
             }
             if let Some(n) = &c.notes {
-                f.note_onset[si] = n.bins().get(k).copied().unwrap_or(false);
+                f.note_onset[si] = held(n.bins(), kb);
             }
             for b in &c.bands {
-                f.band_beat[b.band as usize] = b.track.bins.get(k).copied().unwrap_or(false);
+                f.band_beat[b.band as usize] = held(&b.track.bins, kb);
             }
             if let Some(t) = &c.classes {
                 for &band in &c.class_bands {
-                    f.band_beat[band as usize] = t.bins_of(band).get(k).copied().unwrap_or(false);
+                    f.band_beat[band as usize] = held(t.bins_of(band), kb);
                 }
             }
         }
@@ -651,6 +708,123 @@ impl Engine {
     /// The glove frame of bin `k`.
     pub fn frame(&self, k: usize) -> Frame {
         self.cfg.map.render(&self.bin_features(k), self.cfg.levels)
+    }
+
+    /// Input samples (engine rate) after which chain `c`'s hop is final: its own
+    /// look-ahead plus the separator's where it takes a separated stem.
+    fn chain_latency(&self, c: &StemChain) -> usize {
+        let separated = !(self.drums_on_mix && c.stem == Stem::Drums)
+            && !self.cfg.supplied.contains(c.stem);
+        let sep = match (&self.separator, separated) {
+            (Some(s), true) => s.latency_samples(),
+            _ => 0,
+        };
+        c.latency_samples() + sep
+    }
+
+    /// Bins by which chain `c` trails the fastest chain in [`Engine::live_frame`]: its
+    /// extra latency rounded up to whole bins.
+    fn live_shift(&self, c: &StemChain) -> usize {
+        let fastest = self
+            .chains
+            .iter()
+            .map(|c| self.chain_latency(c))
+            .min()
+            .unwrap_or(0);
+        (self.chain_latency(c) - fastest).div_ceil(self.geo.bin_samples)
+    }
+
+    /// Bins ready for [`Engine::live_frame`]: frame `k` exists once the fastest chain has
+    /// finished bin `k` and every slower chain bin `k − shift`.
+    pub fn live_ready_bins(&self) -> usize {
+        let mut ready = usize::MAX;
+        for c in &self.chains {
+            let mut n = usize::MAX;
+            if let Some(p) = &c.pitch {
+                n = n.min(p.bins.len());
+            }
+            if let Some(t) = &c.notes {
+                n = n.min(t.bins().len());
+            }
+            for b in &c.bands {
+                n = n.min(b.track.bins.len());
+            }
+            if let Some(t) = &c.classes {
+                n = n.min(t.ready_bins());
+            }
+            if n != usize::MAX {
+                ready = ready.min(n + self.live_shift(c));
+            }
+        }
+        if ready == usize::MAX {
+            self.n_in / self.geo.bin_samples
+        } else {
+            ready
+        }
+    }
+
+    /// The frame the live glove shows when bin `k` of the fastest chain is final: every
+    /// chain contributes the newest bin it has finished by then, `k − shift` (see
+    /// [`crate::profile`]). A pure function of the bins, so it does not depend on how the
+    /// input was cut into blocks. With every chain equally fast it is [`Engine::frame`].
+    pub fn live_frame(&self, k: usize) -> Frame {
+        let f = self.features_shifted(k, &|c| self.live_shift(c));
+        self.cfg.map.render(&f, self.cfg.levels)
+    }
+
+    /// The latency of each finger group as stages in samples at the engine rate, for the
+    /// live glove (each group is shown as soon as it is final): `(group, [(stage,
+    /// samples)])`. Groups: "rhythm" (drum chain), "pitch" (melodic chains; the slowest).
+    pub fn latency_paths(&self) -> Vec<(String, Vec<(String, usize)>)> {
+        let mut out = Vec::new();
+        let sep = self.separator.as_ref().map(|s| (s.name(), s.latency_samples()));
+        let denoise = |c: &StemChain| c.denoise.latency_samples();
+        let drums = self.chains.iter().find(|c| c.stem == Stem::Drums);
+        if let Some(c) = drums {
+            let mut v = Vec::new();
+            if !self.drums_on_mix && !self.cfg.supplied.contains(Stem::Drums) {
+                if let Some((name, l)) = sep {
+                    v.push((format!("separator ({name})"), l));
+                }
+            } else if self.drums_on_mix {
+                v.push(("separator: none, drums on the mix".into(), 0));
+            }
+            v.push(("denoise (high-pass + 3-median)".into(), denoise(c)));
+            let det = c.latency_samples() - denoise(c);
+            let what = if c.classes.is_some() {
+                format!("drum transcriber ({})", self.cfg.drums.name())
+            } else {
+                "band onsets (causal flux)".to_string()
+            };
+            v.push((what, det));
+            out.push(("rhythm".to_string(), v));
+        }
+        let slowest = self
+            .chains
+            .iter()
+            .filter(|c| c.pitch.is_some())
+            .max_by_key(|c| self.chain_latency(c));
+        if let Some(c) = slowest {
+            let mut v = Vec::new();
+            if !self.cfg.supplied.contains(c.stem) {
+                if let Some((name, l)) = sep {
+                    v.push((format!("separator ({name})"), l));
+                }
+            }
+            v.push(("denoise (high-pass + 3-median)".into(), denoise(c)));
+            v.push((
+                format!("{} pitch (frame/2 + Viterbi lag)", c.stem.name()),
+                c.latency_samples() - denoise(c),
+            ));
+            out.push(("pitch".to_string(), v));
+        }
+        for (_, v) in &mut out {
+            v.push((
+                format!("bin ({} ms)", self.cfg.bin_ms),
+                self.geo.bin_samples,
+            ));
+        }
+        out
     }
 
     /// All frames of a finished stream, one per bin.

@@ -13,6 +13,7 @@
 pub mod drums;
 pub mod engine;
 pub mod notes;
+pub mod profile;
 pub mod render;
 pub mod resample;
 pub mod source;
@@ -20,6 +21,7 @@ pub mod track;
 
 pub use drums::DrumMethod;
 pub use engine::{Engine, EngineConfig, SeparatorChoice, ENGINE_RATE};
+pub use profile::Profile;
 pub use track::{LevelRule, Mode, PitchMethod};
 
 use std::path::PathBuf;

@@ -123,6 +123,8 @@ pub struct Geometry {
     pub mode: Mode,
     /// How voiced pitch becomes levels.
     pub level_rule: LevelRule,
+    /// Latency profile ([`crate::profile`]).
+    pub profile: crate::profile::Profile,
 }
 
 /// Denoising front end of a stem (docs/design.md: Butterworth high-pass order 4, then a
@@ -275,7 +277,15 @@ impl PitchTrack {
     ) -> Result<Self, ConfigError> {
         let factor = Decimator::factor_for(geo.sample_rate, fmax_hz);
         let rate = geo.sample_rate / factor as u32;
-        let yc = YinConfig::new(rate, fmin_hz, fmax_hz);
+        let mut yc = YinConfig::new(rate, fmin_hz, fmax_hz);
+        // The live profile: two periods of fmin per frame and a short Viterbi lag.
+        let live = geo.profile == crate::profile::Profile::Live;
+        let lag_hops = if live {
+            yc.frame = crate::profile::pitch_frame(rate, fmin_hz);
+            crate::profile::PITCH_LAG_HOPS
+        } else {
+            PYIN_LAG_HOPS
+        };
         // The tracker and the RMS run at the decimated rate; the binner and the time
         // stamps use engine-rate samples (`hop = yc.hop * factor`).
         let hop = yc.hop * factor;
@@ -285,13 +295,13 @@ impl PitchTrack {
             PitchMethod::Pyin | PitchMethod::Auto => {
                 let mut pc = PyinConfig::new(rate, fmin_hz, fmax_hz);
                 pc.yin = yc.clone();
-                pc.lag_hops = PYIN_LAG_HOPS;
+                pc.lag_hops = lag_hops;
                 Box::new(Pyin::new(pc)?)
             }
             PitchMethod::Shs => {
                 let mut sc = ShsConfig::new(rate, fmin_hz, fmax_hz);
                 sc.hop = yc.hop;
-                sc.lag_hops = PYIN_LAG_HOPS;
+                sc.lag_hops = lag_hops;
                 Box::new(Shs::new(sc)?)
             }
         };

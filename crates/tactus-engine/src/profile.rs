@@ -1,0 +1,107 @@
+//! Latency profiles (issue 13, "Live means live").
+//!
+//! The same engine serves the offline renderer and the live glove; a [`Profile`] picks how
+//! much look-ahead each stage may spend on quality.
+//!
+//! * [`Profile::Full`] (default for `render` and `play`): the stages as documented in their
+//!   modules: the spectral separator's 2048-point frames and 2 frames of look-ahead
+//!   (92.9 ms), pYIN / harmonic-sum pitch with a 100 ms Viterbi lag, the per-instrument drum
+//!   transcriber on the separated drum stem (51.6 ms), 100 ms (render) or 25 ms (play) bins.
+//! * [`Profile::Live`] (chosen by `tactus live`): every stage trades quality for
+//!   milliseconds, each latency stated in samples below (44.1 kHz) and checked against an
+//!   impulse or a step in `tests/profile.rs`:
+//!
+//! | stage | live profile | latency (samples @ 44.1 kHz) |
+//! |---|---|---|
+//! | drums | no separator: the drum detector listens to the mix ([`DRUMS_ON_MIX`]) | 0 |
+//! | drum onsets (bands) | Butterworth bands, spectral flux with 1024-point frames every 5 ms, causal rising-edge picking | 72 (1.6 ms) |
+//! | drum onsets (classes) | the per-instrument transcriber with its 1-hop live model where one is embedded, else its 4-hop model | 512 + future · 441 |
+//! | separator (melodic stems) | spectral, [`separator`]: 1024-point frames, hop 256, no look-ahead | 1023 (23.2 ms) |
+//! | pitch | pYIN with a frame of two periods of the stem's lowest note ([`pitch_frame`]) and a Viterbi lag of [`PITCH_LAG_HOPS`] hops; bass from 41 Hz (E1) | bass 1089 + 882, vocals 633 + 882, other 882 + 882 |
+//! | bins | [`BIN_MS`] = 10 ms | 441 |
+//! | pins | a beat holds its pins up for [`PULSE_MS`] = 50 ms, so a 50 ms pin rise completes | 0 |
+//!
+//! The glove shows each feature as soon as it is final: the rhythm cells of frame `k` are
+//! those of bin `k`, a pitch cell shows the bin that its slower chain had finished when the
+//! rhythm of bin `k` was ([`crate::Engine::live_frame`]), so a pitch tracker's look-ahead
+//! never holds the drums back.
+//!
+//! Statistics warm up at once: the gate reference is a running maximum (the first loud hop
+//! sets it), the flux threshold is a 100 ms mean, and the level range starts from a prior
+//! span around the first note (`track::PriorRange`).
+
+use tactus_separate::spectral::SpectralConfig;
+
+/// How much look-ahead the stages may spend; see the module docs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Profile {
+    /// Quality first: every stage as documented in its module.
+    #[default]
+    Full,
+    /// Milliseconds first: short frames, no look-ahead, 10 ms bins, pin pulses.
+    Live,
+}
+
+impl Profile {
+    /// Name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Profile::Full => "full",
+            Profile::Live => "live",
+        }
+    }
+
+    /// Bins a beat keeps its pins up for (1 = the bin itself) at `bin_ms`.
+    pub fn pulse_bins(self, bin_ms: u32) -> usize {
+        match self {
+            Profile::Full => 1,
+            Profile::Live => PULSE_MS.div_ceil(bin_ms.max(1)).max(1) as usize,
+        }
+    }
+}
+
+/// Bin length of the live profile, ms.
+pub const BIN_MS: u32 = 10;
+/// Shortest pin pulse of the live profile, ms: the glove's pins take 50 ms to rise
+/// (`tactus_glove::RISE_MS`), so a one-bin beat of 10 ms would be lowered before it is felt.
+pub const PULSE_MS: u32 = 50;
+/// The drum detector listens to the mix in the live profile (no separator latency).
+pub const DRUMS_ON_MIX: bool = true;
+/// Viterbi lag of the live profile's pitch trackers, hops (10 ms each).
+pub const PITCH_LAG_HOPS: usize = 2;
+/// Lowest bass note the live profile tracks, Hz (E1, the lowest string of a bass guitar):
+/// its frame holds two periods of it ([`pitch_frame`]).
+pub const BASS_FMIN_HZ: f32 = 41.0;
+
+/// The live profile's spectral separator for the melodic stems: 1024-point frames every
+/// 256 samples, the harmonic median over 12 past frames (70 ms) and none ahead.
+/// Latency `n_fft − 1` = 1023 samples (23.2 ms at 44.1 kHz).
+pub fn separator() -> SpectralConfig {
+    SpectralConfig {
+        n_fft: 1024,
+        hop: 256,
+        past_frames: 12,
+        lookahead_frames: 0,
+        percussive_half_bins: 4,
+        ..SpectralConfig::default()
+    }
+}
+
+/// The live profile's YIN frame at `rate` for a lowest pitch `fmin_hz`: the shortest even
+/// frame whose half (YIN's integration window) holds the longest period plus one lag, i.e.
+/// two periods of `fmin_hz` (the full profile rounds this up to a power of two, up to twice
+/// as long). Latency: half the frame.
+pub fn pitch_frame(rate: u32, fmin_hz: f32) -> usize {
+    let tau_max = (rate as f64 / fmin_hz.max(1.0) as f64).ceil() as usize;
+    (2 * (tau_max + 1)).next_multiple_of(2).max(64)
+}
+
+/// The search range of a melodic stem in a profile: the live profile starts the bass at
+/// [`BASS_FMIN_HZ`].
+pub fn pitch_range_hz(profile: Profile, stem: tactus_dsp::Stem) -> Option<(f32, f32)> {
+    let (lo, hi) = stem.pitch_range_hz()?;
+    Some(match (profile, stem) {
+        (Profile::Live, tactus_dsp::Stem::Bass) => (lo.max(BASS_FMIN_HZ), hi),
+        _ => (lo, hi),
+    })
+}
