@@ -109,7 +109,7 @@ struct EngineArgs {
     #[arg(long)]
     map: Option<PathBuf>,
     /// Pitch tracker.
-    /// [default: auto for render and play; pyin for live]
+    /// [default: auto (the live profile: YIN on short frames); pyin for live --profile full]
     #[arg(long, value_enum)]
     pitch: Option<PitchArg>,
     /// Drum transcription: classes (embedded per-instrument transcriber; the default for
@@ -429,10 +429,11 @@ fn engine_config(
         bin_ms,
         levels: e.levels,
         mode,
-        pitch: match e
-            .pitch
-            .unwrap_or(if live { PitchArg::Pyin } else { PitchArg::Auto })
-        {
+        pitch: match e.pitch.unwrap_or(if live && profile == Profile::Full {
+            PitchArg::Pyin
+        } else {
+            PitchArg::Auto
+        }) {
             PitchArg::Yin => PitchMethod::Yin,
             PitchArg::Pyin => PitchMethod::Pyin,
             PitchArg::Shs => PitchMethod::Shs,

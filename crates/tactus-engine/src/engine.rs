@@ -382,6 +382,21 @@ fn feed(chains: &mut [StemChain], sep_out: &StemOutput, supplied: &[(Stem, &[f32
     }
 }
 
+/// What a chain contributes to a frame ([`Engine::live_frame`] shifts each on its own).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Feature {
+    /// Pitch level (cell 0 of a melodic finger).
+    Level,
+    /// Note onsets (cell 1 of a melodic finger).
+    Notes,
+    /// Drum beats (bands or classes).
+    Beats,
+}
+
+impl Feature {
+    const ALL: [Feature; 3] = [Feature::Level, Feature::Notes, Feature::Beats];
+}
+
 /// A separated block and copies of the supplied stems' same span, waiting for the chains.
 type PendingBlock = (StemOutput, Vec<(Stem, Vec<f32>)>);
 
@@ -431,8 +446,11 @@ impl Engine {
                 .pitch
                 .contains(&stem)
                 .then_some(match (cfg.pitch, stem) {
-                    // The harmonic-sum tracker's 200 ms frames do not fit the live budget.
-                    (PitchMethod::Auto, _) if cfg.profile == Profile::Live => PitchMethod::Pyin,
+                    // The live profile: plain YIN on short frames (pYIN's HMM needs more
+                    // than its 2-hop lag to trust a new note: 89 ms against 60 ms median
+                    // in benches/live_latency.py; the harmonic-sum tracker's 200 ms
+                    // frames do not fit at all).
+                    (PitchMethod::Auto, _) if cfg.profile == Profile::Live => PitchMethod::Yin,
                     (PitchMethod::Auto, Stem::Bass) => PitchMethod::Shs,
                     (PitchMethod::Auto, _) => PitchMethod::Pyin,
                     (m, _) => m,
@@ -671,11 +689,16 @@ impl Engine {
     /// The features of bin `k` (missing values count as silent). In the live profile a
     /// beat or onset stays on for [`Profile::pulse_bins`] bins (the minimum pin pulse).
     pub fn bin_features(&self, k: usize) -> BinFeatures {
-        self.features_shifted(k, &|_| 0)
+        self.features_shifted(k, &|_, _| 0)
     }
 
-    /// Bin `k` with chain `c` contributing its bin `k − shift(c)` (silent before bin 0).
-    fn features_shifted(&self, k: usize, shift: &dyn Fn(&StemChain) -> usize) -> BinFeatures {
+    /// Bin `k` with each feature of chain `c` taken from its bin `k − shift(c, feature)`
+    /// (silent before bin 0).
+    fn features_shifted(
+        &self,
+        k: usize,
+        shift: &dyn Fn(&StemChain, Feature) -> usize,
+    ) -> BinFeatures {
         let hold = self.cfg.profile.pulse_bins(self.cfg.bin_ms);
         // Any beat among the `hold` bins ending at `kb`.
         let held = |bins: &[bool], kb: usize| {
@@ -683,16 +706,16 @@ impl Engine {
         };
         let mut f = BinFeatures::default();
         for c in &self.chains {
-            let Some(kb) = k.checked_sub(shift(c)) else {
-                continue;
-            };
             let si = c.stem as usize;
-            if let Some(p) = &c.pitch {
+            if let (Some(p), Some(kb)) = (&c.pitch, k.checked_sub(shift(c, Feature::Level))) {
                 f.level[si] = p.bins.get(kb).copied().unwrap_or(0);
             }
-            if let Some(n) = &c.notes {
+            if let (Some(n), Some(kb)) = (&c.notes, k.checked_sub(shift(c, Feature::Notes))) {
                 f.note_onset[si] = held(n.bins(), kb);
             }
+            let Some(kb) = k.checked_sub(shift(c, Feature::Beats)) else {
+                continue;
+            };
             for b in &c.bands {
                 f.band_beat[b.band as usize] = held(&b.track.bins, kb);
             }
@@ -710,50 +733,68 @@ impl Engine {
         self.cfg.map.render(&self.bin_features(k), self.cfg.levels)
     }
 
-    /// Input samples (engine rate) after which chain `c`'s hop is final: its own
-    /// look-ahead plus the separator's where it takes a separated stem.
-    fn chain_latency(&self, c: &StemChain) -> usize {
+    /// Input samples (engine rate) after which a feature of chain `c` is final: its own
+    /// look-ahead plus the separator's where the chain takes a separated stem. `None`
+    /// when the chain does not compute that feature.
+    fn feature_latency(&self, c: &StemChain, what: Feature) -> Option<usize> {
         let separated = !(self.drums_on_mix && c.stem == Stem::Drums)
             && !self.cfg.supplied.contains(c.stem);
         let sep = match (&self.separator, separated) {
             (Some(s), true) => s.latency_samples(),
             _ => 0,
         };
-        c.latency_samples() + sep
+        let d = c.denoise.latency_samples() + sep;
+        let pitch = c.pitch.as_ref().map(|p| p.latency_samples());
+        match what {
+            Feature::Level => pitch.map(|l| l + d),
+            Feature::Notes => match &c.notes {
+                Some(n @ NoteTrack::Pitch(_)) => Some(pitch.unwrap_or(0) + n.latency_samples() + d),
+                Some(n) => Some(n.latency_samples() + d),
+                None => None,
+            },
+            Feature::Beats => {
+                let bands = c.bands.iter().map(|b| b.track.latency_samples()).max();
+                let classes = c.classes.as_ref().map(|t| t.latency_samples());
+                bands.max(classes).map(|l| l + d)
+            }
+        }
     }
 
-    /// Bins by which chain `c` trails the fastest chain in [`Engine::live_frame`]: its
-    /// extra latency rounded up to whole bins.
-    fn live_shift(&self, c: &StemChain) -> usize {
-        let fastest = self
-            .chains
+    /// The smallest latency of any feature the engine computes, samples.
+    fn fastest_latency(&self) -> usize {
+        self.chains
             .iter()
-            .map(|c| self.chain_latency(c))
+            .flat_map(|c| Feature::ALL.map(|w| self.feature_latency(c, w)))
+            .flatten()
             .min()
-            .unwrap_or(0);
-        (self.chain_latency(c) - fastest).div_ceil(self.geo.bin_samples)
+            .unwrap_or(0)
+    }
+
+    /// Bins by which a feature of chain `c` trails the fastest feature in
+    /// [`Engine::live_frame`]: its extra latency rounded up to whole bins.
+    fn live_shift(&self, c: &StemChain, what: Feature, fastest: usize) -> usize {
+        self.feature_latency(c, what)
+            .map_or(0, |l| l.saturating_sub(fastest).div_ceil(self.geo.bin_samples))
     }
 
     /// Bins ready for [`Engine::live_frame`]: frame `k` exists once the fastest chain has
     /// finished bin `k` and every slower chain bin `k − shift`.
     pub fn live_ready_bins(&self) -> usize {
+        let fastest = self.fastest_latency();
         let mut ready = usize::MAX;
         for c in &self.chains {
-            let mut n = usize::MAX;
+            let shift = |w| self.live_shift(c, w, fastest);
             if let Some(p) = &c.pitch {
-                n = n.min(p.bins.len());
+                ready = ready.min(p.bins.len() + shift(Feature::Level));
             }
             if let Some(t) = &c.notes {
-                n = n.min(t.bins().len());
+                ready = ready.min(t.bins().len() + shift(Feature::Notes));
             }
             for b in &c.bands {
-                n = n.min(b.track.bins.len());
+                ready = ready.min(b.track.bins.len() + shift(Feature::Beats));
             }
             if let Some(t) = &c.classes {
-                n = n.min(t.ready_bins());
-            }
-            if n != usize::MAX {
-                ready = ready.min(n + self.live_shift(c));
+                ready = ready.min(t.ready_bins() + shift(Feature::Beats));
             }
         }
         if ready == usize::MAX {
@@ -768,7 +809,8 @@ impl Engine {
     /// [`crate::profile`]). A pure function of the bins, so it does not depend on how the
     /// input was cut into blocks. With every chain equally fast it is [`Engine::frame`].
     pub fn live_frame(&self, k: usize) -> Frame {
-        let f = self.features_shifted(k, &|c| self.live_shift(c));
+        let fastest = self.fastest_latency();
+        let f = self.features_shifted(k, &|c, w| self.live_shift(c, w, fastest));
         self.cfg.map.render(&f, self.cfg.levels)
     }
 
@@ -803,7 +845,7 @@ impl Engine {
             .chains
             .iter()
             .filter(|c| c.pitch.is_some())
-            .max_by_key(|c| self.chain_latency(c));
+            .max_by_key(|c| self.feature_latency(c, Feature::Level));
         if let Some(c) = slowest {
             let mut v = Vec::new();
             if !self.cfg.supplied.contains(c.stem) {
@@ -814,7 +856,7 @@ impl Engine {
             v.push(("denoise (high-pass + 3-median)".into(), denoise(c)));
             v.push((
                 format!("{} pitch (frame/2 + Viterbi lag)", c.stem.name()),
-                c.latency_samples() - denoise(c),
+                c.pitch.as_ref().map_or(0, |p| p.latency_samples()),
             ));
             out.push(("pitch".to_string(), v));
         }

@@ -78,9 +78,9 @@ pub const BASS_FMIN_HZ: f32 = 41.0;
 /// Latency `n_fft − 1` = 1023 samples (23.2 ms at 44.1 kHz).
 pub fn separator() -> SpectralConfig {
     SpectralConfig {
-        n_fft: 1024,
-        hop: 256,
-        past_frames: 12,
+        n_fft: 512,
+        hop: 128,
+        past_frames: 4,
         lookahead_frames: 0,
         percussive_half_bins: 4,
         ..SpectralConfig::default()

@@ -1,0 +1,114 @@
+//! End-to-end latency of `tactus live` (issue 13), measured from outside the program by
+//! `benches/live_latency.py`: a private PulseAudio null sink as the microphone, `pacat`
+//! writing drum hits and tone bursts at wall-clock pace, `tactus live --glove serial:PTY`
+//! over a socat pty pair, and the wire protocol read with arrival times on the far end.
+//!
+//! What it asserts (the issue's targets, with the tolerance this loaded 2-core machine
+//! needs, see README "Live latency"):
+//! * rhythm fingers: p95 ≤ 40 ms from a click's samples reaching the sound server to the
+//!   first packet with a rhythm pin up (the target itself; measured 24–33 ms p95 with the
+//!   machine at load 9–11), at least 19 of 20 clicks felt (≥ 95 %), and no rhythm pin in
+//!   either 1.5 s window of silence;
+//! * pitch fingers: median ≤ 80 ms (the target) and p95 ≤ 120 ms: the target is 80 ms, and
+//!   measured p95 was 64–80 ms on a quiet machine but single bursts reached 100–120 ms at
+//!   load 10 (one late wake-up of the engine thread or the sink), so the test allows 40 ms
+//!   for one scheduling stall;
+//! * the capture line (the device's own buffering) is printed, and overruns are 0.
+//!
+//! Needs `pulseaudio`, `pactl`, `pacat`, `socat` and `python3`; without them it prints
+//! SKIPPED, and fails under `CI=true` (`.ci/run` installs them).
+#![cfg(feature = "audio")]
+
+use std::process::{Command, Stdio};
+
+mod common;
+
+fn have(program: &str) -> bool {
+    Command::new("sh")
+        .args(["-c", &format!("command -v {program}")])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+#[test]
+fn live_meets_the_latency_targets_end_to_end() {
+    for p in ["pulseaudio", "pactl", "pacat", "socat", "python3"] {
+        if !have(p) {
+            common::skip(&format!(
+                "live_meets_the_latency_targets_end_to_end: {p} is not installed \
+                 (apt-get install pulseaudio pulseaudio-utils libasound2-plugins socat python3; CI does)"
+            ));
+            return;
+        }
+    }
+    let d = tempfile::tempdir().unwrap();
+    let json = d.path().join("latency.json");
+    let out = Command::new("python3")
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/benches/live_latency.py"))
+        .args(["--tactus", env!("CARGO_BIN_EXE_tactus"), "--clicks", "20", "--tones", "10"])
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    eprintln!("{stdout}{stderr}");
+    assert!(out.status.success(), "live_latency.py failed");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let group = |name: &str| {
+        r["groups"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|g| g["group"] == name)
+            .unwrap_or_else(|| panic!("no group {name}"))
+            .clone()
+    };
+    let f = |g: &serde_json::Value, k: &str| g[k].as_f64().unwrap_or(f64::NAN);
+
+    let rhythm = group("rhythm (clicks)");
+    assert!(
+        f(&rhythm, "felt") >= 19.0,
+        "only {} of 20 clicks felt",
+        rhythm["felt"]
+    );
+    assert!(
+        f(&rhythm, "p95_ms") <= 40.0,
+        "rhythm p95 {:.1} ms > 40 ms",
+        f(&rhythm, "p95_ms")
+    );
+    let false_frames: Vec<u64> = r["false_rhythm"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    assert!(
+        false_frames.iter().all(|&n| n == 0),
+        "rhythm pins up in silence: {false_frames:?}"
+    );
+
+    let pitch = group("pitch (all tones)");
+    assert!(
+        f(&pitch, "felt") >= 9.0,
+        "only {} of 10 tone bursts shown",
+        pitch["felt"]
+    );
+    assert!(
+        f(&pitch, "median_ms") <= 80.0,
+        "pitch median {:.1} ms > 80 ms",
+        f(&pitch, "median_ms")
+    );
+    assert!(
+        f(&pitch, "p95_ms") <= 120.0,
+        "pitch p95 {:.1} ms > 120 ms",
+        f(&pitch, "p95_ms")
+    );
+
+    let live_err = r["runs"][0]["tactus_stderr"].as_str().unwrap();
+    assert!(live_err.contains("tactus: capture: "), "{live_err}");
+    assert!(live_err.contains("overruns 0 samples"), "{live_err}");
+}
