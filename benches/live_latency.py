@@ -348,6 +348,14 @@ def analyse(stim, writes, reader, err, args):
         ta, tb = t_of(a), t_of(min(b, len(writes) * CHUNK) - 1)
         res["false_rhythm"].append(sum(1 for t, c in pins if ta <= t < tb and rhythm(c)))
     res["tactus_stderr"] = err
+    # Every pins packet (arrival in s after the stimulus's first write, cells in hex), and
+    # the events on the same clock, for a closer look at an outlier.
+    w0 = writes[0]
+    res["timeline"] = {
+        "pins": [[round(t - w0, 4), c.hex()] for t, c in pins if t >= w0],
+        "clicks": [round(t_of(s) - w0, 4) for s in stim.clicks],
+        "tones": [[round(t_of(s) - w0, 4), f0] for s, f0 in stim.tones],
+    }
     return res
 
 

@@ -162,7 +162,7 @@ struct CaptureShared {
     base: Instant,
     first_cb_ns: AtomicU64,
     first_cb_frames: AtomicU64,
-    /// cpal's `callback − capture` for the first block, ns.
+    /// cpal's `callback − capture` for the latest block, ns.
     input_delay_ns: AtomicU64,
     callbacks: AtomicU64,
     frames: AtomicU64,
@@ -244,12 +244,14 @@ fn capture_callback<T>(
     f32: FromSample<T>,
 {
     let frames = data.len() / channels;
+    // Issue 13: the device's own buffering (cpal's `callback − capture`), kept for every
+    // block so the report shows the steady state, not the start-up.
+    let ts = info.timestamp();
+    let delay = ts.callback.saturating_duration_since(ts.capture);
+    shared
+        .input_delay_ns
+        .store(delay.as_nanos() as u64, Ordering::Relaxed);
     if shared.first_cb_ns.load(Ordering::Relaxed) == NONE {
-        let ts = info.timestamp();
-        let delay = ts.callback.saturating_duration_since(ts.capture);
-        shared
-            .input_delay_ns
-            .store(delay.as_nanos() as u64, Ordering::Relaxed);
         shared
             .first_cb_frames
             .store(frames as u64, Ordering::Relaxed);
@@ -409,7 +411,7 @@ impl Capture {
         })
     }
 
-    /// cpal's `callback − capture` delay of the first block, ms.
+    /// cpal's `callback − capture` delay of the latest block, ms.
     pub fn input_delay_ms(&self) -> f64 {
         self.shared.input_delay_ns.load(Ordering::Relaxed) as f64 / 1e6
     }
