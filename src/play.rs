@@ -612,8 +612,16 @@ pub fn live(
         }
         let link = (lead_ms(&spec, 0) - 50) as f64;
         eprintln!("    {:<44} {:>14} {link:>7.1} ms", "link", "");
-        eprintln!("    {:<44} {:>14} {:>7.1} ms", "total to the glove", "", sum + link);
-        eprintln!("    {:<44} {:>14} {:>7.1} ms", "(then the pin rise)", "", 50.0);
+        eprintln!(
+            "    {:<44} {:>14} {:>7.1} ms",
+            "total to the glove",
+            "",
+            sum + link
+        );
+        eprintln!(
+            "    {:<44} {:>14} {:>7.1} ms",
+            "(then the pin rise)", "", 50.0
+        );
     }
     latencies.sort_by(f64::total_cmp);
     if !latencies.is_empty() {

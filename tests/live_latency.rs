@@ -46,8 +46,18 @@ fn live_meets_the_latency_targets_end_to_end() {
     let d = tempfile::tempdir().unwrap();
     let json = d.path().join("latency.json");
     let out = Command::new("python3")
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/benches/live_latency.py"))
-        .args(["--tactus", env!("CARGO_BIN_EXE_tactus"), "--clicks", "20", "--tones", "10"])
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/benches/live_latency.py"
+        ))
+        .args([
+            "--tactus",
+            env!("CARGO_BIN_EXE_tactus"),
+            "--clicks",
+            "20",
+            "--tones",
+            "10",
+        ])
         .arg("--json")
         .arg(&json)
         .output()

@@ -500,7 +500,11 @@ impl Engine {
             && !cfg.supplied.contains(Stem::Drums)
             && chains.iter().any(|c| c.stem == Stem::Drums);
         Ok(Engine {
-            mix: Vec::with_capacity(if drums_on_mix { PARALLEL_MIN_BLOCK * 4 } else { 0 }),
+            mix: Vec::with_capacity(if drums_on_mix {
+                PARALLEL_MIN_BLOCK * 4
+            } else {
+                0
+            }),
             drums_on_mix,
             sep_out: StemOutput::with_capacity(separated, PARALLEL_MIN_BLOCK * 4),
             cfg,
@@ -737,8 +741,8 @@ impl Engine {
     /// look-ahead plus the separator's where the chain takes a separated stem. `None`
     /// when the chain does not compute that feature.
     fn feature_latency(&self, c: &StemChain, what: Feature) -> Option<usize> {
-        let separated = !(self.drums_on_mix && c.stem == Stem::Drums)
-            && !self.cfg.supplied.contains(c.stem);
+        let separated =
+            !(self.drums_on_mix && c.stem == Stem::Drums) && !self.cfg.supplied.contains(c.stem);
         let sep = match (&self.separator, separated) {
             (Some(s), true) => s.latency_samples(),
             _ => 0,
@@ -773,8 +777,9 @@ impl Engine {
     /// Bins by which a feature of chain `c` trails the fastest feature in
     /// [`Engine::live_frame`]: its extra latency rounded up to whole bins.
     fn live_shift(&self, c: &StemChain, what: Feature, fastest: usize) -> usize {
-        self.feature_latency(c, what)
-            .map_or(0, |l| l.saturating_sub(fastest).div_ceil(self.geo.bin_samples))
+        self.feature_latency(c, what).map_or(0, |l| {
+            l.saturating_sub(fastest).div_ceil(self.geo.bin_samples)
+        })
     }
 
     /// Bins ready for [`Engine::live_frame`]: frame `k` exists once the fastest chain has
@@ -819,7 +824,10 @@ impl Engine {
     /// samples)])`. Groups: "rhythm" (drum chain), "pitch" (melodic chains; the slowest).
     pub fn latency_paths(&self) -> Vec<(String, Vec<(String, usize)>)> {
         let mut out = Vec::new();
-        let sep = self.separator.as_ref().map(|s| (s.name(), s.latency_samples()));
+        let sep = self
+            .separator
+            .as_ref()
+            .map(|s| (s.name(), s.latency_samples()));
         let denoise = |c: &StemChain| c.denoise.latency_samples();
         let drums = self.chains.iter().find(|c| c.stem == Stem::Drums);
         if let Some(c) = drums {

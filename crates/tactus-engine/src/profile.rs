@@ -13,13 +13,21 @@
 //!
 //! | stage | live profile | latency (samples @ 44.1 kHz) |
 //! |---|---|---|
+//! | capture (`tactus live`) | the engine's rate (no resampler), a 256-frame period asked for | the device's period (PulseAudio gave 170 frames, 3.9 ms) |
 //! | drums | no separator: the drum detector listens to the mix ([`DRUMS_ON_MIX`]) | 0 |
-//! | drum onsets (bands) | Butterworth bands, spectral flux with 1024-point frames every 5 ms, causal rising-edge picking | 72 (1.6 ms) |
-//! | drum onsets (classes) | the per-instrument transcriber with its 1-hop live model where one is embedded, else its 4-hop model | 512 + future · 441 |
-//! | separator (melodic stems) | spectral, [`separator`]: 1024-point frames, hop 256, no look-ahead | 1023 (23.2 ms) |
-//! | pitch | pYIN with a frame of two periods of the stem's lowest note ([`pitch_frame`]) and a Viterbi lag of [`PITCH_LAG_HOPS`] hops; bass from 41 Hz (E1) | bass 1089 + 882, vocals 633 + 882, other 882 + 882 |
+//! | denoise | Butterworth high-pass + 3-sample median | 1 |
+//! | drum onsets (`--drums bands`, the live default) | Butterworth bands, spectral flux with 1024-point frames every 5 ms, causal rising-edge picking, the gate's level over two hops | 220 (5.0 ms) |
+//! | drum onsets (`--drums classes`) | the per-instrument transcriber on the mix (its embedded 4-hop model) | 2,276 (51.6 ms) |
+//! | separator (melodic stems) | spectral, [`separator`]: 512-point frames, hop 128, harmonic median over 5 frames, no look-ahead | 511 (11.6 ms) |
+//! | pitch | YIN (`--pitch auto`) with a frame of two periods of the stem's lowest note ([`pitch_frame`]); bass from 41 Hz (E1); `--pitch pyin` gets a Viterbi lag of [`PITCH_LAG_HOPS`] hops | bass 1,089 (24.7 ms), vocals 633, other 882 |
 //! | bins | [`BIN_MS`] = 10 ms | 441 |
 //! | pins | a beat holds its pins up for [`PULSE_MS`] = 50 ms, so a 50 ms pin rise completes | 0 |
+//!
+//! The rhythm path sums to 1 + 220 + 441 = 662 samples (15 ms), the slowest pitch path
+//! (bass) to 511 + 1 + 1,089 + 441 = 2,042 samples (46.3 ms); `tests/profile.rs` feeds a
+//! drum hit and tone steps in 64-sample blocks and checks that the frame showing them
+//! exists within that (plus one detector hop and one block). Measured from outside,
+//! sound to frame at the glove: README, "Live: sound to pin".
 //!
 //! The glove shows each feature as soon as it is final: the rhythm cells of frame `k` are
 //! those of bin `k`, a pitch cell shows the bin that its slower chain had finished when the
@@ -67,15 +75,20 @@ pub const BIN_MS: u32 = 10;
 pub const PULSE_MS: u32 = 50;
 /// The drum detector listens to the mix in the live profile (no separator latency).
 pub const DRUMS_ON_MIX: bool = true;
-/// Viterbi lag of the live profile's pitch trackers, hops (10 ms each).
+/// Viterbi lag of the live profile's pYIN and harmonic-sum trackers (`--pitch pyin|shs`),
+/// hops of 10 ms. The default live tracker is plain YIN, which has none.
 pub const PITCH_LAG_HOPS: usize = 2;
 /// Lowest bass note the live profile tracks, Hz (E1, the lowest string of a bass guitar):
 /// its frame holds two periods of it ([`pitch_frame`]).
 pub const BASS_FMIN_HZ: f32 = 41.0;
 
-/// The live profile's spectral separator for the melodic stems: 1024-point frames every
-/// 256 samples, the harmonic median over 12 past frames (70 ms) and none ahead.
-/// Latency `n_fft − 1` = 1023 samples (23.2 ms at 44.1 kHz).
+/// The live profile's spectral separator for the melodic stems: 512-point frames every 128
+/// samples, the harmonic (time) median over 4 past frames and none ahead.
+/// Latency `n_fft − 1` = 511 samples (11.6 ms at 44.1 kHz). The causal median calls a new
+/// note percussive until it fills half its window, so a short window matters as much as
+/// the frame: with 1024/256 and 12 past frames the tone bursts of `benches/live_latency.py`
+/// reached the pitch pins after 90 ms (median), with 1024/256 and 4 after 69 ms, with
+/// 512/128 and 4 after 56 ms.
 pub fn separator() -> SpectralConfig {
     SpectralConfig {
         n_fft: 512,

@@ -95,12 +95,18 @@ fn a_drum_hit_reaches_the_rhythm_pins_within_the_stated_latency() {
         x[n0 + i] += v;
     }
     let sent = stream(&mut e, &x, &[BLOCK]);
-    let k = sent.iter().position(|(_, f)| rhythm_up(f)).expect("hit not shown");
+    let k = sent
+        .iter()
+        .position(|(_, f)| rhythm_up(f))
+        .expect("hit not shown");
     let (seen, _) = sent[k];
     // The frame is the hit's bin (or the next, when the flux's rising edge falls a hop
     // late) ...
     let bin = n0 / 441;
-    assert!((bin..=bin + 1).contains(&k), "hit in bin {bin}, shown in frame {k}");
+    assert!(
+        (bin..=bin + 1).contains(&k),
+        "hit in bin {bin}, shown in frame {k}"
+    );
     // ... and it exists no later than the hit + the stated latency, give or take one flux
     // hop (the detector decides per 5 ms hop) and one block (the driver's granularity).
     let delay = seen - n0;
@@ -147,7 +153,10 @@ fn a_tone_step_reaches_the_pitch_pins_within_the_stated_latency() {
         let sent = stream(&mut e, &x, &[BLOCK]);
         // Any pitch cell (cell 0 of thumb, ring, pinky) showing a level.
         let shown = |f: &Frame| [0usize, 6, 8].iter().any(|&c| f.0[c] != 0);
-        let k = sent.iter().position(|(_, f)| shown(f)).expect("tone not shown");
+        let k = sent
+            .iter()
+            .position(|(_, f)| shown(f))
+            .expect("tone not shown");
         let delay = sent[k].0 - n0;
         eprintln!(
             "{f0} Hz step ({map} map) shown {delay} samples ({:.1} ms) after it began; stated {l}",
@@ -178,10 +187,16 @@ fn live_frames_do_not_depend_on_the_blocks() {
     }
     let frames = |chunks: &[usize]| {
         let mut e = live("default");
-        let v: Vec<Frame> = stream(&mut e, &x, chunks).into_iter().map(|(_, f)| f).collect();
+        let v: Vec<Frame> = stream(&mut e, &x, chunks)
+            .into_iter()
+            .map(|(_, f)| f)
+            .collect();
         // reset() reproduces the stream.
         e.reset();
-        let again: Vec<Frame> = stream(&mut e, &x, chunks).into_iter().map(|(_, f)| f).collect();
+        let again: Vec<Frame> = stream(&mut e, &x, chunks)
+            .into_iter()
+            .map(|(_, f)| f)
+            .collect();
         assert_eq!(v, again, "reset changed the live frames");
         v
     };
