@@ -94,6 +94,9 @@ pub fn separator() -> SpectralConfig {
         n_fft: 512,
         hop: 128,
         past_frames: 4,
+        // The full profile's longer bass median (which keeps kick bodies out of the bass)
+        // would make a new bass note wait for 5 rather than 3 frames: off.
+        bass_past_frames: 4,
         lookahead_frames: 0,
         percussive_half_bins: 4,
         ..SpectralConfig::default()
