@@ -471,6 +471,13 @@ pub fn live(
     let live_profile = config.profile == tactus_engine::Profile::Live;
     let mut eng = Engine::new(config)?;
     let stop = stop_flag();
+    // Issue 13: real-time scheduling for this (engine) thread, asked for before the capture
+    // and sink threads exist so that they inherit it. On a loaded machine a normal thread
+    // waited up to 300 ms for the CPU (benches/live_latency.py at load 10-16). Refused
+    // without the privilege (RLIMIT_RTPRIO, CAP_SYS_NICE): then a note, and live goes on.
+    let realtime =
+        audio_thread_priority::promote_current_thread_to_real_time(LIVE_PERIOD_FRAMES, ENGINE_RATE)
+            .map_err(|e| e.to_string());
     // Issue 13: the live profile asks the device for the engine's rate (no resampler) and
     // a short period (PulseAudio's default period alone cost about 350 ms).
     let request = crate::audio::CaptureRequest {
@@ -585,11 +592,15 @@ pub fn live(
     // finger group (stages in samples at the engine rate and in ms).
     let period = cap.first_callback().map_or(0, |(_, n)| n);
     eprintln!(
-        "tactus: capture: {} at {} Hz, period {period} frames ({:.1} ms), input delay {:.1} ms reported by the device",
+        "tactus: capture: {} at {} Hz, period {period} frames ({:.1} ms), input delay {:.1} ms reported by the device; threads {}",
         cap.device(),
         rate,
         ms(period as usize, rate),
-        cap.input_delay_ms()
+        cap.input_delay_ms(),
+        match &realtime {
+            Ok(_) => "real-time".to_string(),
+            Err(e) => format!("at normal priority (real-time refused: {e})"),
+        }
     );
     for (group, stages) in eng.latency_paths() {
         let mut budget: Vec<(String, usize)> = Vec::new();
