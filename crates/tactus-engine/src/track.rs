@@ -474,6 +474,8 @@ pub struct OnsetTrack {
     pub raw_rms: Vec<f32>,
     next: usize,
     gate: StreamingGate,
+    /// The live profile's rise test: the levels of the last [`RISE_HOPS`] hops (dBFS).
+    recent_rms: [f32; RISE_HOPS],
     binner: BeatBinner,
     /// Gated onset flag per hop.
     pub onsets: Vec<bool>,
@@ -509,6 +511,7 @@ impl OnsetTrack {
             raw_rms: Vec::new(),
             next: 0,
             gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s)?,
+            recent_rms: [tactus_dsp::rms::SILENCE_DB; RISE_HOPS],
             binner: BeatBinner::new(hop, geo.bin_samples)?,
             onsets: Vec::new(),
             bins: Vec::new(),
@@ -559,10 +562,20 @@ impl OnsetTrack {
         }
         // As in `PitchTrack`: only unconsumed raw hops are kept; `raw_*[j]` is hop `next + j`.
         let ready = self.raw_onset.len().min(self.raw_rms.len());
+        let live = self.geo.profile == crate::profile::Profile::Live;
         for j in 0..ready {
             let i = self.next;
-            let open = self.gate.process(self.raw_rms[j]);
-            let onset = open && self.raw_onset[j];
+            let level = self.raw_rms[j];
+            let open = self.gate.process(level);
+            // The live profile's rise test: an onset is where the level rises, at least
+            // RISE_DB above the quietest of the last RISE_HOPS hops. Its short gate level
+            // (two hops) lets the causal picker fire again in a hit's decaying tail (the
+            // flux threshold's 100 ms mean forgets the hit); the tail never rises.
+            let rises = !live
+                || level - self.recent_rms.iter().fold(f32::INFINITY, |a, &b| a.min(b))
+                    >= RISE_DB;
+            self.recent_rms[i % RISE_HOPS] = level;
+            let onset = open && self.raw_onset[j] && rises;
             self.onsets.push(onset);
             let bins = &mut self.bins;
             self.binner.push(i, onset, &mut |_, b| bins.push(b));
@@ -591,8 +604,15 @@ impl OnsetTrack {
         self.raw_rms.clear();
         self.next = 0;
         self.gate.reset();
+        self.recent_rms = [tactus_dsp::rms::SILENCE_DB; RISE_HOPS];
         self.binner.reset();
         self.onsets.clear();
         self.bins.clear();
     }
 }
+
+/// Hops the live profile's onset rise test looks back (4 × 5 ms).
+pub const RISE_HOPS: usize = 4;
+/// Level rise (dB) over the quietest of the last [`RISE_HOPS`] hops that the live
+/// profile's onsets need.
+pub const RISE_DB: f32 = 3.0;
