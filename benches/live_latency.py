@@ -64,6 +64,12 @@ PITCH_CELLS = (0, 6, 8)  # thumb c0 (bass level), ring c0 (vocals), pinky c0 (ot
 # be spaced further apart than the slowest response (--click-period, --tone-period; the
 # baseline before issue 13 needs 1.5 s: its responses took up to 0.8 s).
 WINDOW_SHARE = 0.9
+# The writer runs this far ahead of the sound, inside a pipe of PIPE_BYTES (21 ms). Tried
+# and rejected: 16 KiB with 40 ms of lead (pacat then kept 70-80 ms queued and the p95
+# rose), and real-time scheduling for this script and the stand-ins (the rhythm p95 rose
+# from 29 to 91 ms: they competed with tactus's own real-time threads).
+LEAD_S = 0.0
+PIPE_BYTES = 4096
 TONE_ON_S = 0.3
 
 
@@ -240,7 +246,7 @@ def run_once(args, extra):
         procs.append(pacat)
         # pacat reads its stdin only as fast as the sink plays: the smallest pipe (one page,
         # 21 ms of audio) bounds the backlog that can build up in it.
-        fcntl.fcntl(pacat.stdin.fileno(), getattr(fcntl, "F_SETPIPE_SZ", 1031), 4096)
+        fcntl.fcntl(pacat.stdin.fileno(), getattr(fcntl, "F_SETPIPE_SZ", 1031), PIPE_BYTES)
         live = subprocess.Popen([args.tactus, "live", "--glove", f"serial:{a}", *extra],
                                 env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         procs.append(live)
@@ -270,13 +276,15 @@ def run_once(args, extra):
         t = time.monotonic()
         while queued() > len(silence) and time.monotonic() - t < 2.0:
             time.sleep(0.001)
-        # The stimulus, paced by the wall clock. The time a chunk reaches the sound server
-        # is its write time plus the play time of the bytes queued ahead of it in the pipe.
+        # The stimulus, paced by the wall clock LEAD_S ahead of the sound, so that a late
+        # wake-up of this script does not run pacat dry. The time a chunk reaches the
+        # sound server is its write time plus the play time of the bytes queued ahead of
+        # it in the pipe.
         t0 = time.monotonic()
         writes = []
         backlog = []
         for k, c in enumerate(chunks):
-            due = t0 + k * CHUNK / RATE
+            due = t0 + k * CHUNK / RATE - LEAD_S
             delay = due - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
