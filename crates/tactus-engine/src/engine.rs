@@ -752,7 +752,7 @@ impl Engine {
     /// when the chain does not compute that feature.
     fn feature_latency(&self, c: &StemChain, what: Feature) -> Option<usize> {
         let separated =
-            !(self.drums_on_mix && c.stem == Stem::Drums) && !self.cfg.supplied.contains(c.stem);
+            !(self.cfg.supplied.contains(c.stem) || self.drums_on_mix && c.stem == Stem::Drums);
         let sep = match (&self.separator, separated) {
             (Some(s), true) => s.latency_samples(),
             _ => 0,

@@ -572,8 +572,7 @@ impl OnsetTrack {
             // (two hops) lets the causal picker fire again in a hit's decaying tail (the
             // flux threshold's 100 ms mean forgets the hit); the tail never rises.
             let rises = !live
-                || level - self.recent_rms.iter().fold(f32::INFINITY, |a, &b| a.min(b))
-                    >= RISE_DB;
+                || level - self.recent_rms.iter().fold(f32::INFINITY, |a, &b| a.min(b)) >= RISE_DB;
             self.recent_rms[i % RISE_HOPS] = level;
             let onset = open && self.raw_onset[j] && rises;
             self.onsets.push(onset);
