@@ -56,11 +56,11 @@ enum DrumsArg {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum PitchArg {
-    /// pYIN, and harmonic-sum salience for the bass.
+    /// Harmonic-sum salience for the bass and the lead (vocals), pYIN for the rest.
     Auto,
     Yin,
     Pyin,
-    /// Harmonic-sum salience + Viterbi (made for a bass line in a mix) on every stem.
+    /// Harmonic-sum salience + Viterbi (made for a bass line or a lead in a mix) on every stem.
     Shs,
 }
 

@@ -422,7 +422,7 @@ impl Engine {
                 .pitch
                 .contains(&stem)
                 .then_some(match (cfg.pitch, stem) {
-                    (PitchMethod::Auto, Stem::Bass) => PitchMethod::Shs,
+                    (PitchMethod::Auto, Stem::Bass | Stem::Vocals) => PitchMethod::Shs,
                     (PitchMethod::Auto, _) => PitchMethod::Pyin,
                     (m, _) => m,
                 });
@@ -435,7 +435,10 @@ impl Engine {
             // A band of the mix rather than a source: the spectral separator's stems, or the
             // mix itself with no separator.
             let mixture = !cfg.supplied.contains(stem)
-                && matches!(cfg.separator, SeparatorChoice::Spectral | SeparatorChoice::None);
+                && matches!(
+                    cfg.separator,
+                    SeparatorChoice::Spectral | SeparatorChoice::None
+                );
             chains.push(StemChain::new(
                 stem, geo, pitch, notes, &bands, &cfg.drums, mixture,
             )?);
