@@ -159,6 +159,9 @@ impl StemChain {
             DrumMethod::Classes if !bands.is_empty() => {
                 (Some(ClassTrack::new(geo)?), bands.to_vec())
             }
+            DrumMethod::ClassesLive if !bands.is_empty() => {
+                (Some(ClassTrack::live(geo)?), bands.to_vec())
+            }
             #[cfg(feature = "onnx")]
             DrumMethod::AdtLib(model) if !bands.is_empty() => {
                 (Some(ClassTrack::adtlib(geo, model, 0)?), bands.to_vec())
