@@ -8,8 +8,8 @@ use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
 use proptest::prelude::*;
-use tactus_engine::resample::{resample_all, ResampleError, StreamResampler};
-use tactus_engine::source::{decode_all, file_sha256, AudioSource, Decoded, SourceError};
+use tactus_audio::resample::{resample_all, ResampleError, StreamResampler};
+use tactus_audio::source::{decode_all, file_sha256, AudioSource, Decoded, SourceError};
 
 // ---------------------------------------------------------------------------------------------
 // Reference signals and measurements

@@ -356,6 +356,14 @@ impl ClassTrack {
             .collect()
     }
 
+    /// Streaming: forgets the first `d` bins of every class and the onsets already binned.
+    pub fn discard(&mut self, d: usize) {
+        for b in &mut self.bins {
+            b.drain(..d.min(b.len()));
+        }
+        self.onsets.clear();
+    }
+
     /// Back to the initial state.
     pub fn reset(&mut self) {
         self.det.reset();

@@ -14,9 +14,10 @@ pub mod drums;
 pub mod engine;
 pub mod notes;
 pub mod render;
-pub mod resample;
-pub mod source;
 pub mod track;
+
+/// Decoding and resampling moved to `tactus-audio`; re-exported under their old paths.
+pub use tactus_audio::{resample, source};
 
 pub use drums::DrumMethod;
 pub use engine::{Engine, EngineConfig, SeparatorChoice, ENGINE_RATE};

@@ -182,6 +182,19 @@ pub fn render_with(
     progress: &mut dyn FnMut(f64),
     on_frame: &mut dyn FnMut(usize, tactus_glove::Frame) -> bool,
 ) -> Result<RenderOutput, EngineError> {
+    render_tapped(req, progress, &mut |_, _| {}, on_frame)
+}
+
+/// [`render_with`], also handing every decoded block of the song (planar stereo at the
+/// file's own rate, [`AudioSource::info`]) to `on_block(left, right)` once the block's
+/// frames have been handed to `on_frame`: how `tactus play` feeds the speakers from the
+/// same decode as the engine.
+pub fn render_tapped(
+    req: &RenderRequest,
+    progress: &mut dyn FnMut(f64),
+    on_block: &mut dyn FnMut(&[f32], &[f32]),
+    on_frame: &mut dyn FnMut(usize, tactus_glove::Frame) -> bool,
+) -> Result<RenderOutput, EngineError> {
     let t_all = Instant::now();
     let mut warnings = Vec::new();
     let source = AudioSource::open(&req.input)?;
@@ -244,8 +257,6 @@ pub fn render_with(
                 }
             }
             t_resample += t.elapsed();
-            // The reader may be gone after the last block; the buffer is simply dropped then.
-            let _ = spare_tx.send(block);
             let len = out[0].len().min(out[1].len());
             feed(&mut engine, &out[0][..len], &out[1][..len], &mut supplied);
             out[0].clear();
@@ -267,6 +278,9 @@ pub fn render_with(
                     break;
                 }
             }
+            on_block(&block.left, &block.right);
+            // The reader may be gone after the last block; the buffer is simply dropped then.
+            let _ = spare_tx.send(block);
             if total > 0 {
                 progress(match engine.segment_stats() {
                     Some(st) => {

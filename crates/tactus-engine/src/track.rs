@@ -418,6 +418,14 @@ impl PitchTrack {
         self.hop_levels = levels;
     }
 
+    /// Streaming: forgets the first `d` bins and the per-hop values already binned
+    /// ([`crate::Engine::discard_before`]).
+    pub fn discard(&mut self, d: usize) {
+        self.bins.drain(..d.min(self.bins.len()));
+        self.f0.clear();
+        self.hop_levels.clear();
+    }
+
     /// Back to the initial state.
     pub fn reset(&mut self) {
         self.decimator.reset();
@@ -550,6 +558,12 @@ impl OnsetTrack {
             .filter(|(_, &o)| o)
             .map(|(i, _)| i as f64 * hop_s)
             .collect()
+    }
+
+    /// Streaming: forgets the first `d` bins and the per-hop onsets already binned.
+    pub fn discard(&mut self, d: usize) {
+        self.bins.drain(..d.min(self.bins.len()));
+        self.onsets.clear();
     }
 
     /// Back to the initial state.
