@@ -14,8 +14,6 @@ use tactus_engine::render::{render, RenderRequest};
 use tactus_engine::{DrumMethod, EngineConfig, LevelRule, Mode, PitchMethod, SeparatorChoice};
 use tactus_glove::{write_atomic, GloveMap, OutputSet};
 
-#[cfg(feature = "audio")]
-mod audio;
 mod play;
 mod plot;
 
@@ -537,7 +535,7 @@ fn run(cli: Cli) -> Result<()> {
                 ))
             );
             #[cfg(feature = "audio")]
-            print!("{}", audio::devices_report());
+            print!("{}", tactus_audio::device::devices_report());
             #[cfg(not(feature = "audio"))]
             println!("Audio devices:\n  (unavailable: built without the `audio` feature; rebuild with --features audio)");
             Ok(())

@@ -135,6 +135,11 @@ impl CaptureWriter {
         shared.callbacks.fetch_add(1, Ordering::Relaxed);
     }
 
+    /// Stereo frames the ring can take now without dropping any.
+    pub fn free_frames(&self) -> usize {
+        self.ring.slots() / 2
+    }
+
     /// Records that the device reported a stream error.
     pub fn set_error(&self) {
         self.shared.error.store(true, Ordering::Relaxed);
@@ -172,6 +177,12 @@ impl CaptureReader {
             }
             Err(_) => 0,
         }
+    }
+
+    /// Whether the writing end is gone and every frame it wrote has been read: the input
+    /// has ended.
+    pub fn is_abandoned(&self) -> bool {
+        self.ring.is_abandoned() && self.ring.slots() == 0
     }
 
     /// When the first callback ran and how many frames it brought.

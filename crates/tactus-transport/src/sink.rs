@@ -249,7 +249,7 @@ pub fn open_sink(spec: &SinkSpec, opts: &SinkOptions) -> Result<SinkHandle, Tran
         SinkSpec::Emulator(log) => {
             let g = Arc::new(Mutex::new(VirtualGlove::new(
                 log.as_deref(),
-                crate::emulator::RISE_MS,
+                f64::from(tactus_glove::PIN_RISE_MS),
             )?));
             glove = Some(Arc::clone(&g));
             Box::new(crate::emulator::EmulatorLink(g))
