@@ -51,6 +51,7 @@ pub mod notes;
 pub mod pyin;
 pub mod rms;
 pub mod sanitize;
+pub mod sdr;
 pub mod shs;
 pub mod sos;
 pub mod tukey;
@@ -185,8 +186,16 @@ impl Band {
 
 /// A stage that maps input samples one-to-one to output samples (filters, median).
 pub trait SampleStage: Send {
-    /// Processes `input` into `output[..input.len()]`. Panics if `output` is shorter.
-    fn process(&mut self, input: &[f32], output: &mut [f32]);
+    /// Processes `input` into `output[..input.len()]`: by default, copies it and calls
+    /// [`SampleStage::process_inplace`].
+    ///
+    /// # Panics
+    /// If `output` is shorter than `input`.
+    fn process(&mut self, input: &[f32], output: &mut [f32]) {
+        let output = &mut output[..input.len()];
+        output.copy_from_slice(input);
+        self.process_inplace(output);
+    }
     /// Processes a block in place.
     fn process_inplace(&mut self, block: &mut [f32]);
     /// Back to the just-constructed state.

@@ -356,6 +356,14 @@ impl ClassTrack {
             .collect()
     }
 
+    /// Per-hop and per-bin values held.
+    pub fn retained(&self) -> usize {
+        self.bins.iter().map(Vec::len).sum::<usize>()
+            + self.onsets.len()
+            + self.raw.len()
+            + self.raw_rms.len()
+    }
+
     /// Streaming: forgets the first `d` bins of every class and the onsets already binned.
     pub fn discard(&mut self, d: usize) {
         for b in &mut self.bins {

@@ -290,6 +290,18 @@ impl StemChain {
         l + self.denoise.latency_samples()
     }
 
+    /// Per-hop and per-bin values the chain holds.
+    fn retained(&self) -> usize {
+        let mut n = self.pitch.as_ref().map_or(0, |p| p.retained());
+        n += match &self.notes {
+            Some(NoteTrack::Pitch(t)) => t.retained(),
+            Some(NoteTrack::Flux(t)) => t.retained(),
+            None => 0,
+        };
+        n += self.classes.as_ref().map_or(0, |c| c.retained());
+        n + self.bands.iter().map(|b| b.track.retained()).sum::<usize>()
+    }
+
     /// Forgets the first `d` bins of every track and the per-hop records already binned
     /// (see [`Engine::discard_before`]).
     fn discard(&mut self, d: usize) {
@@ -702,6 +714,12 @@ impl Engine {
             c.discard(d);
         }
         self.bin_base = k;
+    }
+
+    /// Per-hop and per-bin feature values the engine holds now: grows with the stream unless
+    /// the driver calls [`Engine::discard_before`] (the bounded-memory tests watch it).
+    pub fn retained_values(&self) -> usize {
+        self.chains.iter().map(|c| c.retained()).sum()
     }
 
     /// Bins forgotten so far by [`Engine::discard_before`].

@@ -12,7 +12,7 @@ use tactus_separate::SegmentStats;
 
 use crate::engine::{Engine, EngineConfig, StageTimes};
 use crate::resample::StreamResampler;
-use crate::source::{file_sha256, AudioSource};
+use crate::source::AudioSource;
 use crate::EngineError;
 
 /// Samples per engine block in offline rendering (1 s at 44.1 kHz): large enough for the
@@ -348,7 +348,7 @@ pub fn render_tapped(
     let pattern = Pattern {
         source: SourceInfo {
             path: req.input.display().to_string(),
-            sha256: file_sha256(&req.input).map_err(|e| EngineError::Io(req.input.clone(), e))?,
+            sha256: tactus_glove::sha256_file(&req.input).map_err(|e| EngineError::Io(req.input.clone(), e))?,
             duration_s,
             sample_rate: info.sample_rate,
         },

@@ -47,7 +47,7 @@ pub mod live;
 pub mod play;
 
 pub use live::{live, LiveEngine, LiveInput, LiveOptions, LiveReport, LiveStatus};
-pub use play::{play_pattern, play_song, PlayOptions, PlayReport, SoundReport};
+pub use play::{play_pattern, play_song, Late, PlayOptions, PlayReport, SoundReport};
 
 /// Why a session stopped with an error. Each message is one line a user understands; the
 /// cause stays reachable through [`std::error::Error::source`].

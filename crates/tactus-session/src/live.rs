@@ -93,6 +93,9 @@ pub struct LiveReport {
     /// Measured end of a bin's audio (as captured) to its frame's send, ms: (median, p95,
     /// max), when any frame was sent.
     pub measured_ms: Option<(f64, f64, f64)>,
+    /// Per-hop and per-bin feature values the engine held at the end
+    /// ([`Engine::retained_values`]): stays small however long the session ran.
+    pub retained_values: usize,
 }
 
 /// A live pipeline, built before the input opens so that a bad configuration fails first.
@@ -268,5 +271,6 @@ fn run(
         input_delay_ms: reader.input_delay_ms(),
         budget,
         measured_ms,
+        retained_values: eng.retained_values(),
     })
 }

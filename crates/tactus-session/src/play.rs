@@ -48,6 +48,19 @@ pub struct PlayOptions {
     pub render_ahead_ms: u32,
     /// A clock that stops moving for this long (a stalled audio device) ends playback.
     pub stall: Duration,
+    /// What happens to a frame of a song that is not rendered when its time comes.
+    pub late: Late,
+}
+
+/// What happens to a frame that is not rendered when its time comes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Late {
+    /// Skip it: the next frame carries the full state anyway (real time: the default).
+    #[default]
+    Skip,
+    /// Wait for it, holding the clock's frame schedule back: for clocks that are not real
+    /// time (a simulation, a fake clock in tests), where nothing can be late.
+    Wait,
 }
 
 impl Default for PlayOptions {
@@ -57,6 +70,7 @@ impl Default for PlayOptions {
             speakers: false,
             render_ahead_ms: RENDER_AHEAD_MS,
             stall: Duration::from_secs(10),
+            late: Late::Skip,
         }
     }
 }
@@ -310,9 +324,19 @@ pub fn play_song(
                 stop,
                 &speakers::AudioClock(playback),
                 opts.stall,
+                opts.late,
             );
         }
-        schedule(&shared, sink, bin_ms, opts.lead_ms, stop, clock, opts.stall)
+        schedule(
+            &shared,
+            sink,
+            bin_ms,
+            opts.lead_ms,
+            stop,
+            clock,
+            opts.stall,
+            opts.late,
+        )
     });
     if outcome.is_err() {
         sink.all_down();
@@ -353,6 +377,7 @@ pub fn play_pattern(
     stop: &Arc<AtomicBool>,
     status: &mut dyn FnMut(tactus_transport::PlayStatus),
 ) -> Result<(PlayReport, Option<tactus_transport::PlayReport>), SessionError> {
+    #[cfg_attr(not(feature = "device"), allow(unused_mut))]
     let mut warnings = Vec::new();
     #[cfg(feature = "device")]
     if let (Some(song), true) = (song, opts.speakers) {
@@ -400,6 +425,7 @@ pub fn play_pattern(
                     stop,
                     &speakers::AudioClock(&playback),
                     opts.stall,
+                    opts.late,
                 )
             });
             if outcome.is_err() {
@@ -461,6 +487,7 @@ fn schedule(
     stop: &AtomicBool,
     clock: &dyn Clock,
     stall: Duration,
+    late: Late,
 ) -> Result<(usize, usize), SessionError> {
     let (m, cv) = &**shared;
     let (mut k, mut sent, mut skipped) = (0usize, 0usize, 0usize);
@@ -490,6 +517,14 @@ fn schedule(
             });
         }
         let mut g = m.lock().map_err(|_| crashed())?;
+        if late == Late::Wait {
+            while g.base + g.frames.len() <= k && !g.done && !stop.load(Ordering::Relaxed) {
+                g = cv
+                    .wait_timeout(g, Duration::from_millis(50))
+                    .map_err(|_| crashed())?
+                    .0;
+            }
+        }
         if let Some(e) = g.error.take() {
             return Err(e.into());
         }

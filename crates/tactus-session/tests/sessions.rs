@@ -13,7 +13,7 @@ use tactus_audio::resample::StreamResampler;
 use tactus_audio::ring::capture_ring;
 use tactus_engine::render::RenderRequest;
 use tactus_engine::{Engine, ENGINE_RATE};
-use tactus_session::{live, play_pattern, play_song, LiveInput, LiveOptions, PlayOptions};
+use tactus_session::{live, play_pattern, play_song, Late, LiveInput, LiveOptions, PlayOptions};
 use tactus_testkit::{allocations, Counting};
 use tactus_transport::{open_sink, Clock, SinkOptions, SinkSpec};
 
@@ -149,14 +149,18 @@ fn play_song_on_a_fake_clock_sends_every_frame() {
     let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
     let clock = FakeClock(Cell::new(0.0));
     let stop = Arc::new(AtomicBool::new(false));
-    let opts = PlayOptions::default();
+    // Nothing is late on a fake clock: frames are waited for, not skipped.
+    let opts = PlayOptions {
+        late: Late::Wait,
+        ..PlayOptions::default()
+    };
     let report = play_song(req, &sink, &clock, &opts, &stop).unwrap();
     sink.close();
     assert_eq!(report.sent, rendered.pattern.frames.len(), "{report:?}");
     assert_eq!(report.skipped, 0);
     assert!(report.sound.is_none());
-    // The last frame went out at its time on the fake clock: (n − 1)·25 ms − lead.
-    let last = (report.sent as f64 - 1.0) * 25.0 - opts.lead_ms as f64;
+    // The session ended when the frame after the last was due: n·25 ms − lead.
+    let last = report.sent as f64 * 25.0 - opts.lead_ms as f64;
     assert!(clock.now_ms() >= last && clock.now_ms() < last + 1.0, "{} vs {last}", clock.now_ms());
 }
 

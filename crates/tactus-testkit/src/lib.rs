@@ -47,6 +47,10 @@ unsafe impl GlobalAlloc for Counting {
         let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
         unsafe { System.alloc(layout) }
     }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        unsafe { System.alloc_zeroed(layout) }
+    }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
         unsafe { System.dealloc(ptr, layout) }
     }
@@ -60,6 +64,13 @@ unsafe impl GlobalAlloc for Counting {
 /// global allocator (always 0 otherwise).
 pub fn allocations() -> usize {
     ALLOCATIONS.with(|c| c.get())
+}
+
+/// Runs `f` and returns how many allocations the current thread made inside it.
+pub fn allocations_during(f: impl FnOnce()) -> usize {
+    let before = allocations();
+    f();
+    allocations() - before
 }
 
 /// SplitMix64: a tiny seeded generator for reproducible test signals.

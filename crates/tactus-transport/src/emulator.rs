@@ -35,7 +35,7 @@ use std::time::{Duration, Instant};
 use tactus_glove::protocol::PACKET_LEN;
 use tactus_glove::{Decoder, DecoderStats, Frame, Packet, PacketType, PINS};
 
-use crate::sink::Link;
+use crate::link::Link;
 use crate::TransportError;
 
 /// Time for a commanded pin to reach "up", in ms ([`tactus_glove::PIN_RISE_MS`]).

@@ -22,7 +22,7 @@ use std::time::{Instant, SystemTime, UNIX_EPOCH};
 use tactus_glove::protocol::PACKET_LEN;
 use tactus_glove::Packet;
 
-use crate::sink::Link;
+use crate::link::Link;
 
 pub(crate) struct FileLink {
     path: PathBuf,
