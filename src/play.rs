@@ -208,7 +208,11 @@ pub fn live(
     let sink = open_sink(&spec, &SinkOptions::default())?;
     eprintln!(
         "tactus: live from {device} ({rate} Hz, {channels} ch) to {spec}, {bin_ms} ms bins{}",
-        if seconds.is_some() { "" } else { "; Ctrl-C stops" }
+        if seconds.is_some() {
+            ""
+        } else {
+            "; Ctrl-C stops"
+        }
     );
     let opts = LiveOptions {
         seconds,

@@ -119,4 +119,3 @@ pub fn render_png(svg: &str) -> Result<PngPlot> {
         fonts: has_fonts,
     })
 }
-

@@ -97,8 +97,18 @@ pub enum DeviceError {
     Resample(#[from] crate::resample::ResampleError),
 }
 
-fn device_err(what: &'static str, device: &str, step: &'static str, e: impl std::error::Error + Send + Sync + 'static) -> DeviceError {
-    DeviceError::Device { what, device: device.to_string(), step, source: Box::new(e) }
+fn device_err(
+    what: &'static str,
+    device: &str,
+    step: &'static str,
+    e: impl std::error::Error + Send + Sync + 'static,
+) -> DeviceError {
+    DeviceError::Device {
+        what,
+        device: device.to_string(),
+        step,
+        source: Box::new(e),
+    }
 }
 
 /// A device's name as `--input` accepts it: the host's id (`default`, `pulse`, `hw:0,0`).
@@ -444,8 +454,7 @@ impl PlaybackFeed {
             samples = rest;
             if !samples.is_empty() {
                 self.shared.prefilled.store(true, Ordering::Release);
-                if self.stop.load(Ordering::Relaxed) || self.shared.closed.load(Ordering::Relaxed)
-                {
+                if self.stop.load(Ordering::Relaxed) || self.shared.closed.load(Ordering::Relaxed) {
                     return false;
                 }
                 std::thread::sleep(Duration::from_millis(2));

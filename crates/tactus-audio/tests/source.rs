@@ -596,7 +596,6 @@ fn unsupported_codecs_are_named() {
     assert!(matches!(e, SourceError::UnsupportedCodec { .. }), "{e:?}");
 }
 
-
 // ---------------------------------------------------------------------------------------------
 // Resampling
 

@@ -198,7 +198,10 @@ impl ShsConfig {
             return Err(ConfigError::invalid("max_harmonic_hz", "must be > 0"));
         }
         if !(0.0..=1.0).contains(&self.fundamental_ratio) {
-            return Err(ConfigError::invalid("fundamental_ratio", "must be in [0, 1]"));
+            return Err(ConfigError::invalid(
+                "fundamental_ratio",
+                "must be in [0, 1]",
+            ));
         }
         if !(self.harmonic_width_st > 0.0 && self.harmonic_width_st <= 1.0) {
             return Err(ConfigError::invalid(

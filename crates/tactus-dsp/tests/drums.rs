@@ -7,7 +7,6 @@
 //! implemented with `unsafe impl`. It forwards to `System` unchanged.
 #![deny(unsafe_code)]
 
-
 use tactus_dsp::drums::{DrumFrame, DrumModel, DrumTranscriber, CLASSES};
 use tactus_dsp::melbank::{filters, MelBank, MelConfig, LOG_FLOOR};
 use tactus_dsp::HopStage;

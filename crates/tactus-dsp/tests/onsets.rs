@@ -6,7 +6,6 @@
 //! implemented with `unsafe impl`. It forwards to `System` unchanged.
 #![deny(unsafe_code)]
 
-
 use proptest::prelude::*;
 use tactus_dsp::flux::{detect_onsets, ln_1p_fast, OnsetConfig, OnsetDetector, OnsetFrame};
 use tactus_dsp::HopStage;

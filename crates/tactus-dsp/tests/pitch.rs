@@ -5,7 +5,6 @@
 //! `unsafe` appears once in this file: a `GlobalAlloc` impl must be `unsafe impl`. It only
 //! forwards to `System` and counts. The library itself stays `#![forbid(unsafe_code)]`.
 
-
 use proptest::prelude::*;
 use tactus_dsp::pyin::{pyin_offline, Pyin, PyinConfig};
 use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};

@@ -6,7 +6,6 @@
 //! `unsafe` appears once in this file: a `GlobalAlloc` impl must be `unsafe impl`. It only
 //! forwards to `System` and counts. The library itself stays `#![forbid(unsafe_code)]`.
 
-
 use tactus_dsp::framer::Framer;
 use tactus_dsp::shs::{Shs, ShsConfig};
 use tactus_dsp::yin::PitchEstimate;
@@ -219,7 +218,10 @@ fn fundamental_presence_removes_the_common_subharmonic() {
         c.bin_hz(k)
     };
     let off = best(&c);
-    assert!((off / (f as f32 / 2.0) - 1.0).abs() < 0.02, "without the rule: {off} Hz");
+    assert!(
+        (off / (f as f32 / 2.0) - 1.0).abs() < 0.02,
+        "without the rule: {off} Hz"
+    );
     c.fundamental_ratio = 0.1;
     let on = best(&c);
     assert!((on / f as f32 - 1.0).abs() < 0.02, "with the rule: {on} Hz");

@@ -468,7 +468,10 @@ impl Engine {
             // A band of the mix rather than a source: the spectral separator's stems, or the
             // mix itself with no separator.
             let mixture = !cfg.supplied.contains(stem)
-                && matches!(cfg.separator, SeparatorChoice::Spectral | SeparatorChoice::None);
+                && matches!(
+                    cfg.separator,
+                    SeparatorChoice::Spectral | SeparatorChoice::None
+                );
             chains.push(StemChain::new(
                 stem, geo, pitch, notes, &bands, &cfg.drums, mixture,
             )?);

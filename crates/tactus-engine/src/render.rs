@@ -348,7 +348,8 @@ pub fn render_tapped(
     let pattern = Pattern {
         source: SourceInfo {
             path: req.input.display().to_string(),
-            sha256: tactus_glove::sha256_file(&req.input).map_err(|e| EngineError::Io(req.input.clone(), e))?,
+            sha256: tactus_glove::sha256_file(&req.input)
+                .map_err(|e| EngineError::Io(req.input.clone(), e))?,
             duration_s,
             sample_rate: info.sample_rate,
         },

@@ -434,7 +434,11 @@ impl PitchTrack {
 
     /// Per-hop and per-bin values held (what [`crate::Engine::retained_values`] sums).
     pub fn retained(&self) -> usize {
-        self.bins.len() + self.f0.len() + self.hop_levels.len() + self.raw_f0.len() + self.raw_rms.len()
+        self.bins.len()
+            + self.f0.len()
+            + self.hop_levels.len()
+            + self.raw_f0.len()
+            + self.raw_rms.len()
     }
 
     /// Streaming: forgets the first `d` bins and the per-hop values already binned

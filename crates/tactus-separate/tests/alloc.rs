@@ -7,7 +7,6 @@
 //! harness's other threads do not interfere).
 mod common;
 
-
 use common::synthetic_mix;
 use tactus_separate::none::NoneSeparator;
 use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};

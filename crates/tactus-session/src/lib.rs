@@ -82,7 +82,9 @@ pub enum SessionError {
         device: String,
     },
     /// The play clock stopped moving.
-    #[error("the play clock stopped for {seconds} s (audio output stalled?); rerun with --no-audio")]
+    #[error(
+        "the play clock stopped for {seconds} s (audio output stalled?); rerun with --no-audio"
+    )]
     ClockStalled {
         /// How long it stood still.
         seconds: f64,

@@ -111,7 +111,12 @@ impl LiveEngine {
         })
     }
 
-    /// Runs capture → engine → sink; see [`live`].
+    /// Runs capture → engine → sink until `stop`, `opts.seconds` or the end of the input.
+    /// `status` is called every `opts.status_every`. The sink gets all-down at the end; the
+    /// caller closes it.
+    ///
+    /// Errors: a separator failure while running, no sample within
+    /// `opts.first_sample_timeout`, a device error before the first sample.
     pub fn run(
         self,
         input: LiveInput<'_>,
@@ -120,16 +125,136 @@ impl LiveEngine {
         stop: &AtomicBool,
         status: &mut dyn FnMut(&LiveStatus),
     ) -> Result<LiveReport, SessionError> {
-        run(self.engine, input, sink, opts, stop, status)
+        let mut eng = self.engine;
+        let LiveInput { reader, rate, name } = input;
+        let bin_ms = eng.config().bin_ms;
+        let mut rs = StreamResampler::new(rate, ENGINE_RATE, 2)?;
+        // Everything the loop touches is allocated here.
+        let cap = reader.capacity();
+        let (mut left, mut right) = (Vec::with_capacity(cap), Vec::with_capacity(cap));
+        let ratio = f64::from(ENGINE_RATE) / f64::from(rate);
+        let out_cap = (cap as f64 * ratio) as usize + 4 * rs.latency_samples() + 8192;
+        let mut out = vec![Vec::with_capacity(out_cap), Vec::with_capacity(out_cap)];
+        let mut latencies: Vec<f64> = Vec::with_capacity(1 << 16);
+        let limit = opts.seconds.map(|s| (s.max(0.0) * f64::from(rate)) as u64);
+        let bin_samples = eng.bin_samples() as f64;
+        let (mut captured, mut delivered) = (0u64, 0usize);
+        let t_open = Instant::now();
+        let mut last_status = Instant::now();
+        let mut peak = 0.0f32;
+        let result: Result<(), SessionError> = loop {
+            if stop.load(Ordering::Relaxed) {
+                break Ok(());
+            }
+            left.clear();
+            right.clear();
+            if reader.read(&mut left, &mut right) == 0 {
+                if reader.is_abandoned() {
+                    break Ok(());
+                }
+                if reader.first_callback().is_none() && t_open.elapsed() > opts.first_sample_timeout
+                {
+                    break Err(SessionError::NoAudio {
+                        device: name.clone(),
+                        seconds: opts.first_sample_timeout.as_secs_f64(),
+                    });
+                }
+                if reader.had_error() && reader.first_callback().is_none() {
+                    break Err(SessionError::DeviceFailed {
+                        device: name.clone(),
+                    });
+                }
+                std::thread::sleep(Duration::from_millis(2));
+            } else {
+                if let Some(l) = limit {
+                    let keep = (l - captured).min(left.len() as u64) as usize;
+                    left.truncate(keep);
+                    right.truncate(keep);
+                }
+                captured += left.len() as u64;
+                out[0].clear();
+                out[1].clear();
+                rs.process(&[&left, &right], &mut out);
+                eng.process(&out[0], &out[1], &[]);
+                if let Some(e) = eng.take_separator_error() {
+                    break Err(e.into());
+                }
+                let ready = eng.ready_bins();
+                let first = reader.first_callback();
+                while delivered < ready {
+                    sink.send_frame(
+                        eng.frame(delivered),
+                        (delivered as u64 * u64::from(bin_ms)) as u32,
+                    );
+                    if let Some((t0, n0)) = first {
+                        // The bin's last sample, in device frames, was captured about
+                        // (n − n0) / rate after the first callback (which brought n0 frames).
+                        let end = (delivered + 1) as f64 * bin_samples / ratio;
+                        let captured_at = (end - n0 as f64) / f64::from(rate);
+                        if latencies.len() < latencies.capacity() {
+                            latencies.push(t0.elapsed().as_secs_f64() * 1e3 - captured_at * 1e3);
+                        }
+                    }
+                    delivered += 1;
+                }
+                eng.discard_before(delivered);
+                if limit.is_some_and(|l| captured >= l) {
+                    break Ok(());
+                }
+            }
+            if last_status.elapsed() >= opts.status_every {
+                last_status = Instant::now();
+                peak = peak.max(reader.take_peak());
+                status(&LiveStatus {
+                    captured_s: captured as f64 / f64::from(rate),
+                    frames: delivered,
+                    overruns: reader.overruns(),
+                    peak,
+                });
+                peak = 0.0;
+            }
+        };
+        sink.all_down();
+        result?;
+
+        let ms = |n: usize, r: u32| n as f64 * 1e3 / f64::from(r);
+        let mut budget = vec![(
+            "resample to 44.1 kHz".to_string(),
+            ms(rs.latency_samples(), ENGINE_RATE),
+        )];
+        budget.extend(eng.latency_budget());
+        let rise = f64::from(tactus_glove::PIN_RISE_MS);
+        budget.push(("link".into(), opts.lead_ms as f64 - rise));
+        budget.push(("pin rise".into(), rise));
+        latencies.sort_by(f64::total_cmp);
+        let measured_ms = (!latencies.is_empty()).then(|| {
+            let p = |q: f64| {
+                latencies
+                    [((latencies.len() as f64 * q).ceil() as usize).clamp(1, latencies.len()) - 1]
+            };
+            (p(0.5), p(0.95), p(1.0))
+        });
+        let wall = reader
+            .first_callback()
+            .map(|(t, n0)| (t.elapsed().as_secs_f64(), n0))
+            .unwrap_or((0.0, 0));
+        Ok(LiveReport {
+            captured_s: captured as f64 / f64::from(rate),
+            frames: delivered,
+            callbacks: reader.callbacks(),
+            overruns: reader.overruns(),
+            capture_drift_ms: ((reader.frames().saturating_sub(wall.1)) as f64 / f64::from(rate)
+                - wall.0)
+                * 1e3,
+            input_delay_ms: reader.input_delay_ms(),
+            budget,
+            measured_ms,
+            retained_values: eng.retained_values(),
+        })
     }
 }
 
-/// Runs capture → engine → sink until `stop`, `opts.seconds` or the end of the input.
-/// `status` is called every `opts.status_every`. The sink gets all-down at the end; the
-/// caller closes it.
-///
-/// Errors: the engine's construction or a separator failure while running, no sample
-/// within `opts.first_sample_timeout`, a device error before the first sample.
+/// [`LiveEngine::new`] then [`LiveEngine::run`].
 pub fn live(
     input: LiveInput<'_>,
     config: EngineConfig,
@@ -139,138 +264,4 @@ pub fn live(
     status: &mut dyn FnMut(&LiveStatus),
 ) -> Result<LiveReport, SessionError> {
     LiveEngine::new(config)?.run(input, sink, opts, stop, status)
-}
-
-fn run(
-    mut eng: Engine,
-    input: LiveInput<'_>,
-    sink: &SinkHandle,
-    opts: &LiveOptions,
-    stop: &AtomicBool,
-    status: &mut dyn FnMut(&LiveStatus),
-) -> Result<LiveReport, SessionError> {
-    let LiveInput { reader, rate, name } = input;
-    let bin_ms = eng.config().bin_ms;
-    let mut rs = StreamResampler::new(rate, ENGINE_RATE, 2)?;
-    // Everything the loop touches is allocated here.
-    let cap = reader.capacity();
-    let (mut left, mut right) = (Vec::with_capacity(cap), Vec::with_capacity(cap));
-    let ratio = f64::from(ENGINE_RATE) / f64::from(rate);
-    let out_cap = (cap as f64 * ratio) as usize + 4 * rs.latency_samples() + 8192;
-    let mut out = vec![Vec::with_capacity(out_cap), Vec::with_capacity(out_cap)];
-    let mut latencies: Vec<f64> = Vec::with_capacity(1 << 16);
-    let limit = opts.seconds.map(|s| (s.max(0.0) * f64::from(rate)) as u64);
-    let bin_samples = eng.bin_samples() as f64;
-    let (mut captured, mut delivered) = (0u64, 0usize);
-    let t_open = Instant::now();
-    let mut last_status = Instant::now();
-    let mut peak = 0.0f32;
-    let result: Result<(), SessionError> = loop {
-        if stop.load(Ordering::Relaxed) {
-            break Ok(());
-        }
-        left.clear();
-        right.clear();
-        if reader.read(&mut left, &mut right) == 0 {
-            if reader.is_abandoned() {
-                break Ok(());
-            }
-            if reader.first_callback().is_none() && t_open.elapsed() > opts.first_sample_timeout
-            {
-                break Err(SessionError::NoAudio {
-                    device: name.clone(),
-                    seconds: opts.first_sample_timeout.as_secs_f64(),
-                });
-            }
-            if reader.had_error() && reader.first_callback().is_none() {
-                break Err(SessionError::DeviceFailed {
-                    device: name.clone(),
-                });
-            }
-            std::thread::sleep(Duration::from_millis(2));
-        } else {
-            if let Some(l) = limit {
-                let keep = (l - captured).min(left.len() as u64) as usize;
-                left.truncate(keep);
-                right.truncate(keep);
-            }
-            captured += left.len() as u64;
-            out[0].clear();
-            out[1].clear();
-            rs.process(&[&left, &right], &mut out);
-            eng.process(&out[0], &out[1], &[]);
-            if let Some(e) = eng.take_separator_error() {
-                break Err(e.into());
-            }
-            let ready = eng.ready_bins();
-            let first = reader.first_callback();
-            while delivered < ready {
-                sink.send_frame(
-                    eng.frame(delivered),
-                    (delivered as u64 * u64::from(bin_ms)) as u32,
-                );
-                if let Some((t0, n0)) = first {
-                    // The bin's last sample, in device frames, was captured about
-                    // (n − n0) / rate after the first callback (which brought n0 frames).
-                    let end = (delivered + 1) as f64 * bin_samples / ratio;
-                    let captured_at = (end - n0 as f64) / f64::from(rate);
-                    if latencies.len() < latencies.capacity() {
-                        latencies.push(t0.elapsed().as_secs_f64() * 1e3 - captured_at * 1e3);
-                    }
-                }
-                delivered += 1;
-            }
-            eng.discard_before(delivered);
-            if limit.is_some_and(|l| captured >= l) {
-                break Ok(());
-            }
-        }
-        if last_status.elapsed() >= opts.status_every {
-            last_status = Instant::now();
-            peak = peak.max(reader.take_peak());
-            status(&LiveStatus {
-                captured_s: captured as f64 / f64::from(rate),
-                frames: delivered,
-                overruns: reader.overruns(),
-                peak,
-            });
-            peak = 0.0;
-        }
-    };
-    sink.all_down();
-    result?;
-
-    let ms = |n: usize, r: u32| n as f64 * 1e3 / f64::from(r);
-    let mut budget = vec![(
-        "resample to 44.1 kHz".to_string(),
-        ms(rs.latency_samples(), ENGINE_RATE),
-    )];
-    budget.extend(eng.latency_budget());
-    let rise = f64::from(tactus_glove::PIN_RISE_MS);
-    budget.push(("link".into(), opts.lead_ms as f64 - rise));
-    budget.push(("pin rise".into(), rise));
-    latencies.sort_by(f64::total_cmp);
-    let measured_ms = (!latencies.is_empty()).then(|| {
-        let p = |q: f64| {
-            latencies[((latencies.len() as f64 * q).ceil() as usize).clamp(1, latencies.len()) - 1]
-        };
-        (p(0.5), p(0.95), p(1.0))
-    });
-    let wall = reader
-        .first_callback()
-        .map(|(t, n0)| (t.elapsed().as_secs_f64(), n0))
-        .unwrap_or((0.0, 0));
-    Ok(LiveReport {
-        captured_s: captured as f64 / f64::from(rate),
-        frames: delivered,
-        callbacks: reader.callbacks(),
-        overruns: reader.overruns(),
-        capture_drift_ms: ((reader.frames().saturating_sub(wall.1)) as f64 / f64::from(rate)
-            - wall.0)
-            * 1e3,
-        input_delay_ms: reader.input_delay_ms(),
-        budget,
-        measured_ms,
-        retained_values: eng.retained_values(),
-    })
 }

@@ -461,12 +461,17 @@ pub fn play_pattern(
     ))
 }
 
-/// Waits until the renderer has produced its first frame (or failed, or ended).
-fn wait_first_frame(shared: &SharedQueue, stop: &AtomicBool) -> Result<(), SessionError> {
-    let (m, cv) = &**shared;
-    let mut g = m.lock().map_err(|_| crashed())?;
-    while g.frames.is_empty() && !g.done && !stop.load(Ordering::Relaxed) {
-        g = cv
+/// Waits (holding the lock between checks) while `pending(queue)` holds, the renderer is
+/// not done and `stop` is not set; then reports a rendering error if there is one.
+fn wait_while<'a>(
+    shared: &'a SharedQueue,
+    mut g: std::sync::MutexGuard<'a, Queue>,
+    stop: &AtomicBool,
+    pending: impl Fn(&Queue) -> bool,
+) -> Result<std::sync::MutexGuard<'a, Queue>, SessionError> {
+    while pending(&g) && !g.done && !stop.load(Ordering::Relaxed) {
+        g = shared
+            .1
             .wait_timeout(g, Duration::from_millis(50))
             .map_err(|_| crashed())?
             .0;
@@ -474,7 +479,13 @@ fn wait_first_frame(shared: &SharedQueue, stop: &AtomicBool) -> Result<(), Sessi
     if let Some(e) = g.error.take() {
         return Err(e.into());
     }
-    Ok(())
+    Ok(g)
+}
+
+/// Waits until the renderer has produced its first frame (or failed, or ended).
+fn wait_first_frame(shared: &SharedQueue, stop: &AtomicBool) -> Result<(), SessionError> {
+    let g = shared.0.lock().map_err(|_| crashed())?;
+    wait_while(shared, g, stop, |q| q.frames.is_empty()).map(drop)
 }
 
 /// The scheduler: sends frame `k` when `clock` reads `k · bin_ms − lead_ms`. Returns
@@ -516,18 +527,9 @@ fn schedule(
                 2.0
             });
         }
-        let mut g = m.lock().map_err(|_| crashed())?;
-        if late == Late::Wait {
-            while g.base + g.frames.len() <= k && !g.done && !stop.load(Ordering::Relaxed) {
-                g = cv
-                    .wait_timeout(g, Duration::from_millis(50))
-                    .map_err(|_| crashed())?
-                    .0;
-            }
-        }
-        if let Some(e) = g.error.take() {
-            return Err(e.into());
-        }
+        let g = m.lock().map_err(|_| crashed())?;
+        let wait = late == Late::Wait;
+        let mut g = wait_while(shared, g, stop, |q| wait && q.base + q.frames.len() <= k)?;
         // Frames that came too late for their turn.
         while g.base < k && !g.frames.is_empty() {
             g.frames.pop_front();

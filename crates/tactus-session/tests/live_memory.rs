@@ -87,6 +87,9 @@ fn a_long_live_run_stays_within_50_mb() {
     assert!((report.captured_s - minutes * 60.0).abs() < 1e-6);
     assert!(peak < 50 * 1024, "peak RSS {peak} kB");
     if let Some(a) = at_2min {
-        assert!(end < a + 4 * 1024, "RSS grew from {a} kB to {end} kB: {samples:?}");
+        assert!(
+            end < a + 4 * 1024,
+            "RSS grew from {a} kB to {end} kB: {samples:?}"
+        );
     }
 }

@@ -48,7 +48,12 @@ fn capture_callback_does_not_allocate() {
     let before = allocations();
     for _ in 0..8 {
         // Enough to overrun the ring: the dropped frames are counted, nothing allocates.
-        w.write(&i16_stereo, 2, |x| f32::from(x) / 32768.0, Duration::from_millis(3));
+        w.write(
+            &i16_stereo,
+            2,
+            |x| f32::from(x) / 32768.0,
+            Duration::from_millis(3),
+        );
         w.write(&f32_mono, 1, |x| x, Duration::ZERO);
         w.write(&six, 6, |x| x, Duration::ZERO);
         w.write(&nan, 2, |x| x, Duration::ZERO);
@@ -161,7 +166,11 @@ fn play_song_on_a_fake_clock_sends_every_frame() {
     assert!(report.sound.is_none());
     // The session ended when the frame after the last was due: n·25 ms − lead.
     let last = report.sent as f64 * 25.0 - opts.lead_ms as f64;
-    assert!(clock.now_ms() >= last && clock.now_ms() < last + 1.0, "{} vs {last}", clock.now_ms());
+    assert!(
+        clock.now_ms() >= last && clock.now_ms() < last + 1.0,
+        "{} vs {last}",
+        clock.now_ms()
+    );
 }
 
 #[test]

@@ -17,4 +17,3 @@ pub(crate) trait Link: Send {
         None
     }
 }
-
