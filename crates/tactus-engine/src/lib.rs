@@ -25,14 +25,14 @@
 //!         if t < 0.03 { 0.8 * (2.0 * std::f32::consts::PI * 60.0 * t).sin() } else { 0.0 }
 //!     })
 //!     .collect();
-//! let cfg = EngineConfig { mode: Mode::Streaming, bin_ms: 25, ..EngineConfig::default() };
+//! let cfg = EngineConfig { mode: Mode::Streaming, bin_ms: 100, ..EngineConfig::default() };
 //! let mut engine = Engine::new(cfg).unwrap();
 //! for block in clicks.chunks(512) {
 //!     engine.process(block, block, &[]); // mono: the same slice twice
 //! }
 //! engine.finish();
 //! let frames = engine.frames();
-//! assert_eq!(frames.len(), 80); // 2 s of 25 ms bins
+//! assert_eq!(frames.len(), 20); // 2 s of 100 ms bins
 //! println!("latency budget: {:?}", engine.latency_budget());
 //! ```
 #![forbid(unsafe_code)]

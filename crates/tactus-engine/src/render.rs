@@ -103,6 +103,55 @@ pub struct RenderOutput {
     pub segments: Option<SegmentStats>,
 }
 
+impl RenderOutput {
+    /// The report `render --verbose` prints: what ran, what each stage cost, the speed, an
+    /// ONNX separator's segments, and the latency budget (stage by stage, then the total).
+    pub fn report_text(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = String::new();
+        let stems: Vec<&str> = self.stems.iter().map(|s| s.name()).collect();
+        let _ = writeln!(
+            s,
+            "tactus: {} ({:.1} s), separator {}, stems {}",
+            self.pattern.source.path,
+            self.duration_s,
+            self.separator.unwrap_or("none needed"),
+            stems.join(", ")
+        );
+        for (name, t) in &self.times.stages {
+            let _ = writeln!(s, "  {:<36} {:>9.3} s", name, t.as_secs_f64());
+        }
+        let total = self.times.stages.last().map_or(0.0, |t| t.1.as_secs_f64());
+        if total > 0.0 {
+            let _ = writeln!(s, "  speed: {:.1}x real time", self.duration_s / total);
+        }
+        if let Some(st) = &self.segments {
+            let _ = writeln!(
+                s,
+                "  network segments: {}, per segment mean {:.3} s, min {:.3} s, max {:.3} s",
+                st.segments,
+                st.network_mean().as_secs_f64(),
+                st.network_min.as_secs_f64(),
+                st.network_max.as_secs_f64()
+            );
+            let _ = writeln!(
+                s,
+                "  outside the network (STFT, iSTFT, overlap-add, masks): {:.3} s = {:.1} % of the network's {:.3} s",
+                st.outside().as_secs_f64(),
+                100.0 * st.outside_share(),
+                st.network.as_secs_f64()
+            );
+        }
+        let _ = writeln!(s, "  latency budget (streaming):");
+        for (name, ms) in &self.latency {
+            let _ = writeln!(s, "    {name:<44} {ms:>7.1} ms");
+        }
+        let sum: f64 = self.latency.iter().map(|(_, ms)| ms).sum();
+        let _ = writeln!(s, "    {:<44} {sum:>7.1} ms", "total");
+        s
+    }
+}
+
 /// A supplied stem, decoded and resampled whole, read out in step with the mix.
 struct SuppliedStem {
     stem: Stem,
