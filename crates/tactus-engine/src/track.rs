@@ -441,6 +441,23 @@ impl PitchTrack {
         self.hop_levels = levels;
     }
 
+    /// Per-hop and per-bin values held (what [`crate::Engine::retained_values`] sums).
+    pub fn retained(&self) -> usize {
+        self.bins.len()
+            + self.f0.len()
+            + self.hop_levels.len()
+            + self.raw_f0.len()
+            + self.raw_rms.len()
+    }
+
+    /// Streaming: forgets the first `d` bins and the per-hop values already binned
+    /// ([`crate::Engine::discard_before`]).
+    pub fn discard(&mut self, d: usize) {
+        self.bins.drain(..d.min(self.bins.len()));
+        self.f0.clear();
+        self.hop_levels.clear();
+    }
+
     /// Back to the initial state.
     pub fn reset(&mut self) {
         self.decimator.reset();
@@ -573,6 +590,17 @@ impl OnsetTrack {
             .filter(|(_, &o)| o)
             .map(|(i, _)| i as f64 * hop_s)
             .collect()
+    }
+
+    /// Per-hop and per-bin values held.
+    pub fn retained(&self) -> usize {
+        self.bins.len() + self.onsets.len() + self.raw_onset.len() + self.raw_rms.len()
+    }
+
+    /// Streaming: forgets the first `d` bins and the per-hop onsets already binned.
+    pub fn discard(&mut self, d: usize) {
+        self.bins.drain(..d.min(self.bins.len()));
+        self.onsets.clear();
     }
 
     /// Back to the initial state.
