@@ -365,6 +365,22 @@ impl ClassTrack {
             .collect()
     }
 
+    /// Per-hop and per-bin values held.
+    pub fn retained(&self) -> usize {
+        self.bins.iter().map(Vec::len).sum::<usize>()
+            + self.onsets.len()
+            + self.raw.len()
+            + self.raw_rms.len()
+    }
+
+    /// Streaming: forgets the first `d` bins of every class and the onsets already binned.
+    pub fn discard(&mut self, d: usize) {
+        for b in &mut self.bins {
+            b.drain(..d.min(b.len()));
+        }
+        self.onsets.clear();
+    }
+
     /// Back to the initial state.
     pub fn reset(&mut self) {
         self.det.reset();
