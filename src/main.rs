@@ -46,6 +46,8 @@ enum ModeArg {
 enum DrumsArg {
     /// Per-instrument transcriber embedded in Tactus (default).
     Classes,
+    /// The same with its low-latency model (21.6 ms instead of 51.6 ms), for live input.
+    ClassesLive,
     /// The paper's four Butterworth bands with spectral-flux onsets.
     Bands,
     /// ADTLib's networks through ONNX (kick, snare, hi-hat; needs --drum-model).
@@ -54,11 +56,11 @@ enum DrumsArg {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum PitchArg {
-    /// pYIN, and harmonic-sum salience for the bass.
+    /// Harmonic-sum salience for the bass and the lead (vocals), pYIN for the rest.
     Auto,
     Yin,
     Pyin,
-    /// Harmonic-sum salience + Viterbi (made for a bass line in a mix) on every stem.
+    /// Harmonic-sum salience + Viterbi (made for a bass line or a lead in a mix) on every stem.
     Shs,
 }
 
@@ -98,7 +100,7 @@ struct EngineArgs {
     #[arg(long, value_enum)]
     pitch: Option<PitchArg>,
     /// Drum transcription: classes (embedded per-instrument transcriber; the default for
-    /// render and play), bands (the paper's band-pass; the default for live) or adtlib
+    /// render and play), classes-live (the same with its 21.6 ms model), bands (the paper's band-pass; the default for live) or adtlib
     /// (ONNX, --drum-model models/adtlib.onnx).
     #[arg(long, value_enum)]
     drums: Option<DrumsArg>,
@@ -421,6 +423,7 @@ fn engine_config(
             DrumsArg::Classes
         }) {
             DrumsArg::Classes => DrumMethod::Classes,
+            DrumsArg::ClassesLive => DrumMethod::ClassesLive,
             DrumsArg::Bands => DrumMethod::Bands,
             DrumsArg::Adtlib => DrumMethod::AdtLib(e.drum_model.clone().ok_or_else(|| {
                 anyhow!("--drums adtlib needs --drum-model PATH (see README, \"ONNX models\")")

@@ -159,6 +159,9 @@ impl StemChain {
             DrumMethod::Classes if !bands.is_empty() => {
                 (Some(ClassTrack::new(geo)?), bands.to_vec())
             }
+            DrumMethod::ClassesLive if !bands.is_empty() => {
+                (Some(ClassTrack::live(geo)?), bands.to_vec())
+            }
             #[cfg(feature = "onnx")]
             DrumMethod::AdtLib(model) if !bands.is_empty() => {
                 (Some(ClassTrack::adtlib(geo, model, 0)?), bands.to_vec())
@@ -455,7 +458,7 @@ impl Engine {
                 .pitch
                 .contains(&stem)
                 .then_some(match (cfg.pitch, stem) {
-                    (PitchMethod::Auto, Stem::Bass) => PitchMethod::Shs,
+                    (PitchMethod::Auto, Stem::Bass | Stem::Vocals) => PitchMethod::Shs,
                     (PitchMethod::Auto, _) => PitchMethod::Pyin,
                     (m, _) => m,
                 });
