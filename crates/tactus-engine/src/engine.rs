@@ -163,6 +163,9 @@ impl StemChain {
             DrumMethod::Classes if !bands.is_empty() => {
                 (Some(ClassTrack::new(geo)?), bands.to_vec())
             }
+            DrumMethod::ClassesLive if !bands.is_empty() => {
+                (Some(ClassTrack::live(geo)?), bands.to_vec())
+            }
             #[cfg(feature = "onnx")]
             DrumMethod::AdtLib(model) if !bands.is_empty() => {
                 (Some(ClassTrack::adtlib(geo, model, 0)?), bands.to_vec())
@@ -295,6 +298,37 @@ impl StemChain {
         l + self.denoise.latency_samples()
     }
 
+    /// Per-hop and per-bin values the chain holds.
+    fn retained(&self) -> usize {
+        let mut n = self.pitch.as_ref().map_or(0, |p| p.retained());
+        n += match &self.notes {
+            Some(NoteTrack::Pitch(t)) => t.retained(),
+            Some(NoteTrack::Flux(t)) => t.retained(),
+            None => 0,
+        };
+        n += self.classes.as_ref().map_or(0, |c| c.retained());
+        n + self.bands.iter().map(|b| b.track.retained()).sum::<usize>()
+    }
+
+    /// Forgets the first `d` bins of every track and the per-hop records already binned
+    /// (see [`Engine::discard_before`]).
+    fn discard(&mut self, d: usize) {
+        if let Some(p) = &mut self.pitch {
+            p.discard(d);
+        }
+        match &mut self.notes {
+            Some(NoteTrack::Pitch(n)) => n.discard(d),
+            Some(NoteTrack::Flux(n)) => n.discard(d),
+            None => {}
+        }
+        if let Some(c) = &mut self.classes {
+            c.discard(d);
+        }
+        for b in &mut self.bands {
+            b.track.discard(d);
+        }
+    }
+
     fn reset(&mut self) {
         self.denoise.reset();
         self.samples = 0;
@@ -417,6 +451,8 @@ pub struct Engine {
     mix: Vec<f32>,
     /// Whether the drum chain takes the mix rather than a separated stem.
     drums_on_mix: bool,
+    /// Bins forgotten by [`Engine::discard_before`]: the tracks' bin vectors start here.
+    bin_base: usize,
 }
 
 impl Engine {
@@ -452,7 +488,7 @@ impl Engine {
                     // in benches/live_latency.py; the harmonic-sum tracker's 200 ms
                     // frames do not fit at all).
                     (PitchMethod::Auto, _) if cfg.profile == Profile::Live => PitchMethod::Yin,
-                    (PitchMethod::Auto, Stem::Bass) => PitchMethod::Shs,
+                    (PitchMethod::Auto, Stem::Bass | Stem::Vocals) => PitchMethod::Shs,
                     (PitchMethod::Auto, _) => PitchMethod::Pyin,
                     (m, _) => m,
                 });
@@ -524,6 +560,7 @@ impl Engine {
             n_in: 0,
             t_separate: Duration::ZERO,
             pending: None,
+            bin_base: 0,
         })
     }
 
@@ -696,12 +733,13 @@ impl Engine {
         if ready == usize::MAX {
             self.n_in / self.geo.bin_samples
         } else {
-            ready
+            self.bin_base + ready
         }
     }
 
-    /// The features of bin `k` (missing values count as silent). In the live profile a
-    /// beat or onset stays on for [`Profile::pulse_bins`] bins (the minimum pin pulse).
+    /// The features of bin `k` (missing values, and bins forgotten by
+    /// [`Engine::discard_before`], count as silent). In the live profile a beat or onset
+    /// stays on for [`Profile::pulse_bins`] bins (the minimum pin pulse).
     pub fn bin_features(&self, k: usize) -> BinFeatures {
         self.features_shifted(k, &|_, _| 0)
     }
@@ -719,6 +757,9 @@ impl Engine {
             (kb.saturating_sub(hold - 1)..=kb).any(|j| bins.get(j).copied().unwrap_or(false))
         };
         let mut f = BinFeatures::default();
+        let Some(k) = k.checked_sub(self.bin_base) else {
+            return f;
+        };
         for c in &self.chains {
             let si = c.stem as usize;
             if let (Some(p), Some(kb)) = (&c.pitch, k.checked_sub(shift(c, Feature::Level))) {
@@ -815,7 +856,7 @@ impl Engine {
         if ready == usize::MAX {
             self.n_in / self.geo.bin_samples
         } else {
-            ready
+            self.bin_base + ready
         }
     }
 
@@ -827,6 +868,20 @@ impl Engine {
         let fastest = self.fastest_latency();
         let f = self.features_shifted(k, &|c, w| self.live_shift(c, w, fastest));
         self.cfg.map.render(&f, self.cfg.levels)
+    }
+
+    /// Bins before the newest that [`Engine::live_frame`] still reads (the slowest
+    /// feature's shift plus the pin pulse): a live driver discards only bins older than
+    /// that ([`Engine::discard_before`]).
+    pub fn live_history_bins(&self) -> usize {
+        let fastest = self.fastest_latency();
+        let shift = self
+            .chains
+            .iter()
+            .flat_map(|c| Feature::ALL.map(|w| self.live_shift(c, w, fastest)))
+            .max()
+            .unwrap_or(0);
+        shift + self.cfg.profile.pulse_bins(self.cfg.bin_ms)
     }
 
     /// The latency of each finger group as stages in samples at the engine rate, for the
@@ -890,6 +945,37 @@ impl Engine {
     /// All frames of a finished stream, one per bin.
     pub fn frames(&self) -> Vec<Frame> {
         (0..self.total_bins()).map(|k| self.frame(k)).collect()
+    }
+
+    /// Forgets everything about bins before `k` (at most [`Engine::ready_bins`]): their
+    /// levels and beats and the per-hop records behind them. A live driver calls this after
+    /// sending each frame, so memory stays flat however long it runs; [`Engine::frame`] of a
+    /// forgotten bin is all-down, and [`Engine::features`] then covers only what is kept.
+    /// Offline mode needs the whole track and ignores it.
+    pub fn discard_before(&mut self, k: usize) {
+        if self.cfg.mode != Mode::Streaming {
+            return;
+        }
+        let k = k.min(self.ready_bins());
+        if k <= self.bin_base {
+            return;
+        }
+        let d = k - self.bin_base;
+        for c in &mut self.chains {
+            c.discard(d);
+        }
+        self.bin_base = k;
+    }
+
+    /// Per-hop and per-bin feature values the engine holds now: grows with the stream unless
+    /// the driver calls [`Engine::discard_before`] (the bounded-memory tests watch it).
+    pub fn retained_values(&self) -> usize {
+        self.chains.iter().map(|c| c.retained()).sum()
+    }
+
+    /// Bins forgotten so far by [`Engine::discard_before`].
+    pub fn discarded_bins(&self) -> usize {
+        self.bin_base
     }
 
     /// Builds the features file contents (docs/design.md "Files") of a finished stream.
@@ -999,5 +1085,6 @@ impl Engine {
         self.n_in = 0;
         self.t_separate = Duration::ZERO;
         self.pending = None;
+        self.bin_base = 0;
     }
 }
