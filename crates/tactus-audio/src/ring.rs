@@ -30,7 +30,7 @@ struct Shared {
     base: Instant,
     first_cb_ns: AtomicU64,
     first_cb_frames: AtomicU64,
-    /// The device's `callback − capture` delay for the first block, ns.
+    /// The device's `callback − capture` delay for the latest block, ns (issue 13).
     input_delay_ns: AtomicU64,
     callbacks: AtomicU64,
     frames: AtomicU64,
@@ -83,7 +83,7 @@ pub fn capture_ring(frames: usize) -> (CaptureWriter, CaptureReader) {
 
 impl CaptureWriter {
     /// One callback's interleaved block of `channels` channels: to stereo, into the ring.
-    /// `delay` is the device's `callback − capture` time (recorded for the first block).
+    /// `delay` is the device's `callback − capture` time (recorded for every block: the latest is kept).
     /// No allocation, no lock, no blocking.
     pub fn write<T: Copy>(
         &mut self,
@@ -198,7 +198,7 @@ impl CaptureReader {
         })
     }
 
-    /// The device's `callback − capture` delay of the first block, ms.
+    /// The device's `callback − capture` delay of the latest block, ms.
     pub fn input_delay_ms(&self) -> f64 {
         self.shared.input_delay_ns.load(Ordering::Relaxed) as f64 / 1e6
     }
