@@ -73,6 +73,12 @@ pub struct EngineConfig {
     /// Intra-op threads for the ONNX separators (ONNX Runtime); 0 = the available cores
     /// ([`std::thread::available_parallelism`]). Nothing else uses it.
     pub threads: usize,
+    /// Whether the engine may start threads of its own: the stem chains on one thread
+    /// each, separation overlapped with the chains ([`EngineConfig::pipeline`]), the
+    /// offline driver's decoder a few blocks ahead. `true` by default (one song, every
+    /// core); a batch that renders one song per core turns it off so that each job runs on
+    /// the calling thread alone. Results are identical either way.
+    pub parallel: bool,
 }
 
 impl Default for EngineConfig {
@@ -90,6 +96,7 @@ impl Default for EngineConfig {
             supplied: StemSet::default(),
             pipeline: false,
             threads: 0,
+            parallel: true,
         }
     }
 }
@@ -351,7 +358,12 @@ fn onnx_separator(
 
 /// Feeds one block to every chain: supplied stems where given, separated ones otherwise.
 /// Chains run on their own threads when the block is large enough to pay for it.
-fn feed(chains: &mut [StemChain], sep_out: &StemOutput, supplied: &[(Stem, &[f32])]) {
+fn feed(
+    chains: &mut [StemChain],
+    sep_out: &StemOutput,
+    supplied: &[(Stem, &[f32])],
+    parallel: bool,
+) {
     let inputs: Vec<(&mut StemChain, &[f32])> = chains
         .iter_mut()
         .map(|c| {
@@ -365,7 +377,7 @@ fn feed(chains: &mut [StemChain], sep_out: &StemOutput, supplied: &[(Stem, &[f32
         })
         .collect();
     let big = inputs.iter().map(|(_, x)| x.len()).max().unwrap_or(0) >= PARALLEL_MIN_BLOCK;
-    if big && inputs.len() > 1 {
+    if parallel && big && inputs.len() > 1 {
         std::thread::scope(|s| {
             for (c, x) in inputs {
                 s.spawn(move || c.process(x));
@@ -507,7 +519,7 @@ impl Engine {
     /// the same span of every supplied stem. All slices must have the same length.
     pub fn process(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {
         self.n_in += left.len();
-        if self.cfg.pipeline && self.separator.is_some() {
+        if self.cfg.pipeline && self.cfg.parallel && self.separator.is_some() {
             self.process_pipelined(left, right, supplied);
             return;
         }
@@ -517,7 +529,7 @@ impl Engine {
             sep.process(left, right, &mut self.sep_out);
             self.t_separate += t.elapsed();
         }
-        feed(&mut self.chains, &self.sep_out, supplied);
+        feed(&mut self.chains, &self.sep_out, supplied, self.cfg.parallel);
     }
 
     /// Separates this block on the calling thread while the chains work on the previous one.
@@ -543,7 +555,7 @@ impl Engine {
                 s.spawn(move || {
                     let views: Vec<(Stem, &[f32])> =
                         p_sup.iter().map(|(st, v)| (*st, v.as_slice())).collect();
-                    feed(chains, p_out, &views);
+                    feed(chains, p_out, &views, true);
                 });
             }
             let t = Instant::now();
@@ -563,16 +575,16 @@ impl Engine {
         if let Some((p_out, p_sup)) = self.pending.take() {
             let views: Vec<(Stem, &[f32])> =
                 p_sup.iter().map(|(st, v)| (*st, v.as_slice())).collect();
-            feed(&mut self.chains, &p_out, &views);
+            feed(&mut self.chains, &p_out, &views, self.cfg.parallel);
         }
         if let Some(sep) = &mut self.separator {
             let t = Instant::now();
             self.sep_out.clear();
             sep.finish(&mut self.sep_out);
             self.t_separate += t.elapsed();
-            feed(&mut self.chains, &self.sep_out, &[]);
+            feed(&mut self.chains, &self.sep_out, &[], self.cfg.parallel);
         }
-        let parallel = self.chains.len() > 1 && self.cfg.mode == Mode::Offline;
+        let parallel = self.cfg.parallel && self.chains.len() > 1 && self.cfg.mode == Mode::Offline;
         if parallel {
             std::thread::scope(|s| {
                 for c in &mut self.chains {
