@@ -100,7 +100,15 @@ fn a_library_renders_with_a_broken_file_reported() {
     let l = library();
     let o = tactus(
         &l.root,
-        &["render", "lib", "--out-dir", "out", "--with-features", "--jobs", "2"],
+        &[
+            "render",
+            "lib",
+            "--out-dir",
+            "out",
+            "--with-features",
+            "--jobs",
+            "2",
+        ],
     );
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "one input failed: {err}");
@@ -109,7 +117,10 @@ fn a_library_renders_with_a_broken_file_reported() {
     let out = l.root.join("out");
     for base in OUTPUTS {
         for suffix in [".pattern.json", ".features.json"] {
-            assert!(out.join(format!("{base}{suffix}")).is_file(), "{base}{suffix}");
+            assert!(
+                out.join(format!("{base}{suffix}")).is_file(),
+                "{base}{suffix}"
+            );
         }
     }
     assert!(!out.join("notes.pattern.json").exists());
@@ -158,7 +169,15 @@ fn batch_bytes_equal_single_renders_for_any_number_of_jobs() {
     for (dir, jobs) in [("j1", "1"), ("j2", "2")] {
         let o = tactus(
             &l.root,
-            &["render", "lib", "--out-dir", dir, "--with-features", "--jobs", jobs],
+            &[
+                "render",
+                "lib",
+                "--out-dir",
+                dir,
+                "--with-features",
+                "--jobs",
+                jobs,
+            ],
         );
         assert!(o.status.success(), "{}", stderr(&o));
     }
@@ -166,8 +185,15 @@ fn batch_bytes_equal_single_renders_for_any_number_of_jobs() {
     let o = tactus(
         &l.root,
         &[
-            "render", "lib", "--out-dir", "t2", "--with-features", "--jobs", "1",
-            "--job-threads", "2",
+            "render",
+            "lib",
+            "--out-dir",
+            "t2",
+            "--with-features",
+            "--jobs",
+            "1",
+            "--job-threads",
+            "2",
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
@@ -258,14 +284,24 @@ fn a_rerun_skips_what_is_up_to_date_and_renders_what_changed() {
 fn a_killed_batch_resumes_from_the_appended_records() {
     let l = library();
     fs::remove_file(l.lib.join("sub/broken.mp3")).unwrap();
-    let o = tactus(&l.root, &["render", "lib", "--out-dir", "out", "--jobs", "1"]);
+    let o = tactus(
+        &l.root,
+        &["render", "lib", "--out-dir", "out", "--jobs", "1"],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     // What a kill after the first song leaves: that song's line, then a torn line.
     let out = l.root.join("out");
     let text = fs::read_to_string(out.join("manifest.jsonl")).unwrap();
     let first = text.lines().next().unwrap();
-    fs::write(out.join("manifest.jsonl"), format!("{first}\n{{\"path\":\"/x")).unwrap();
-    let o = tactus(&l.root, &["render", "lib", "--out-dir", "out", "--jobs", "1"]);
+    fs::write(
+        out.join("manifest.jsonl"),
+        format!("{first}\n{{\"path\":\"/x"),
+    )
+    .unwrap();
+    let o = tactus(
+        &l.root,
+        &["render", "lib", "--out-dir", "out", "--jobs", "1"],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let m = manifest(&out);
     assert_eq!(m.len(), 3, "one record per input: {m:?}");
@@ -284,10 +320,21 @@ fn globs_and_files_as_inputs() {
     // Files: outputs named after the file alone; a missing one is reported.
     let o = tactus(
         &l.root,
-        &["render", "lib/one.wav", "lib/sub/two", "lib/missing.wav", "--out-dir", "f"],
+        &[
+            "render",
+            "lib/one.wav",
+            "lib/sub/two",
+            "lib/missing.wav",
+            "--out-dir",
+            "f",
+        ],
     );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
-    assert!(stderr(&o).contains("missing.wav: no such file"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("missing.wav: no such file"),
+        "{}",
+        stderr(&o)
+    );
     assert!(l.root.join("f/one.pattern.json").is_file());
     assert!(l.root.join("f/two.pattern.json").is_file());
     let m = manifest(&l.root.join("f"));
@@ -306,7 +353,10 @@ fn one_song_options_do_not_mix_with_a_library() {
             vec!["render", "lib/one.wav", "lib/sub/two"],
             "needs --out-dir",
         ),
-        (vec!["render", "lib/one.wav", "--jobs", "2"], "--jobs needs --out-dir"),
+        (
+            vec!["render", "lib/one.wav", "--jobs", "2"],
+            "--jobs needs --out-dir",
+        ),
         (vec!["render", "lib"], "is a directory"),
     ] {
         let o = tactus(&l.root, &args);

@@ -37,8 +37,8 @@ pub struct Plan {
 
 /// File extensions taken as audio even when the content is not recognised.
 const AUDIO_EXTENSIONS: &[&str] = &[
-    "wav", "wave", "flac", "mp3", "mp2", "mp1", "ogg", "oga", "opus", "m4a", "mp4", "aac",
-    "aif", "aiff", "aifc", "caf", "mka", "webm", "wv", "alac",
+    "wav", "wave", "flac", "mp3", "mp2", "mp1", "ogg", "oga", "opus", "m4a", "mp4", "aac", "aif",
+    "aiff", "aifc", "caf", "mka", "webm", "wv", "alac",
 ];
 
 /// Whether `head` (a file's first bytes) starts like an audio container or stream that the
@@ -46,16 +46,13 @@ const AUDIO_EXTENSIONS: &[&str] = &[
 /// Matroska/WebM, ADTS AAC.
 pub fn looks_like_audio(head: &[u8]) -> bool {
     let starts = |m: &[u8]| head.len() >= m.len() && &head[..m.len()] == m;
-    if starts(b"RIFF") && head.len() >= 12 && (&head[8..12] == b"WAVE" || &head[8..12] == b"RF64")
-    {
+    if starts(b"RIFF") && head.len() >= 12 && (&head[8..12] == b"WAVE" || &head[8..12] == b"RF64") {
         return true;
     }
-    if starts(b"RF64") || starts(b"fLaC") || starts(b"ID3") || starts(b"OggS") || starts(b"caff")
-    {
+    if starts(b"RF64") || starts(b"fLaC") || starts(b"ID3") || starts(b"OggS") || starts(b"caff") {
         return true;
     }
-    if starts(b"FORM") && head.len() >= 12 && (&head[8..12] == b"AIFF" || &head[8..12] == b"AIFC")
-    {
+    if starts(b"FORM") && head.len() >= 12 && (&head[8..12] == b"AIFF" || &head[8..12] == b"AIFC") {
         return true;
     }
     if head.len() >= 12 && &head[4..8] == b"ftyp" {

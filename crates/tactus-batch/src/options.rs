@@ -56,7 +56,8 @@ fn choice<'a>(
         Ok(v)
     } else {
         Err(BatchError::Options(format!(
-            "invalid value '{v}' for '--{flag}' [possible values: {}]",
+            "invalid value '{v}' for '--{flag} <{}>' [possible values: {}]",
+            flag.to_uppercase().replace('-', "_"),
             allowed.join(", ")
         )))
     }
