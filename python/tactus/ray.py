@@ -77,7 +77,7 @@ def render_library(
     del key
     jobs, rejected = _native.batch_plan(inputs, out_dir)
     os.makedirs(out_dir, exist_ok=True)
-    earlier = dict(_native.batch_read_manifest(out_dir))
+    earlier = {str(p): r for p, r in _native.batch_read_manifest(out_dir)}
     records: List[Optional[str]] = [None] * len(jobs)
     failed_first = [_native.batch_rejected(p, why, opts) for p, why in rejected]
     summary = {"ok": 0, "skipped": 0, "failed": 0}

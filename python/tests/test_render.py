@@ -75,7 +75,7 @@ def test_errors_carry_the_cli_message(tactus_bin, tmp_path):
     missing = tmp_path / "missing.wav"
     junk = tmp_path / "junk.mp3"
     junk.write_bytes(b"\x00not audio" * 100)
-    for path, extra in ((missing, {}), (junk, {}), (junk, {"separator": "nope"}),
+    for path, extra in ((missing, {}), (junk, {}), (junk, {"separator": "xyz"}),
                         (junk, {"separator": "spleeter"}), (junk, {"levels": 9})):
         flags = []
         for k, v in extra.items():
