@@ -145,7 +145,12 @@ def main(argv: Optional[List[str]] = None) -> int:
     options = {k: getattr(a, k) for k in ("separator", "model", "map", "pitch", "drums",
                                            "drum_model", "levels_rule", "mode", "bin_ms",
                                            "levels")}
-    init = {"num_cpus": a.num_cpus} if a.num_cpus and not a.address else {}
+    init: Dict[str, Any] = {}
+    if not a.address:
+        # A local cluster for this job only: no dashboard (it costs CPU the songs need).
+        init["include_dashboard"] = False
+        if a.num_cpus:
+            init["num_cpus"] = a.num_cpus
     t = time.monotonic()
     try:
         s = render_library(
