@@ -99,6 +99,13 @@ pub struct ShsConfig {
     pub max_harmonic_hz: f32,
     /// Half-width, in semitones, of the neighbourhood searched around each harmonic.
     pub harmonic_width_st: f32,
+    /// Fundamental presence: a candidate's sum is scaled by `min(1, r / fundamental_ratio)`,
+    /// where `r` is its fundamental's magnitude over its strongest summed harmonic. A
+    /// subharmonic that no source sounds (the `f/2` or `f/3` that explains a bass note and
+    /// a chord tone together, common when a mixture's low band still holds chords) has
+    /// `r ≈ 0`. 0 (the default) turns it off: on a clean bass stem it costs the weak
+    /// fundamentals of low plucked notes (octave-up errors).
+    pub fundamental_ratio: f32,
     /// Candidate bins per semitone.
     pub bins_per_semitone: u32,
     /// Exponent γ turning salience into candidate probabilities.
@@ -135,6 +142,7 @@ impl ShsConfig {
             low_tilt: 0.0,
             compress: 1.0,
             harmonic_width_st: 0.25,
+            fundamental_ratio: 0.0,
             max_harmonic_hz: 320.0,
             bins_per_semitone: 3,
             sharpness: 2.0,
@@ -188,6 +196,9 @@ impl ShsConfig {
         }
         if self.max_harmonic_hz.is_nan() || self.max_harmonic_hz <= 0.0 {
             return Err(ConfigError::invalid("max_harmonic_hz", "must be > 0"));
+        }
+        if !(0.0..=1.0).contains(&self.fundamental_ratio) {
+            return Err(ConfigError::invalid("fundamental_ratio", "must be in [0, 1]"));
         }
         if !(self.harmonic_width_st > 0.0 && self.harmonic_width_st <= 1.0) {
             return Err(ConfigError::invalid(
@@ -257,6 +268,7 @@ struct Salience {
     sharp: f32,
     ln_r0: f32,
     compress: f32,
+    fund_ratio: f32,
 }
 
 impl std::fmt::Debug for Salience {
@@ -323,6 +335,7 @@ impl Salience {
             sharp: cfg.sharpness,
             ln_r0: cfg.voicing_ratio.ln(),
             compress: cfg.compress,
+            fund_ratio: cfg.fundamental_ratio,
         }
     }
 
@@ -364,16 +377,27 @@ impl Salience {
         let mut best = 0.0f32;
         for (c, s) in out.iter_mut().enumerate() {
             let mut acc = 0.0f32;
+            let mut first = 0.0f32;
+            let mut strongest = 0.0f32;
             for h in 0..h_n {
                 let (lo, hi) = self.ranges[c * h_n + h];
-                if lo > hi {
+                let w = self.weights[c * h_n + h];
+                if lo > hi || w == 0.0 {
                     continue;
                 }
                 let mut mx = 0.0f32;
                 for &a in &self.mag[lo as usize..=hi as usize] {
                     mx = mx.max(a);
                 }
-                acc += self.weights[c * h_n + h] * mx;
+                acc += w * mx;
+                if h == 0 {
+                    first = mx;
+                }
+                strongest = strongest.max(mx);
+            }
+            if self.fund_ratio > 0.0 && strongest > 0.0 {
+                let r = first / (strongest * self.fund_ratio);
+                acc *= r.min(1.0);
             }
             *s = acc;
             best = best.max(acc);

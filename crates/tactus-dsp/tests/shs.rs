@@ -183,6 +183,7 @@ fn naive_salience(c: &ShsConfig, frame: &[f32]) -> (Vec<f64>, f64) {
     for (ci, sv) in s.iter_mut().enumerate() {
         let f = c.fmin_hz as f64 * (ci as f64 / (12.0 * c.bins_per_semitone as f64)).exp2();
         let tilt = (f / c.fmin_hz as f64).powf(-(c.low_tilt as f64));
+        let mut amps = Vec::new(); // (harmonic number, neighbourhood maximum)
         for h in 1..=c.harmonics {
             let xh = f * h as f64;
             let lo = (xh / half / df).round().max(1.0) as usize;
@@ -192,6 +193,13 @@ fn naive_salience(c: &ShsConfig, frame: &[f32]) -> (Vec<f64>, f64) {
             }
             let mx = mag[lo..=hi].iter().cloned().fold(0.0, f64::max);
             *sv += tilt * (c.harmonic_decay as f64).powi(h as i32 - 1) * mx;
+            amps.push((h, mx));
+        }
+        // Fundamental presence: the fundamental over the strongest summed harmonic.
+        let strongest = amps.iter().map(|a| a.1).fold(0.0, f64::max);
+        if c.fundamental_ratio > 0.0 && strongest > 0.0 {
+            let first = amps.iter().find(|a| a.0 == 1).map_or(0.0, |a| a.1);
+            *sv *= (first / (strongest * c.fundamental_ratio as f64)).min(1.0);
         }
     }
     let best = s.iter().cloned().fold(0.0, f64::max);
@@ -226,9 +234,46 @@ fn bass_line(pitches: &[f64], note_s: f64, seed: u64) -> (Vec<f32>, Vec<f64>) {
 
 #[test]
 fn salience_matches_the_direct_dft_oracle() {
+    salience_against_oracle(0.0);
+}
+
+#[test]
+fn salience_with_fundamental_presence_matches_the_oracle() {
+    salience_against_oracle(0.1);
+    salience_against_oracle(1.0);
+}
+
+/// A bass note and a chord tone a fifth above it (f and 1.5·f, no partials): without the
+/// fundamental-presence rule the unsounded f/2 collects both (harmonics 2 and 3) and wins;
+/// with it, f wins.
+#[test]
+fn fundamental_presence_removes_the_common_subharmonic() {
+    let mut c = cfg();
+    let f = 160.0;
+    let frame: Vec<f32> = (0..c.frame)
+        .map(|i| {
+            let t = i as f64 / SR as f64;
+            ((std::f64::consts::TAU * f * t).sin()
+                + 0.9 * (std::f64::consts::TAU * 1.5 * f * t).sin()) as f32
+        })
+        .collect();
+    let best = |c: &ShsConfig| {
+        let (s, _) = Shs::new(c.clone()).unwrap().frame_salience(&frame);
+        let k = (0..s.len()).max_by(|&a, &b| s[a].total_cmp(&s[b])).unwrap();
+        c.bin_hz(k)
+    };
+    let off = best(&c);
+    assert!((off / (f as f32 / 2.0) - 1.0).abs() < 0.02, "without the rule: {off} Hz");
+    c.fundamental_ratio = 0.1;
+    let on = best(&c);
+    assert!((on / f as f32 - 1.0).abs() < 0.02, "with the rule: {on} Hz");
+}
+
+fn salience_against_oracle(fundamental_ratio: f32) {
     let mut c = cfg();
     c.frame = 256; // keep the O(N·n_fft) oracle quick
     c.n_fft = 1024;
+    c.fundamental_ratio = fundamental_ratio;
     let mut s = Shs::new(c.clone()).unwrap();
     let mut rng = Rng(7);
     for (f0, noise) in [(55.0, 0.0), (98.0, 0.2), (41.2, 0.05), (180.0, 1.0)] {
@@ -472,6 +517,8 @@ fn invalid_configs_are_rejected() {
         Box::new(|c| c.switch_prob = 1.0),
         Box::new(|c| c.max_jump_bins = 10_000),
         Box::new(|c| c.sharpness = f32::NAN),
+        Box::new(|c| c.fundamental_ratio = 1.5),
+        Box::new(|c| c.fundamental_ratio = f32::NAN),
     ];
     for (k, f) in bad.iter().enumerate() {
         let mut c = cfg();

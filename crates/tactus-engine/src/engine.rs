@@ -145,6 +145,7 @@ impl StemChain {
         notes: bool,
         bands: &[Band],
         drums: &DrumMethod,
+        mixture: bool,
     ) -> Result<Self, EngineError> {
         let hp = if matches!(stem, Stem::Bass | Stem::Drums) {
             30.0
@@ -152,7 +153,7 @@ impl StemChain {
             60.0
         };
         let pitch = match (pitch, stem.pitch_range_hz()) {
-            (Some(m), Some((lo, hi))) => Some(PitchTrack::new(geo, lo, hi, m)?),
+            (Some(m), Some((lo, hi))) => Some(PitchTrack::new(geo, lo, hi, m, mixture)?),
             _ => None,
         };
         let notes = match (notes, &pitch) {
@@ -443,7 +444,13 @@ impl Engine {
             } else {
                 Vec::new()
             };
-            chains.push(StemChain::new(stem, geo, pitch, notes, &bands, &cfg.drums)?);
+            // A band of the mix rather than a source: the spectral separator's stems, or the
+            // mix itself with no separator.
+            let mixture = !cfg.supplied.contains(stem)
+                && matches!(cfg.separator, SeparatorChoice::Spectral | SeparatorChoice::None);
+            chains.push(StemChain::new(
+                stem, geo, pitch, notes, &bands, &cfg.drums, mixture,
+            )?);
             if !cfg.supplied.contains(stem) {
                 separated = separated.with(stem);
             }

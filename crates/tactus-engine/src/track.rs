@@ -110,6 +110,13 @@ pub const TUKEY_MIN_COUNT: usize = 20;
 /// Fixed Viterbi lag of streaming pYIN, in hops (100 ms at 10 ms hops).
 pub const PYIN_LAG_HOPS: usize = 10;
 
+/// [`tactus_dsp::shs::ShsConfig::fundamental_ratio`] for bass tracked on a mixture's low
+/// band. Chosen on the drum corpus's `timgm` family and the tuned chorales (mix bass RPA
+/// 0.758 → 0.769 and 0.835 → 0.836; 0.15–0.2 helped the drum corpus more but cost the
+/// chorales' organ basses up to 0.04); off on clean stems, where it cost isolated `timgm`
+/// bass 0.982 → 0.957 (weak fundamentals of low plucked notes pushed an octave up).
+pub const MIXTURE_FUNDAMENTAL_RATIO: f32 = 0.1;
+
 /// Shared geometry of every track in one engine.
 #[derive(Debug, Clone, Copy)]
 pub struct Geometry {
@@ -266,12 +273,16 @@ pub struct PitchTrack {
 }
 
 impl PitchTrack {
-    /// A pitch track searching `[fmin_hz, fmax_hz]`.
+    /// A pitch track searching `[fmin_hz, fmax_hz]`. `mixture` says that the stem is not a
+    /// clean source but a band of the mix (the spectral separator's output, or the mix
+    /// itself): chord tones share its low band, so the harmonic-sum tracker also asks for
+    /// a sounding fundamental ([`MIXTURE_FUNDAMENTAL_RATIO`]).
     pub fn new(
         geo: Geometry,
         fmin_hz: f32,
         fmax_hz: f32,
         method: PitchMethod,
+        mixture: bool,
     ) -> Result<Self, ConfigError> {
         let factor = Decimator::factor_for(geo.sample_rate, fmax_hz);
         let rate = geo.sample_rate / factor as u32;
@@ -292,6 +303,9 @@ impl PitchTrack {
                 let mut sc = ShsConfig::new(rate, fmin_hz, fmax_hz);
                 sc.hop = yc.hop;
                 sc.lag_hops = PYIN_LAG_HOPS;
+                if mixture {
+                    sc.fundamental_ratio = MIXTURE_FUNDAMENTAL_RATIO;
+                }
                 Box::new(Shs::new(sc)?)
             }
         };
