@@ -14,8 +14,6 @@ use tactus_engine::render::{render, RenderRequest};
 use tactus_engine::{DrumMethod, EngineConfig, LevelRule, Mode, PitchMethod, SeparatorChoice};
 use tactus_glove::{write_atomic, GloveMap, OutputSet};
 
-#[cfg(feature = "audio")]
-mod audio;
 mod batch;
 mod play;
 mod plot;
@@ -49,6 +47,8 @@ enum ModeArg {
 enum DrumsArg {
     /// Per-instrument transcriber embedded in Tactus (default).
     Classes,
+    /// The same with its low-latency model (21.6 ms instead of 51.6 ms), for live input.
+    ClassesLive,
     /// The paper's four Butterworth bands with spectral-flux onsets.
     Bands,
     /// ADTLib's networks through ONNX (kick, snare, hi-hat; needs --drum-model).
@@ -57,11 +57,11 @@ enum DrumsArg {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum PitchArg {
-    /// pYIN, and harmonic-sum salience for the bass.
+    /// Harmonic-sum salience for the bass and the lead (vocals), pYIN for the rest.
     Auto,
     Yin,
     Pyin,
-    /// Harmonic-sum salience + Viterbi (made for a bass line in a mix) on every stem.
+    /// Harmonic-sum salience + Viterbi (made for a bass line or a lead in a mix) on every stem.
     Shs,
 }
 
@@ -101,7 +101,7 @@ struct EngineArgs {
     #[arg(long, value_enum)]
     pitch: Option<PitchArg>,
     /// Drum transcription: classes (embedded per-instrument transcriber; the default for
-    /// render and play), bands (the paper's band-pass; the default for live) or adtlib
+    /// render and play), classes-live (the same with its 21.6 ms model), bands (the paper's band-pass; the default for live) or adtlib
     /// (ONNX, --drum-model models/adtlib.onnx).
     #[arg(long, value_enum)]
     drums: Option<DrumsArg>,
@@ -428,6 +428,7 @@ fn engine_config(
             DrumsArg::Classes
         }) {
             DrumsArg::Classes => DrumMethod::Classes,
+            DrumsArg::ClassesLive => DrumMethod::ClassesLive,
             DrumsArg::Bands => DrumMethod::Bands,
             DrumsArg::Adtlib => DrumMethod::AdtLib(e.drum_model.clone().ok_or_else(|| {
                 anyhow!("--drums adtlib needs --drum-model PATH (see README, \"ONNX models\")")
@@ -542,7 +543,7 @@ fn run(cli: Cli) -> Result<()> {
                 ))
             );
             #[cfg(feature = "audio")]
-            print!("{}", audio::devices_report());
+            print!("{}", tactus_audio::device::devices_report());
             #[cfg(not(feature = "audio"))]
             println!("Audio devices:\n  (unavailable: built without the `audio` feature; rebuild with --features audio)");
             Ok(())
@@ -554,63 +555,20 @@ fn run(cli: Cli) -> Result<()> {
             pattern,
             json,
         } => {
-            let read_features = |p: &Path| -> Result<tactus_eval::FeaturesLike> {
-                let f = std::fs::read_to_string(p)
-                    .with_context(|| format!("reading {}", p.display()))?;
-                tactus_eval::FeaturesLike::from_json_str(&f)
-                    .with_context(|| p.display().to_string())
-            };
             if let Some(p) = &json {
                 check_writable(p)?;
             }
-            let (text, j) = match (glove_log, pattern, truth) {
-                (Some(log), Some(pattern), None) => {
-                    let pat = tactus_glove::Pattern::from_path(&pattern)
-                        .with_context(|| pattern.display().to_string())?;
-                    let l = std::fs::read_to_string(&log)
-                        .with_context(|| format!("reading {}", log.display()))?;
-                    let l = tactus_eval::glove_log::parse_actuation_log(&l)
-                        .with_context(|| log.display().to_string())?;
-                    for w in tactus_eval::glove_log::log_mismatch(
-                        &l,
-                        pat.frames.len(),
-                        pat.bin_ms,
-                    ) {
-                        eprintln!("tactus: warning: {}: {w}", log.display());
+            let (text, j) = match (glove_log, pattern, truth, features) {
+                (Some(log), Some(pattern), None, f) => {
+                    let (text, j, warnings) =
+                        tactus_eval::files::eval_glove_log(&log, &pattern, f.as_deref())?;
+                    for w in warnings {
+                        eprintln!("tactus: warning: {w}");
                     }
-                    let f = features.as_deref().map(read_features).transpose()?;
-                    let r = tactus_eval::glove_log::glove_fidelity(
-                        &l,
-                        &pat,
-                        f.as_ref(),
-                        tactus_eval::glove_log::PAPER_BIN_S,
-                    )
-                    .context("scoring the glove log")?;
-                    if r.frames > 0 && r.frames_matching * 2 < r.frames {
-                        eprintln!(
-                            "tactus: warning: only {} of the pattern's {} frames appear in the \
-                             log as they are in the pattern: was this pattern the one played?",
-                            r.frames_matching, r.frames
-                        );
-                    }
-                    (r.to_markdown(), r.to_json())
+                    (text, j)
                 }
-                (None, None, Some(truth)) => {
-                    let features = features
-                        .ok_or_else(|| anyhow!("eval --truth needs a FEATURES.json"))?;
-                    let truth_path = if truth.is_dir() {
-                        truth.join("truth.json")
-                    } else {
-                        truth
-                    };
-                    let t = std::fs::read_to_string(&truth_path)
-                        .with_context(|| format!("reading {}", truth_path.display()))?;
-                    let t = tactus_eval::Truth::from_json_str(&t)
-                        .with_context(|| truth_path.display().to_string())?;
-                    let f = read_features(&features)?;
-                    let report = tactus_eval::evaluate(&f, &t);
-                    (report.to_markdown(), report.to_json())
-                }
+                (None, None, Some(truth), Some(f)) => tactus_eval::files::eval_truth(&f, &truth)?,
+                (None, None, Some(_), None) => bail!("eval --truth needs a FEATURES.json"),
                 _ => bail!(
                     "eval needs FEATURES.json --truth DIR, or --glove-log LOG.jsonl --pattern PATTERN.json"
                 ),
@@ -797,51 +755,7 @@ fn run(cli: Cli) -> Result<()> {
                 );
             }
             if verbose {
-                eprintln!(
-                    "tactus: {} ({:.1} s), separator {}, stems {}",
-                    input.display(),
-                    out.duration_s,
-                    out.separator.unwrap_or("none needed"),
-                    out.stems
-                        .iter()
-                        .map(|s| s.name())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                );
-                let total = out
-                    .times
-                    .stages
-                    .last()
-                    .map(|t| t.1.as_secs_f64())
-                    .unwrap_or(0.0);
-                for (name, t) in &out.times.stages {
-                    eprintln!("  {:<36} {:>9.3} s", name, t.as_secs_f64());
-                }
-                if total > 0.0 {
-                    eprintln!("  speed: {:.1}x real time", out.duration_s / total);
-                }
-                if let Some(st) = &out.segments {
-                    eprintln!(
-                        "  network segments: {}, per segment mean {:.3} s, min {:.3} s, max {:.3} s",
-                        st.segments,
-                        st.network_mean().as_secs_f64(),
-                        st.network_min.as_secs_f64(),
-                        st.network_max.as_secs_f64()
-                    );
-                    eprintln!(
-                        "  outside the network (STFT, iSTFT, overlap-add, masks): {:.3} s = {:.1} % of the network's {:.3} s",
-                        st.outside().as_secs_f64(),
-                        100.0 * st.outside_share(),
-                        st.network.as_secs_f64()
-                    );
-                }
-                eprintln!("  latency budget (streaming):");
-                let mut sum = 0.0;
-                for (name, ms) in &out.latency {
-                    sum += ms;
-                    eprintln!("    {:<44} {:>7.1} ms", name, ms);
-                }
-                eprintln!("    {:<44} {:>7.1} ms", "total", sum);
+                eprint!("{}", out.report_text());
             }
             Ok(())
         }

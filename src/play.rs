@@ -1,70 +1,24 @@
-//! `tactus play`, `tactus live` and `tactus emulate`: the path from the engine to the glove's
-//! pins.
-//!
-//! ## play
-//! A song is rendered by the streaming engine on its own thread, frame by frame; the main
-//! thread sends frame `k` when the play clock reads `k · bin_ms − lead`, where the lead is
-//! the 50 ms pin rise plus the link's latency plus `--offset-ms`. The play clock is the
-//! audio output ([`crate::audio::Playback::now_ms`], the song time audible now) when the
-//! `audio` feature is built and an output device opens, otherwise the wall clock started when
-//! the first frame exists. Rendering runs far faster than real time, but only
-//! [`RENDER_AHEAD_MS`] (2 s, so N = 80 frames at 25 ms bins) ahead of the clock: the frames
-//! wait in a bounded queue and the renderer blocks when it holds N. A frame that is not ready
-//! in time is skipped (the next frame carries the full state anyway). Every exit (end,
-//! Ctrl-C, error) sends "all pins down".
-//!
-//! A pattern file plays its own song: the file at `--audio` or at the pattern's recorded
-//! path (as given, then beside the pattern), refused unless its SHA-256 is the pattern's.
-//! Its frames are the queue, sent on the audio clock exactly as a song's; `--no-audio` (or
-//! a build without the `audio` feature) keeps the wall clock and needs no song. Engine
-//! options with a pattern file are an error, not ignored.
-//!
-//! ## live (feature `audio`)
-//! [`crate::audio::Capture`] hands mono samples through a lock-free ring to this thread,
-//! which resamples them to 44.1 kHz ([`StreamResampler`]), feeds the streaming engine in
-//! whatever blocks arrive, and sends each frame as soon as it is final. Latency: the device
-//! period, the resampler (`StreamResampler::latency_samples`), the engine's look-ahead and
-//! the bin, then the link and the 50 ms pin rise; the budget is printed at the end together
-//! with the measured delay from the end of a bin's audio (as captured) to its frame's send.
+//! `tactus play`, `tactus live` and `tactus emulate`: arguments in, a session from
+//! `tactus-session` run, its report printed. The sessions themselves (the render → send
+//! queue, the scheduler, the speakers, the live loop) live in `tactus-session`.
 
-use std::collections::VecDeque;
 use std::io::IsTerminal;
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 
-/// What the sink's "dropped" counter means, printed next to it.
-const DROPPED: &str = "frames replaced by a newer one before the link could send them; \
-                       each frame carries the whole glove state, so nothing is lost but time";
-use tactus_engine::render::{render_with, RenderRequest};
+use tactus_engine::render::RenderRequest;
 use tactus_engine::Mode;
-use tactus_glove::{Frame, Pattern};
-use tactus_transport::{lead_ms, open_sink, play_frames, SinkOptions, SinkSpec, WallClock};
+use tactus_glove::Pattern;
+use tactus_session::{PlayOptions, PlayReport};
+use tactus_transport::{lead_ms, open_sink, SinkOptions, SinkSpec, WallClock};
 
 use crate::{engine_config, stop_flag, EngineArgs};
 
-/// How far, in ms of song time, the renderer may run ahead of the play clock: it blocks
-/// when `RENDER_AHEAD_MS / bin_ms` frames (80 at 25 ms) wait to be sent.
-pub const RENDER_AHEAD_MS: u32 = 2000;
-
-/// Frames between the rendering thread and the sender: a bounded queue.
-#[derive(Default)]
-struct Shared {
-    /// Frames `base ..` not yet sent.
-    frames: VecDeque<Frame>,
-    /// Index of `frames[0]`.
-    base: usize,
-    done: bool,
-    error: Option<String>,
-}
-
-type SharedQueue = Arc<(Mutex<Shared>, Condvar)>;
-
-/// The play clock: song time in ms (negative before the song starts), `None` until known.
-type SongClock<'a> = &'a dyn Fn() -> Option<f64>;
+/// What the sink's "dropped" counter means, printed next to it.
+const DROPPED: &str = "frames replaced by a newer one before the link could send them; \
+                       each frame carries the whole glove state, so nothing is lost but time";
 
 pub fn run(
     input: &Path,
@@ -80,7 +34,11 @@ pub fn run(
         .extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    let lead = lead_ms(&spec, offset_ms);
+    let opts = PlayOptions {
+        lead_ms: lead_ms(&spec, offset_ms),
+        speakers: !no_audio,
+        ..PlayOptions::default()
+    };
     if is_pattern {
         let given = engine.given();
         if !given.is_empty() {
@@ -92,36 +50,26 @@ pub fn run(
             );
         }
         let pattern = Pattern::from_path(input)?;
-        if !no_audio && cfg!(feature = "audio") {
-            let song = pattern_song(input, &pattern, audio)?;
-            let output = open_output(&song, lead.max(0) as u32, false, &stop);
-            let sink = open_sink(&spec, &SinkOptions::default())?;
-            // The whole pattern is the queue: nothing to render.
-            let shared: SharedQueue = Arc::new((
-                Mutex::new(Shared {
-                    frames: pattern.frames.iter().copied().collect(),
-                    base: 0,
-                    done: true,
-                    error: None,
-                }),
-                Condvar::new(),
-            ));
-            return send_and_report(&shared, output, sink, &spec, pattern.bin_ms, lead, &stop);
-        }
-        if !no_audio {
-            eprintln!("tactus: note: built without the `audio` feature: no sound; timing frames on the wall clock");
-        }
-        if audio.is_some() {
-            anyhow::bail!("--audio needs a build with the `audio` feature");
-        }
+        let song = if !no_audio && cfg!(feature = "audio") {
+            Some(pattern_song(input, &pattern, audio)?)
+        } else {
+            if !no_audio {
+                eprintln!("tactus: note: built without the `audio` feature: no sound; timing frames on the wall clock");
+            }
+            if audio.is_some() {
+                bail!("--audio needs a build with the `audio` feature");
+            }
+            None
+        };
         let sink = open_sink(&spec, &SinkOptions::default())?;
         let tty = std::io::stderr().is_terminal();
-        let report = play_frames(
+        let (report, frames_report) = tactus_session::play_pattern(
             &pattern.frames,
             pattern.bin_ms,
+            song.as_deref(),
             &sink,
             &WallClock::new(),
-            lead,
+            &opts,
             &stop,
             &mut |s| {
                 if tty {
@@ -135,130 +83,66 @@ pub fn run(
                     );
                 }
             },
-        );
-        if tty {
+        )?;
+        if tty && frames_report.is_some() {
             eprintln!();
         }
         let stats = sink.close();
-        eprintln!(
-            "tactus: played {} frames to {}: jitter p95 {:.2} ms, max {:.2} ms; sent {}, dropped {} ({DROPPED}), reconnects {}{}",
-            report.frames_sent,
-            spec,
-            report.jitter_p95_ms,
-            report.jitter_max_ms,
-            stats.sent,
-            stats.dropped,
-            stats.reconnects,
-            if report.stopped { " (stopped)" } else { "" }
-        );
+        match frames_report {
+            Some(r) => eprintln!(
+                "tactus: played {} frames to {}: jitter p95 {:.2} ms, max {:.2} ms; sent {}, dropped {} ({DROPPED}), reconnects {}{}",
+                r.frames_sent,
+                spec,
+                r.jitter_p95_ms,
+                r.jitter_max_ms,
+                stats.sent,
+                stats.dropped,
+                stats.reconnects,
+                if r.stopped { " (stopped)" } else { "" }
+            ),
+            None => print_play(&report, &spec, &stats),
+        }
         return Ok(());
     }
     if audio.is_some() {
-        anyhow::bail!("--audio is for a pattern file's song; a song plays itself");
+        bail!("--audio is for a pattern file's song; a song plays itself");
     }
-
     let (config, stems) = engine_config(engine, Mode::Streaming, 25, false)?;
-    let bin_ms = config.bin_ms;
-    let ahead = (RENDER_AHEAD_MS.div_ceil(bin_ms) as usize).max(8);
     let req = RenderRequest {
         input: input.to_path_buf(),
         stems,
         config,
     };
-    let output = open_output(input, lead.max(0) as u32, no_audio, &stop);
     let sink = open_sink(&spec, &SinkOptions::default())?;
-    let shared: SharedQueue = Arc::new((Mutex::new(Shared::default()), Condvar::new()));
-    let producer = {
-        let shared = shared.clone();
-        let stop = stop.clone();
-        std::thread::spawn(move || {
-            let (m, cv) = &*shared;
-            // Returning `false` (stopped, or a poisoned lock) ends the render at once.
-            let result = render_with(&req, &mut |_| {}, &mut |k, f| {
-                let Ok(mut g) = m.lock() else { return false };
-                // The bounded buffer: wait while `ahead` frames are queued.
-                while g.frames.len() >= ahead && !stop.load(Ordering::Relaxed) {
-                    g = match cv.wait_timeout(g, Duration::from_millis(50)) {
-                        Ok(r) => r.0,
-                        Err(_) => return false,
-                    };
-                }
-                if stop.load(Ordering::Relaxed) {
-                    return false;
-                }
-                if k < g.base + g.frames.len() {
-                    return true;
-                }
-                if g.frames.is_empty() {
-                    g.base = k;
-                }
-                g.frames.push_back(f);
-                cv.notify_all();
-                true
-            });
-            // A stop is not an error to report.
-            let result = match result {
-                Err(tactus_engine::EngineError::Cancelled) => Ok(()),
-                other => other.map(|_| ()),
-            };
-            if let Ok(mut g) = m.lock() {
-                g.done = true;
-                if let Err(e) = result {
-                    g.error = Some(e.to_string());
-                }
-                cv.notify_all();
-            }
-        })
-    };
-    if let Err(e) = wait_first_frame(&shared, &stop) {
-        stop.store(true, Ordering::SeqCst);
-        sink.close();
-        let _ = producer.join();
-        return Err(e);
-    }
-    let result = send_and_report(&shared, output, sink, &spec, bin_ms, lead, &stop);
-    let _ = producer.join();
-    result
+    let report = tactus_session::play_song(req, &sink, &WallClock::new(), &opts, &stop);
+    let stats = sink.close();
+    print_play(&report?, &spec, &stats);
+    Ok(())
 }
 
-/// Sends the queued frames on the audio clock (or the wall clock when `output` is `None`),
-/// then closes the sink and prints the report. Sets `stop` when done, which ends a producer.
-fn send_and_report(
-    shared: &SharedQueue,
-    output: Option<Output>,
-    sink: tactus_transport::SinkHandle,
-    spec: &SinkSpec,
-    bin_ms: u32,
-    lead: i64,
-    stop: &Arc<AtomicBool>,
-) -> Result<()> {
-    let outcome = match &output {
-        #[cfg(feature = "audio")]
-        Some(out) => out.start().and_then(|()| {
-            let clock = || out.now_ms();
-            send_clocked(shared, &sink, bin_ms, lead, stop, &clock)
-        }),
-        _ => {
-            let t0 = Instant::now();
-            let clock = || Some(t0.elapsed().as_secs_f64() * 1e3 - lead as f64);
-            send_clocked(shared, &sink, bin_ms, lead, stop, &clock)
-        }
-    };
-    #[cfg(feature = "audio")]
-    let audio_line = output.as_ref().map(|out| finish_audio(out, stop));
-    #[cfg(not(feature = "audio"))]
-    let audio_line: Option<String> = None;
-    stop.store(true, Ordering::SeqCst);
-    let stats = sink.close();
-    let (sent, skipped) = outcome?;
-    eprintln!(
-        "tactus: streamed {sent} frames ({skipped} not ready in time) to {spec}; sink sent {}, dropped {} ({DROPPED}), reconnects {}",
-        stats.sent, stats.dropped, stats.reconnects
-    );
-    if let Some(line) = audio_line {
-        eprintln!("{line}");
+/// The lines `play` prints after a song or an audio-clocked pattern.
+fn print_play(r: &PlayReport, spec: &SinkSpec, stats: &tactus_transport::SinkStats) {
+    for w in &r.warnings {
+        eprintln!("tactus: warning: {w}");
     }
-    Ok(())
+    eprintln!(
+        "tactus: streamed {} frames ({} not ready in time) to {spec}; sink sent {}, dropped {} ({DROPPED}), reconnects {}",
+        r.sent, r.skipped, stats.sent, stats.dropped, stats.reconnects
+    );
+    if let Some(s) = &r.sound {
+        eprintln!(
+            "tactus: audio on {} at {} Hz: song {:.3} s, audio clock {:.3} s after {:.3} s of wall time (drift {:+.1} ms), output latency {:.1} ms, underruns {}{}",
+            s.device,
+            s.rate,
+            s.song_s,
+            s.clock_s,
+            s.wall_s,
+            (s.clock_s - s.wall_s) * 1e3,
+            s.latency_ms,
+            s.underruns,
+            if s.feed_failed { ", decoding failed part-way" } else { "" }
+        );
+    }
 }
 
 /// The song of a pattern: `--audio FILE`, else the recorded path (as given, then relative
@@ -281,7 +165,7 @@ fn pattern_song(
                 .find(|p| p.is_file())
             {
                 Some(p) => p,
-                None => anyhow::bail!(
+                None => bail!(
                     "the pattern's song {} was not found (nor beside the pattern): pass --audio FILE, or --no-audio to play without sound",
                     recorded.display()
                 ),
@@ -291,159 +175,13 @@ fn pattern_song(
     let sha =
         tactus_glove::sha256_file(&song).with_context(|| format!("reading {}", song.display()))?;
     if sha != pattern.source.sha256 {
-        anyhow::bail!(
+        bail!(
             "{}: SHA-256 {sha} does not match the pattern's {} (a different file?): pass the song it was rendered from with --audio FILE, or --no-audio",
             song.display(),
             pattern.source.sha256
         );
     }
     Ok(song)
-}
-
-#[cfg(feature = "audio")]
-type Output = crate::audio::Playback;
-#[cfg(not(feature = "audio"))]
-type Output = ();
-
-/// Opens the audio output for a song, or says (one line) why frames follow the wall clock.
-fn open_output(
-    input: &Path,
-    pad_ms: u32,
-    no_audio: bool,
-    stop: &Arc<AtomicBool>,
-) -> Option<Output> {
-    if no_audio {
-        return None;
-    }
-    #[cfg(feature = "audio")]
-    {
-        match crate::audio::Playback::open(input, pad_ms, stop.clone()) {
-            Ok(p) => Some(p),
-            Err(e) => {
-                let msg = format!("{e:#}").replace('\n', " ");
-                eprintln!(
-                    "tactus: warning: no audio output ({msg}); timing frames on the wall clock"
-                );
-                None
-            }
-        }
-    }
-    #[cfg(not(feature = "audio"))]
-    {
-        let _ = (input, pad_ms, stop);
-        eprintln!("tactus: warning: built without the `audio` feature: no sound; timing frames on the wall clock (--no-audio)");
-        None
-    }
-}
-
-/// Lets the song play out, then describes the audio clock against the wall clock.
-#[cfg(feature = "audio")]
-fn finish_audio(out: &crate::audio::Playback, stop: &AtomicBool) -> String {
-    // The song is over when its last frame is audible; give up 5 s after it should be.
-    let t = Instant::now();
-    while !stop.load(Ordering::Relaxed) && !out.finished() {
-        let remaining = match (out.duration_ms(), out.now_ms()) {
-            (Some(d), Some(now)) => d - now,
-            _ => 10_000.0,
-        };
-        if t.elapsed() > Duration::from_secs_f64(remaining.max(0.0) / 1e3 + 5.0) {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    let st = out.stats();
-    let song_s = out.duration_ms().unwrap_or(0.0) / 1e3;
-    let clock_s = out.now_ms().unwrap_or(0.0) / 1e3;
-    // Wall time from the first sample being audible (first callback + output latency) to now.
-    let wall_s = st
-        .first_callback
-        .map(|f| f.elapsed().as_secs_f64() - st.latency_ms / 1e3)
-        .unwrap_or(0.0);
-    format!(
-        "tactus: audio on {} at {} Hz: song {song_s:.3} s, audio clock {clock_s:.3} s after {wall_s:.3} s of wall time (drift {:+.1} ms), output latency {:.1} ms, underruns {}{}",
-        out.device(),
-        out.rate(),
-        (clock_s - wall_s) * 1e3,
-        st.latency_ms,
-        st.underruns,
-        if out.feed_failed() { ", decoding failed part-way" } else { "" }
-    )
-}
-
-/// Waits until the renderer has produced its first frame (or failed, or ended).
-fn wait_first_frame(shared: &SharedQueue, stop: &AtomicBool) -> Result<()> {
-    let (m, cv) = &**shared;
-    let mut g = m.lock().map_err(|_| anyhow::anyhow!("renderer crashed"))?;
-    while g.frames.is_empty() && !g.done && !stop.load(Ordering::Relaxed) {
-        g = cv
-            .wait_timeout(g, Duration::from_millis(50))
-            .map_err(|_| anyhow::anyhow!("renderer crashed"))?
-            .0;
-    }
-    if let Some(e) = &g.error {
-        anyhow::bail!("{e}");
-    }
-    Ok(())
-}
-
-/// Sends frame `k` when `clock` reads `k · bin_ms − lead_ms`. Returns (sent, skipped).
-fn send_clocked(
-    shared: &SharedQueue,
-    sink: &tactus_transport::SinkHandle,
-    bin_ms: u32,
-    lead_ms: i64,
-    stop: &AtomicBool,
-    clock: SongClock<'_>,
-) -> Result<(usize, usize)> {
-    let (m, cv) = &**shared;
-    let (mut k, mut sent, mut skipped) = (0usize, 0usize, 0usize);
-    // A clock that stops moving for this long (a stalled audio device) ends playback.
-    let stall = Duration::from_secs(10);
-    let (mut last, mut moved) = (None, Instant::now());
-    'frames: while !stop.load(Ordering::Relaxed) {
-        let due = k as f64 * f64::from(bin_ms) - lead_ms as f64;
-        loop {
-            if stop.load(Ordering::Relaxed) {
-                break 'frames;
-            }
-            let now = clock();
-            if now != last {
-                (last, moved) = (now, Instant::now());
-            } else if moved.elapsed() > stall {
-                sink.all_down();
-                anyhow::bail!("the play clock stopped for {} s (audio output stalled?); rerun with --no-audio", stall.as_secs());
-            }
-            match now {
-                Some(t) if t >= due => break,
-                Some(t) => std::thread::sleep(Duration::from_secs_f64((due - t).min(10.0) / 1e3)),
-                None => std::thread::sleep(Duration::from_millis(2)),
-            }
-        }
-        let mut g = m.lock().map_err(|_| anyhow::anyhow!("renderer crashed"))?;
-        if let Some(e) = &g.error {
-            anyhow::bail!("{e}");
-        }
-        // Frames that came too late for their turn.
-        while g.base < k && !g.frames.is_empty() {
-            g.frames.pop_front();
-            g.base += 1;
-        }
-        if g.base == k && !g.frames.is_empty() {
-            let f = g.frames.pop_front().expect("checked non-empty");
-            g.base += 1;
-            cv.notify_all();
-            drop(g);
-            sink.send_frame(f, (k as u64 * u64::from(bin_ms)) as u32);
-            sent += 1;
-        } else if g.done {
-            break;
-        } else {
-            skipped += 1;
-        }
-        k += 1;
-    }
-    sink.all_down();
-    Ok((sent, skipped))
 }
 
 /// `tactus live`: capture → engine → glove, until Ctrl-C or `seconds` of captured audio.
@@ -455,157 +193,79 @@ pub fn live(
     tui: bool,
     engine: &EngineArgs,
 ) -> Result<()> {
-    use tactus_engine::resample::StreamResampler;
-    use tactus_engine::{Engine, ENGINE_RATE};
-
+    use tactus_session::{LiveEngine, LiveInput, LiveOptions};
     let spec: SinkSpec = glove.parse().with_context(|| format!("--glove {glove}"))?;
     let (config, stems) = engine_config(engine, Mode::Streaming, 25, true)?;
     if !stems.is_empty() {
-        anyhow::bail!("--stem cannot be used with live: there is only the captured mix");
+        bail!("--stem cannot be used with live: there is only the captured mix");
     }
     let bin_ms = config.bin_ms;
-    let mut eng = Engine::new(config)?;
+    // Built before the device opens, so a bad configuration fails at once.
+    let pipeline = LiveEngine::new(config)?;
     let stop = stop_flag();
-    let mut cap = crate::audio::Capture::open(input)?;
-    let rate = cap.rate();
-    let mut rs = StreamResampler::new(rate, ENGINE_RATE, 1)?;
+    let mut cap = tactus_audio::device::Capture::open(input)?;
+    let (rate, channels, device) = (cap.rate(), cap.channels(), cap.device().to_string());
     let sink = open_sink(&spec, &SinkOptions::default())?;
     eprintln!(
-        "tactus: live from {} ({} Hz, {} ch) to {spec}, {bin_ms} ms bins{}",
-        cap.device(),
-        rate,
-        cap.channels(),
+        "tactus: live from {device} ({rate} Hz, {channels} ch) to {spec}, {bin_ms} ms bins{}",
         if seconds.is_some() {
             ""
         } else {
             "; Ctrl-C stops"
         }
     );
-    // Everything the loop touches is allocated here.
-    let mut raw: Vec<f32> = Vec::with_capacity(cap.capacity());
-    let ratio = f64::from(ENGINE_RATE) / f64::from(rate);
-    let mut out = vec![Vec::with_capacity(
-        (cap.capacity() as f64 * ratio) as usize + 4 * rs.latency_samples() + 8192,
-    )];
-    let mut latencies: Vec<f64> = Vec::with_capacity(1 << 16);
-    let limit = seconds.map(|s| (s.max(0.0) * f64::from(rate)) as u64);
-    let bin_samples = eng.bin_samples() as f64;
-    let (mut captured, mut delivered) = (0u64, 0usize);
-    let t_open = Instant::now();
-    let mut last_tui = Instant::now();
-    let mut peak = 0.0f32;
-    let result: Result<()> = loop {
-        if stop.load(Ordering::Relaxed) {
-            break Ok(());
-        }
-        raw.clear();
-        if cap.read(&mut raw) == 0 {
-            if cap.first_callback().is_none() && t_open.elapsed() > Duration::from_secs(10) {
-                break Err(anyhow::anyhow!(
-                    "input device {} delivered no audio in 10 s",
-                    cap.device()
-                ));
-            }
-            if cap.had_error() && cap.first_callback().is_none() {
-                break Err(anyhow::anyhow!("input device {} failed", cap.device()));
-            }
-            std::thread::sleep(Duration::from_millis(2));
-        } else {
-            if let Some(l) = limit {
-                raw.truncate((l - captured).min(raw.len() as u64) as usize);
-            }
-            captured += raw.len() as u64;
-            out[0].clear();
-            rs.process(&[&raw], &mut out);
-            eng.process(&out[0], &out[0], &[]);
-            if let Some(e) = eng.take_separator_error() {
-                break Err(e.into());
-            }
-            let ready = eng.ready_bins();
-            let first = cap.first_callback();
-            while delivered < ready {
-                sink.send_frame(
-                    eng.frame(delivered),
-                    (delivered as u64 * u64::from(bin_ms)) as u32,
-                );
-                if let Some((t0, n0)) = first {
-                    // The bin's last sample, in device frames, was captured about
-                    // (n − n0) / rate after the first callback (which brought n0 frames).
-                    let end = (delivered + 1) as f64 * bin_samples / ratio;
-                    let captured_at = (end - n0 as f64) / f64::from(rate);
-                    if latencies.len() < latencies.capacity() {
-                        latencies.push(t0.elapsed().as_secs_f64() * 1e3 - captured_at * 1e3);
-                    }
-                }
-                delivered += 1;
-            }
-            if limit.is_some_and(|l| captured >= l) {
-                break Ok(());
-            }
-        }
-        if tui && last_tui.elapsed() >= Duration::from_millis(100) {
-            last_tui = Instant::now();
-            peak = peak.max(cap.take_peak());
+    let opts = LiveOptions {
+        seconds,
+        lead_ms: lead_ms(&spec, 0),
+        ..LiveOptions::default()
+    };
+    let live_input = LiveInput {
+        reader: cap.reader(),
+        rate,
+        name: device,
+    };
+    let result = pipeline.run(live_input, &sink, &opts, &stop, &mut |s| {
+        if tui {
             let st = sink.stats();
-            let db = 20.0 * f64::from(peak.max(1e-6)).log10();
+            let db = 20.0 * f64::from(s.peak.max(1e-6)).log10();
             let bar = "#".repeat((((db + 60.0) / 3.0).clamp(0.0, 20.0)) as usize);
             eprint!(
-                "\r{:>7.1} s  frames {delivered}  dropped {}  overruns {}  link {}  level {db:>6.1} dBFS {bar:<20}",
-                captured as f64 / f64::from(rate),
+                "\r{:>7.1} s  frames {}  dropped {}  overruns {}  link {}  level {db:>6.1} dBFS {bar:<20}",
+                s.captured_s,
+                s.frames,
                 st.dropped,
-                cap.overruns(),
+                s.overruns,
                 if st.link_up { "up" } else { "DOWN" },
             );
-            peak = 0.0;
         }
-    };
+    });
     if tui {
         eprintln!();
     }
-    sink.all_down();
     let stats = sink.close();
-    result?;
-
-    let ms = |n: usize, r: u32| n as f64 * 1e3 / f64::from(r);
-    let mut budget = vec![(
-        "resample to 44.1 kHz".to_string(),
-        ms(rs.latency_samples(), ENGINE_RATE),
-    )];
-    budget.extend(eng.latency_budget());
-    budget.push(("link".into(), (lead_ms(&spec, 0) - 50) as f64));
-    budget.push(("pin rise".into(), 50.0));
+    let r = result?;
     eprintln!(
         "tactus: latency budget (after the device's input buffer, {:.1} ms reported):",
-        cap.input_delay_ms()
+        r.input_delay_ms
     );
     let mut sum = 0.0;
-    for (name, v) in &budget {
+    for (name, v) in &r.budget {
         sum += v;
         eprintln!("    {name:<44} {v:>7.1} ms");
     }
     eprintln!("    {:<44} {sum:>7.1} ms", "total");
-    latencies.sort_by(f64::total_cmp);
-    if !latencies.is_empty() {
-        let p = |q: f64| {
-            latencies[((latencies.len() as f64 * q).ceil() as usize).clamp(1, latencies.len()) - 1]
-        };
+    if let Some((median, p95, max)) = r.measured_ms {
         eprintln!(
-            "tactus: measured bin end (captured) -> frame sent: median {:.1} ms, p95 {:.1} ms, max {:.1} ms",
-            p(0.5),
-            p(0.95),
-            p(1.0)
+            "tactus: measured bin end (captured) -> frame sent: median {median:.1} ms, p95 {p95:.1} ms, max {max:.1} ms"
         );
     }
-    let wall = cap
-        .first_callback()
-        .map(|(t, n0)| (t.elapsed().as_secs_f64(), n0))
-        .unwrap_or((0.0, 0));
     eprintln!(
-        "tactus: captured {:.3} s ({} callbacks, overruns {} samples; capture clock {:+.1} ms vs wall since the first callback), {delivered} frames to {spec}; sink sent {}, dropped {} ({DROPPED}), reconnects {}",
-        captured as f64 / f64::from(rate),
-        cap.callbacks(),
-        cap.overruns(),
-        ((cap.frames() - wall.1) as f64 / f64::from(rate) - wall.0) * 1e3,
+        "tactus: captured {:.3} s ({} callbacks, overruns {} samples; capture clock {:+.1} ms vs wall since the first callback), {} frames to {spec}; sink sent {}, dropped {} ({DROPPED}), reconnects {}",
+        r.captured_s,
+        r.callbacks,
+        r.overruns,
+        r.capture_drift_ms,
+        r.frames,
         stats.sent,
         stats.dropped,
         stats.reconnects
@@ -671,29 +331,7 @@ pub fn emulate(
         r.actuations,
         r.final_frame.to_hex()
     );
-    let mut report = serde_json::json!({
-        "packets": r.packets,
-        "pin_frames": r.frames.len(),
-        "crc_errors": r.crc_errors,
-        "malformed": r.malformed,
-        "sequence_gaps": r.sequence_gaps,
-        "garbage_bytes": r.garbage_bytes,
-        "all_downs": r.all_downs,
-        "keep_alives": r.keep_alives,
-        "actuations": r.actuations,
-        "final_frame": r.final_frame.to_hex(),
-    });
-    if json_frames {
-        report["frames"] = r
-            .frames
-            .iter()
-            .map(|f| {
-                serde_json::json!({
-                    "arrival_ms": f.arrival_ms, "seq": f.seq, "time_ms": f.time_ms, "frame": f.frame.to_hex()
-                })
-            })
-            .collect();
-    }
+    let report = r.to_json(json_frames);
     println!("{report}");
     Ok(())
 }

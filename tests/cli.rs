@@ -462,7 +462,7 @@ fn unknown_plot_extension_is_refused_before_anything_is_written() {
 
 fn engine_fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("crates/tactus-engine/tests/fixtures")
+        .join("crates/tactus-audio/tests/fixtures")
         .join(name)
 }
 

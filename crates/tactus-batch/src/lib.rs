@@ -206,7 +206,7 @@ pub fn render_job(
         outputs: outputs.clone(),
     };
     let result = std::panic::catch_unwind(AssertUnwindSafe(|| {
-        let sha = tactus_engine::source::file_sha256(&job.source)
+        let sha = tactus_glove::sha256_file(&job.source)
             .map_err(|e| format!("{}: {e}", job.source.display()))?;
         record.sha256 = Some(sha.clone());
         if earlier.is_some_and(|r| r.is_up_to_date(&spec.out_dir, &sha, key, &outputs)) {

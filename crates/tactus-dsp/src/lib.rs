@@ -10,6 +10,29 @@
 //! Processing a signal in arbitrary chunks gives exactly the same output as processing it
 //! in one block; the property tests in `tests/` check this for every stage.
 //!
+//! ## Tutorial
+//!
+//! YIN on a 220 Hz tone, fed in blocks of any size; one estimate per hop comes back through
+//! the callback:
+//!
+//! ```
+//! use tactus_dsp::yin::{Yin, YinConfig};
+//! use tactus_dsp::HopStage;
+//!
+//! let rate = 44_100;
+//! let tone: Vec<f32> = (0..rate)
+//!     .map(|i| (2.0 * std::f32::consts::PI * 220.0 * i as f32 / rate as f32).sin())
+//!     .collect();
+//! let mut yin = Yin::new(YinConfig::new(rate, 50.0, 1000.0)).unwrap();
+//! let mut f0 = Vec::new();
+//! for block in tone.chunks(300) {
+//!     yin.process(block, &mut |_, e| f0.push(e.f0_hz));
+//! }
+//! yin.finish(&mut |_, e| f0.push(e.f0_hz));
+//! let mid = f0[f0.len() / 2];
+//! assert!((mid - 220.0).abs() < 0.5, "{mid}");
+//! ```
+//!
 //! ## Conventions shared by every stage
 //!
 //! * Samples are `f32`, mono. Sample rates are `u32` in Hz.
@@ -51,6 +74,7 @@ pub mod notes;
 pub mod pyin;
 pub mod rms;
 pub mod sanitize;
+pub mod sdr;
 pub mod shs;
 pub mod sos;
 pub mod tukey;
@@ -185,8 +209,16 @@ impl Band {
 
 /// A stage that maps input samples one-to-one to output samples (filters, median).
 pub trait SampleStage: Send {
-    /// Processes `input` into `output[..input.len()]`. Panics if `output` is shorter.
-    fn process(&mut self, input: &[f32], output: &mut [f32]);
+    /// Processes `input` into `output[..input.len()]`: by default, copies it and calls
+    /// [`SampleStage::process_inplace`].
+    ///
+    /// # Panics
+    /// If `output` is shorter than `input`.
+    fn process(&mut self, input: &[f32], output: &mut [f32]) {
+        let output = &mut output[..input.len()];
+        output.copy_from_slice(input);
+        self.process_inplace(output);
+    }
     /// Processes a block in place.
     fn process_inplace(&mut self, block: &mut [f32]);
     /// Back to the just-constructed state.

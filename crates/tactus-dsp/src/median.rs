@@ -141,16 +141,6 @@ fn median3(a: f32, b: f32, c: f32) -> f32 {
 }
 
 impl SampleStage for MedianFilter {
-    /// Filters `input` into `output[..input.len()]`.
-    ///
-    /// # Panics
-    /// If `output` is shorter than `input`.
-    fn process(&mut self, input: &[f32], output: &mut [f32]) {
-        let output = &mut output[..input.len()];
-        output.copy_from_slice(input);
-        self.filter_block(output);
-    }
-
     fn process_inplace(&mut self, block: &mut [f32]) {
         self.filter_block(block);
     }

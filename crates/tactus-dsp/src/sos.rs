@@ -485,16 +485,6 @@ fn step(s: &Sos, st: &mut [f64; 2], v: f64) -> f64 {
 }
 
 impl SampleStage for SosFilter {
-    /// Filters `input` into `output[..input.len()]`.
-    ///
-    /// # Panics
-    /// If `output` is shorter than `input`.
-    fn process(&mut self, input: &[f32], output: &mut [f32]) {
-        let output = &mut output[..input.len()];
-        output.copy_from_slice(input);
-        self.filter_block(output);
-    }
-
     fn process_inplace(&mut self, block: &mut [f32]) {
         self.filter_block(block);
     }

@@ -7,39 +7,15 @@
 //! implemented with `unsafe impl`. It forwards to `System` unchanged.
 #![deny(unsafe_code)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use tactus_dsp::drums::{DrumFrame, DrumModel, DrumTranscriber, CLASSES};
 use tactus_dsp::melbank::{filters, MelBank, MelConfig, LOG_FLOOR};
 use tactus_dsp::HopStage;
 
-struct Counting;
-
-thread_local! {
-    static ALLOCS: Cell<usize> = const { Cell::new(0) };
-}
-
-#[allow(unsafe_code)]
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-        System.realloc(ptr, layout, new_size)
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: tactus_testkit::Counting = tactus_testkit::Counting;
 
 fn allocs() -> usize {
-    ALLOCS.with(|c| c.get())
+    tactus_testkit::allocations()
 }
 
 const SR: u32 = 44_100;
@@ -315,7 +291,11 @@ fn naive_forward(m: &DrumModel, input: &[f32]) -> Vec<f64> {
 
 #[test]
 fn forward_matches_naive_f64() {
-    let m = DrumModel::embedded();
+    forward_matches_naive(DrumModel::embedded());
+    forward_matches_naive(DrumModel::embedded_live());
+}
+
+fn forward_matches_naive(m: DrumModel) {
     let mut rng = Rng(5);
     let widest = m.layers.iter().map(|l| l.n_in.max(l.n_out)).max().unwrap();
     let (mut a, mut b) = (vec![0f32; widest], vec![0f32; widest]);
@@ -416,18 +396,39 @@ fn gain_does_not_change_the_activations_much() {
 
 #[test]
 fn onset_comes_out_within_the_stated_latency() {
+    onset_within_latency(DrumModel::embedded(), 512 + 4 * 441);
+}
+
+#[test]
+fn live_model_onset_comes_out_within_30_ms() {
+    // Issue 10: at most 30 ms added on the live path. 512 + 441 samples = 21.6 ms.
+    let lat = 512 + 441;
+    assert!(lat as f64 / SR as f64 <= 0.030);
+    onset_within_latency(DrumModel::embedded_live(), lat);
+}
+
+fn transcribe_with(model: &DrumModel, x: &[f32], chunk: usize) -> Vec<DrumFrame> {
+    let mut t = DrumTranscriber::with_model(SR, model.clone()).unwrap();
+    let mut out = Vec::new();
+    for c in x.chunks(chunk.max(1)) {
+        t.process(c, &mut |_, f| out.push(f));
+    }
+    t.finish(&mut |_, f| out.push(f));
+    out
+}
+
+fn onset_within_latency(model: DrumModel, expect_latency: usize) {
     // A hit at sample s: whatever hop reports it, that hop is emitted no later than
     // latency_samples() after the hop's own time, and the reported time is within one
-    // hop of the hit... for every class the embedded model fires on.
+    // hop of the hit... for every class the model fires on.
     let s = 30_000usize;
     let mut x = vec![0f32; 60_000];
     add_at(&mut x, &kick(20_000), s);
-    let mut t = DrumTranscriber::new(SR).unwrap();
+    let mut t = DrumTranscriber::with_model(SR, model.clone()).unwrap();
     let lat = t.latency_samples();
     assert_eq!(
-        lat,
-        512 + 4 * 441,
-        "11.6 ms frame look-ahead + 4 context hops"
+        lat, expect_latency,
+        "11.6 ms frame look-ahead + the model's context hops"
     );
     let hop = t.hop();
     let mut fed = 0usize;
@@ -445,7 +446,7 @@ fn onset_comes_out_within_the_stated_latency() {
         });
     }
     // The activation itself moves at the first hop whose frames reach the hit.
-    let frames = transcribe(&x, 4096);
+    let frames = transcribe_with(&model, &x, 4096);
     let before = (s + 1).saturating_sub(lat) / hop;
     for f in &frames[..before.saturating_sub(1)] {
         assert_eq!(

@@ -6,8 +6,6 @@
 //! trait `GlobalAlloc`; it only forwards to `System` and bumps a thread-local counter. The
 //! library itself stays `#![forbid(unsafe_code)]`.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::collections::VecDeque;
 
 use proptest::prelude::*;
@@ -21,48 +19,12 @@ use tactus_dsp::tukey::{fences, quartiles, reject_outliers_offline, SlidingTukey
 use tactus_dsp::HopStage;
 
 // ---------------------------------------------------------------------------------------------
-// Allocation counter
-// ---------------------------------------------------------------------------------------------
-
-thread_local! {
-    static ALLOCS: Cell<usize> = const { Cell::new(0) };
-}
-
-struct Counting;
-
-fn bump() {
-    // `try_with`: never panic inside the allocator, even during thread teardown.
-    let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-}
-
-// SAFETY: every method forwards its arguments unchanged to `System`, which upholds the
-// `GlobalAlloc` contract; the counter is a plain thread-local `Cell` that does not allocate.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        bump();
-        System.alloc(layout)
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        bump();
-        System.alloc_zeroed(layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        bump();
-        System.realloc(ptr, layout, new_size)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: tactus_testkit::Counting = tactus_testkit::Counting;
 
 /// Allocations made by this thread while `f` runs.
 fn allocs_during(f: impl FnOnce()) -> usize {
-    let before = ALLOCS.with(|c| c.get());
-    f();
-    ALLOCS.with(|c| c.get()) - before
+    tactus_testkit::allocations_during(f)
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -6,42 +6,16 @@
 //! implemented with `unsafe impl`. It forwards to `System` unchanged.
 #![deny(unsafe_code)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use proptest::prelude::*;
 use tactus_dsp::flux::{detect_onsets, ln_1p_fast, OnsetConfig, OnsetDetector, OnsetFrame};
 use tactus_dsp::HopStage;
 
 // ---------------------------------------------------------------------------------------
-// Allocation counter (per thread, so parallel tests do not disturb each other).
-
-struct Counting;
-
-thread_local! {
-    static ALLOCS: Cell<usize> = const { Cell::new(0) };
-}
-
-#[allow(unsafe_code)]
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-        System.alloc(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let _ = ALLOCS.try_with(|c| c.set(c.get() + 1));
-        System.realloc(ptr, layout, new_size)
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: tactus_testkit::Counting = tactus_testkit::Counting;
 
 fn allocs() -> usize {
-    ALLOCS.with(|c| c.get())
+    tactus_testkit::allocations()
 }
 
 // ---------------------------------------------------------------------------------------

@@ -5,63 +5,18 @@
 //! `unsafe` appears once in this file: a `GlobalAlloc` impl must be `unsafe impl`. It only
 //! forwards to `System` and counts. The library itself stays `#![forbid(unsafe_code)]`.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use proptest::prelude::*;
 use tactus_dsp::pyin::{pyin_offline, Pyin, PyinConfig};
 use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
 use tactus_dsp::HopStage;
 
 // ---------------------------------------------------------------------------------------
-// Allocation counter: counts allocations made by the current thread while armed.
-
-struct CountingAlloc;
-
-thread_local! {
-    static ARMED: Cell<bool> = const { Cell::new(false) };
-    static ALLOCS: Cell<usize> = const { Cell::new(0) };
-}
-
-fn note_alloc() {
-    // `try_with` so that allocations during thread teardown do not panic.
-    let _ = ARMED.try_with(|a| {
-        if a.get() {
-            let _ = ALLOCS.try_with(|n| n.set(n.get() + 1));
-        }
-    });
-}
-
-// SAFETY: forwards every call unchanged to `System`; the bookkeeping touches only
-// const-initialized thread-locals, which never allocate.
-unsafe impl GlobalAlloc for CountingAlloc {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        note_alloc();
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        note_alloc();
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        note_alloc();
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: CountingAlloc = CountingAlloc;
+static GLOBAL: tactus_testkit::Counting = tactus_testkit::Counting;
 
 /// Runs `f` and returns how many allocations the current thread made inside it.
 fn count_allocs(f: impl FnOnce()) -> usize {
-    ALLOCS.with(|n| n.set(0));
-    ARMED.with(|a| a.set(true));
-    f();
-    ARMED.with(|a| a.set(false));
-    ALLOCS.with(|n| n.get())
+    tactus_testkit::allocations_during(f)
 }
 
 // ---------------------------------------------------------------------------------------

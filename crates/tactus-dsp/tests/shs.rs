@@ -6,63 +6,18 @@
 //! `unsafe` appears once in this file: a `GlobalAlloc` impl must be `unsafe impl`. It only
 //! forwards to `System` and counts. The library itself stays `#![forbid(unsafe_code)]`.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use tactus_dsp::framer::Framer;
 use tactus_dsp::shs::{Shs, ShsConfig};
 use tactus_dsp::yin::PitchEstimate;
 use tactus_dsp::HopStage;
 
 // ---------------------------------------------------------------------------------------
-// Allocation counter: counts allocations made by the current thread while armed.
-
-struct CountingAlloc;
-
-thread_local! {
-    static ARMED: Cell<bool> = const { Cell::new(false) };
-    static ALLOCS: Cell<usize> = const { Cell::new(0) };
-}
-
-fn note_alloc() {
-    // `try_with` so that allocations during thread teardown do not panic.
-    let _ = ARMED.try_with(|a| {
-        if a.get() {
-            let _ = ALLOCS.try_with(|n| n.set(n.get() + 1));
-        }
-    });
-}
-
-// SAFETY: forwards every call unchanged to `System`; the bookkeeping touches only
-// const-initialized thread-locals, which never allocate.
-unsafe impl GlobalAlloc for CountingAlloc {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        note_alloc();
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        note_alloc();
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        note_alloc();
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: CountingAlloc = CountingAlloc;
+static GLOBAL: tactus_testkit::Counting = tactus_testkit::Counting;
 
 /// Runs `f` and returns how many allocations the current thread made inside it.
 fn count_allocs(f: impl FnOnce()) -> usize {
-    ALLOCS.with(|n| n.set(0));
-    ARMED.with(|a| a.set(true));
-    f();
-    ARMED.with(|a| a.set(false));
-    ALLOCS.with(|n| n.get())
+    tactus_testkit::allocations_during(f)
 }
 
 // ---------------------------------------------------------------------------------------
@@ -263,7 +218,10 @@ fn fundamental_presence_removes_the_common_subharmonic() {
         c.bin_hz(k)
     };
     let off = best(&c);
-    assert!((off / (f as f32 / 2.0) - 1.0).abs() < 0.02, "without the rule: {off} Hz");
+    assert!(
+        (off / (f as f32 / 2.0) - 1.0).abs() < 0.02,
+        "without the rule: {off} Hz"
+    );
     c.fundamental_ratio = 0.1;
     let on = best(&c);
     assert!((on / f as f32 - 1.0).abs() < 0.02, "with the rule: {on} Hz");
@@ -541,4 +499,59 @@ fn no_allocation_after_construction() {
     });
     assert_eq!(n, 0, "allocations in process/finish/reset");
     assert!(sink > 0);
+}
+
+/// The melody defaults follow a lead (8 harmonics at 1/h, A3–D5) over a sustained C major
+/// triad below it, each chord tone 8 dB under the lead (3 partials), together about as loud
+/// as the lead. Lead notes
+/// an exact octave above a chord tone are left out: there the chord tone's harmonic sum
+/// holds the whole lead and the two readings are equally good. Hops within half a frame of a
+/// note change are skipped.
+#[test]
+fn melody_defaults_track_a_lead_over_chords() {
+    const MSR: u32 = 14_700;
+    let c = ShsConfig::melody(MSR, 70.0, 1400.0);
+    assert_eq!(c.frame, 1024, "about 70 ms at 14.7 kHz");
+    let notes = [293.7, 349.2, 440.0, 493.9, 587.3, 440.0, 220.0, 293.7];
+    let note_n = (0.4 * MSR as f64) as usize;
+    let mut lead = Vec::new();
+    let mut truth = Vec::new();
+    let amps: Vec<f64> = (1..=8).map(|h| 1.0 / h as f64).collect();
+    for (k, &f) in notes.iter().enumerate() {
+        lead.extend(harmonic(MSR, f, note_n, &amps, 20 + k as u64));
+        truth.extend(std::iter::repeat_n(f, note_n));
+    }
+    let chord = [130.8, 164.8, 196.0]
+        .iter()
+        .map(|&f| harmonic(MSR, f, lead.len(), &[0.4, 0.2, 0.1], 31))
+        .fold(vec![0.0; lead.len()], |acc, v| {
+            acc.iter().zip(&v).map(|(a, b)| a + b).collect()
+        });
+    let x: Vec<f32> = lead.iter().zip(&chord).map(|(a, b)| a + b).collect();
+    let rpa = |c: &ShsConfig| {
+        let mut s = Shs::new(c.clone()).unwrap();
+        let est = run(&mut s, &x, &[4096]);
+        let (mut ok, mut n) = (0, 0);
+        for (i, e) in est.iter().enumerate() {
+            let at = i * c.hop;
+            let Some(&t) = truth.get(at) else { continue };
+            let span = at.saturating_sub(c.frame / 2)..(at + c.frame / 2).min(truth.len());
+            if span.clone().any(|k| truth[k] != t) {
+                continue;
+            }
+            n += 1;
+            if e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0 {
+                ok += 1;
+            }
+        }
+        assert!(n > 100, "{n} hops scored");
+        ok as f64 / n as f64
+    };
+    let melody = rpa(&c);
+    // The bass defaults over the same range (harmonics only below 320 Hz) cannot see the
+    // lead's upper partials: the test can tell the two apart.
+    let bass = rpa(&ShsConfig::new(MSR, 70.0, 1400.0));
+    eprintln!("lead RPA: melody defaults {melody:.3}, bass defaults {bass:.3}");
+    assert!(melody >= 0.95, "melody defaults: RPA {melody}");
+    assert!(bass < melody - 0.2, "bass defaults: RPA {bass}");
 }

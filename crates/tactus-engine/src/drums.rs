@@ -21,6 +21,9 @@ pub enum DrumMethod {
     /// The embedded per-instrument transcriber ([`tactus_dsp::drums`]): the default.
     #[default]
     Classes,
+    /// The same transcriber with the embedded low-latency model
+    /// ([`DrumModel::embedded_live`]: one hop of context, 21.6 ms), for live input.
+    ClassesLive,
     /// The paper's four Butterworth bands with spectral-flux onsets (for comparison).
     Bands,
     /// ADTLib's networks converted to ONNX (`models/setup_adtlib.sh`); feature `onnx`.
@@ -32,6 +35,7 @@ impl DrumMethod {
     pub fn name(&self) -> &'static str {
         match self {
             DrumMethod::Classes => "classes",
+            DrumMethod::ClassesLive => "classes-live",
             DrumMethod::Bands => "bands",
             DrumMethod::AdtLib(_) => "adtlib",
         }
@@ -182,6 +186,11 @@ impl ClassTrack {
     /// A track with the embedded model.
     pub fn new(geo: Geometry) -> Result<Self, ConfigError> {
         Self::with_model(geo, DrumModel::embedded())
+    }
+
+    /// A track with the embedded low-latency model ([`DrumModel::embedded_live`]).
+    pub fn live(geo: Geometry) -> Result<Self, ConfigError> {
+        Self::with_model(geo, DrumModel::embedded_live())
     }
 
     /// A track with a given model.
@@ -354,6 +363,22 @@ impl ClassTrack {
             .filter(|(_, b, _)| *b == band)
             .map(|(i, _, _)| *i as f64 * hop_s)
             .collect()
+    }
+
+    /// Per-hop and per-bin values held.
+    pub fn retained(&self) -> usize {
+        self.bins.iter().map(Vec::len).sum::<usize>()
+            + self.onsets.len()
+            + self.raw.len()
+            + self.raw_rms.len()
+    }
+
+    /// Streaming: forgets the first `d` bins of every class and the onsets already binned.
+    pub fn discard(&mut self, d: usize) {
+        for b in &mut self.bins {
+            b.drain(..d.min(b.len()));
+        }
+        self.onsets.clear();
     }
 
     /// Back to the initial state.

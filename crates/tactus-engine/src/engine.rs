@@ -166,6 +166,9 @@ impl StemChain {
             DrumMethod::Classes if !bands.is_empty() => {
                 (Some(ClassTrack::new(geo)?), bands.to_vec())
             }
+            DrumMethod::ClassesLive if !bands.is_empty() => {
+                (Some(ClassTrack::live(geo)?), bands.to_vec())
+            }
             #[cfg(feature = "onnx")]
             DrumMethod::AdtLib(model) if !bands.is_empty() => {
                 (Some(ClassTrack::adtlib(geo, model, 0)?), bands.to_vec())
@@ -298,6 +301,37 @@ impl StemChain {
         l + self.denoise.latency_samples()
     }
 
+    /// Per-hop and per-bin values the chain holds.
+    fn retained(&self) -> usize {
+        let mut n = self.pitch.as_ref().map_or(0, |p| p.retained());
+        n += match &self.notes {
+            Some(NoteTrack::Pitch(t)) => t.retained(),
+            Some(NoteTrack::Flux(t)) => t.retained(),
+            None => 0,
+        };
+        n += self.classes.as_ref().map_or(0, |c| c.retained());
+        n + self.bands.iter().map(|b| b.track.retained()).sum::<usize>()
+    }
+
+    /// Forgets the first `d` bins of every track and the per-hop records already binned
+    /// (see [`Engine::discard_before`]).
+    fn discard(&mut self, d: usize) {
+        if let Some(p) = &mut self.pitch {
+            p.discard(d);
+        }
+        match &mut self.notes {
+            Some(NoteTrack::Pitch(n)) => n.discard(d),
+            Some(NoteTrack::Flux(n)) => n.discard(d),
+            None => {}
+        }
+        if let Some(c) = &mut self.classes {
+            c.discard(d);
+        }
+        for b in &mut self.bands {
+            b.track.discard(d);
+        }
+    }
+
     fn reset(&mut self) {
         self.denoise.reset();
         self.samples = 0;
@@ -405,6 +439,8 @@ pub struct Engine {
     t_separate: Duration,
     /// A separated block (with copies of the supplied stems) waiting for the chains.
     pending: Option<PendingBlock>,
+    /// Bins forgotten by [`Engine::discard_before`]: the tracks' bin vectors start here.
+    bin_base: usize,
 }
 
 impl Engine {
@@ -434,7 +470,7 @@ impl Engine {
                 .pitch
                 .contains(&stem)
                 .then_some(match (cfg.pitch, stem) {
-                    (PitchMethod::Auto, Stem::Bass) => PitchMethod::Shs,
+                    (PitchMethod::Auto, Stem::Bass | Stem::Vocals) => PitchMethod::Shs,
                     (PitchMethod::Auto, _) => PitchMethod::Pyin,
                     (m, _) => m,
                 });
@@ -447,7 +483,10 @@ impl Engine {
             // A band of the mix rather than a source: the spectral separator's stems, or the
             // mix itself with no separator.
             let mixture = !cfg.supplied.contains(stem)
-                && matches!(cfg.separator, SeparatorChoice::Spectral | SeparatorChoice::None);
+                && matches!(
+                    cfg.separator,
+                    SeparatorChoice::Spectral | SeparatorChoice::None
+                );
             chains.push(StemChain::new(
                 stem, geo, pitch, notes, &bands, &cfg.drums, mixture,
             )?);
@@ -484,6 +523,7 @@ impl Engine {
             n_in: 0,
             t_separate: Duration::ZERO,
             pending: None,
+            bin_base: 0,
         })
     }
 
@@ -640,13 +680,17 @@ impl Engine {
         if ready == usize::MAX {
             self.n_in / self.geo.bin_samples
         } else {
-            ready
+            self.bin_base + ready
         }
     }
 
-    /// The features of bin `k` (missing values count as silent).
+    /// The features of bin `k` (missing values, and bins forgotten by
+    /// [`Engine::discard_before`], count as silent).
     pub fn bin_features(&self, k: usize) -> BinFeatures {
         let mut f = BinFeatures::default();
+        let Some(k) = k.checked_sub(self.bin_base) else {
+            return f;
+        };
         for c in &self.chains {
             let si = c.stem as usize;
             if let Some(p) = &c.pitch {
@@ -675,6 +719,37 @@ impl Engine {
     /// All frames of a finished stream, one per bin.
     pub fn frames(&self) -> Vec<Frame> {
         (0..self.total_bins()).map(|k| self.frame(k)).collect()
+    }
+
+    /// Forgets everything about bins before `k` (at most [`Engine::ready_bins`]): their
+    /// levels and beats and the per-hop records behind them. A live driver calls this after
+    /// sending each frame, so memory stays flat however long it runs; [`Engine::frame`] of a
+    /// forgotten bin is all-down, and [`Engine::features`] then covers only what is kept.
+    /// Offline mode needs the whole track and ignores it.
+    pub fn discard_before(&mut self, k: usize) {
+        if self.cfg.mode != Mode::Streaming {
+            return;
+        }
+        let k = k.min(self.ready_bins());
+        if k <= self.bin_base {
+            return;
+        }
+        let d = k - self.bin_base;
+        for c in &mut self.chains {
+            c.discard(d);
+        }
+        self.bin_base = k;
+    }
+
+    /// Per-hop and per-bin feature values the engine holds now: grows with the stream unless
+    /// the driver calls [`Engine::discard_before`] (the bounded-memory tests watch it).
+    pub fn retained_values(&self) -> usize {
+        self.chains.iter().map(|c| c.retained()).sum()
+    }
+
+    /// Bins forgotten so far by [`Engine::discard_before`].
+    pub fn discarded_bins(&self) -> usize {
+        self.bin_base
     }
 
     /// Builds the features file contents (docs/design.md "Files") of a finished stream.
@@ -784,5 +859,6 @@ impl Engine {
         self.n_in = 0;
         self.t_separate = Duration::ZERO;
         self.pending = None;
+        self.bin_base = 0;
     }
 }

@@ -8,15 +8,43 @@
 //!                                                       or the paper's 4 Butterworth bands → spectral-flux onsets
 //! ```
 //! [`engine::Engine`] accepts blocks of any size; [`render::render`] drives it from a file.
+//! Decoding and resampling live in `tactus-audio` (re-exported here as [`source`] and
+//! [`resample`]); the real-time drivers (`play`, `live`) in `tactus-session`.
+//!
+//! ## Tutorial
+//!
+//! Two seconds of kick-like clicks through the streaming engine, in blocks, to glove frames:
+//!
+//! ```
+//! use tactus_engine::{Engine, EngineConfig, Mode, ENGINE_RATE};
+//!
+//! let n = 2 * ENGINE_RATE as usize;
+//! let clicks: Vec<f32> = (0..n)
+//!     .map(|i| {
+//!         let t = (i % 22_050) as f32 / ENGINE_RATE as f32; // every 0.5 s
+//!         if t < 0.03 { 0.8 * (2.0 * std::f32::consts::PI * 60.0 * t).sin() } else { 0.0 }
+//!     })
+//!     .collect();
+//! let cfg = EngineConfig { mode: Mode::Streaming, bin_ms: 100, ..EngineConfig::default() };
+//! let mut engine = Engine::new(cfg).unwrap();
+//! for block in clicks.chunks(512) {
+//!     engine.process(block, block, &[]); // mono: the same slice twice
+//! }
+//! engine.finish();
+//! let frames = engine.frames();
+//! assert_eq!(frames.len(), 20); // 2 s of 100 ms bins
+//! println!("latency budget: {:?}", engine.latency_budget());
+//! ```
 #![forbid(unsafe_code)]
 
 pub mod drums;
 pub mod engine;
 pub mod notes;
 pub mod render;
-pub mod resample;
-pub mod source;
 pub mod track;
+
+/// Decoding and resampling moved to `tactus-audio`; re-exported under their old paths.
+pub use tactus_audio::{resample, source};
 
 pub use drums::DrumMethod;
 pub use engine::{Engine, EngineConfig, SeparatorChoice, ENGINE_RATE};

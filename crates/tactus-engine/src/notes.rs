@@ -95,6 +95,19 @@ impl PitchNotes {
         self.det.latency_hops() * self.hop
     }
 
+    /// Per-hop and per-bin values held.
+    pub fn retained(&self) -> usize {
+        self.bins.len() + self.onsets.len()
+    }
+
+    /// Streaming: forgets the first `d` bins and the onsets already binned; the pitch
+    /// track forgets its consumed hops at the same time, so counting starts again at 0.
+    pub fn discard(&mut self, d: usize) {
+        self.bins.drain(..d.min(self.bins.len()));
+        self.onsets.clear();
+        self.consumed = 0;
+    }
+
     /// Back to the initial state.
     pub fn reset(&mut self) {
         self.det.reset();

@@ -12,7 +12,7 @@ use tactus_separate::SegmentStats;
 
 use crate::engine::{Engine, EngineConfig, StageTimes};
 use crate::resample::StreamResampler;
-use crate::source::{file_sha256, AudioSource};
+use crate::source::AudioSource;
 use crate::EngineError;
 
 /// Samples per engine block in offline rendering (1 s at 44.1 kHz): large enough for the
@@ -112,6 +112,55 @@ pub struct RenderOutput {
     pub segments: Option<SegmentStats>,
 }
 
+impl RenderOutput {
+    /// The report `render --verbose` prints: what ran, what each stage cost, the speed, an
+    /// ONNX separator's segments, and the latency budget (stage by stage, then the total).
+    pub fn report_text(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = String::new();
+        let stems: Vec<&str> = self.stems.iter().map(|s| s.name()).collect();
+        let _ = writeln!(
+            s,
+            "tactus: {} ({:.1} s), separator {}, stems {}",
+            self.pattern.source.path,
+            self.duration_s,
+            self.separator.unwrap_or("none needed"),
+            stems.join(", ")
+        );
+        for (name, t) in &self.times.stages {
+            let _ = writeln!(s, "  {:<36} {:>9.3} s", name, t.as_secs_f64());
+        }
+        let total = self.times.stages.last().map_or(0.0, |t| t.1.as_secs_f64());
+        if total > 0.0 {
+            let _ = writeln!(s, "  speed: {:.1}x real time", self.duration_s / total);
+        }
+        if let Some(st) = &self.segments {
+            let _ = writeln!(
+                s,
+                "  network segments: {}, per segment mean {:.3} s, min {:.3} s, max {:.3} s",
+                st.segments,
+                st.network_mean().as_secs_f64(),
+                st.network_min.as_secs_f64(),
+                st.network_max.as_secs_f64()
+            );
+            let _ = writeln!(
+                s,
+                "  outside the network (STFT, iSTFT, overlap-add, masks): {:.3} s = {:.1} % of the network's {:.3} s",
+                st.outside().as_secs_f64(),
+                100.0 * st.outside_share(),
+                st.network.as_secs_f64()
+            );
+        }
+        let _ = writeln!(s, "  latency budget (streaming):");
+        for (name, ms) in &self.latency {
+            let _ = writeln!(s, "    {name:<44} {ms:>7.1} ms");
+        }
+        let sum: f64 = self.latency.iter().map(|(_, ms)| ms).sum();
+        let _ = writeln!(s, "    {:<44} {sum:>7.1} ms", "total");
+        s
+    }
+}
+
 /// A supplied stem, decoded and resampled whole, read out in step with the mix.
 struct SuppliedStem {
     stem: Stem,
@@ -191,6 +240,19 @@ pub fn render_with(
     progress: &mut dyn FnMut(f64),
     on_frame: &mut dyn FnMut(usize, tactus_glove::Frame) -> bool,
 ) -> Result<RenderOutput, EngineError> {
+    render_tapped(req, progress, &mut |_, _| {}, on_frame)
+}
+
+/// [`render_with`], also handing every decoded block of the song (planar stereo at the
+/// file's own rate, [`AudioSource::info`]) to `on_block(left, right)` once the block's
+/// frames have been handed to `on_frame`: how `tactus play` feeds the speakers from the
+/// same decode as the engine.
+pub fn render_tapped(
+    req: &RenderRequest,
+    progress: &mut dyn FnMut(f64),
+    on_block: &mut dyn FnMut(&[f32], &[f32]),
+    on_frame: &mut dyn FnMut(usize, tactus_glove::Frame) -> bool,
+) -> Result<RenderOutput, EngineError> {
     let t_all = Instant::now();
     let mut warnings = Vec::new();
     let source = AudioSource::open(&req.input)?;
@@ -255,6 +317,7 @@ pub fn render_with(
                 delivered += 1;
             }
         }
+        on_block(&block.left, &block.right);
         if total > 0 {
             progress(match engine.segment_stats() {
                 Some(st) => {
@@ -297,7 +360,7 @@ pub fn render_with(
             result.map(|()| joined)
         })?
     } else {
-        // One thread: decode a block, then process it.
+        // One thread (EngineConfig::parallel off): decode a block, then process it.
         let mut source = source;
         let mut block = new_block();
         let mut spent = Duration::ZERO;
@@ -361,7 +424,8 @@ pub fn render_with(
     let pattern = Pattern {
         source: SourceInfo {
             path: req.input.display().to_string(),
-            sha256: file_sha256(&req.input).map_err(|e| EngineError::Io(req.input.clone(), e))?,
+            sha256: tactus_glove::sha256_file(&req.input)
+                .map_err(|e| EngineError::Io(req.input.clone(), e))?,
             duration_s,
             sample_rate: info.sample_rate,
         },

@@ -42,9 +42,9 @@ pub enum PitchMethod {
     /// Probabilistic YIN with fixed-lag Viterbi tracking (fewer octave errors).
     Pyin,
     /// Harmonic-sum salience with fixed-lag Viterbi ([`tactus_dsp::shs`]), made for a bass
-    /// line in a mixture.
+    /// line or a lead melody in a mixture.
     Shs,
-    /// pYIN, except the bass stem, which gets [`PitchMethod::Shs`].
+    /// [`PitchMethod::Shs`] for the bass and the lead (vocals), pYIN for the polyphonic rest.
     #[default]
     Auto,
 }
@@ -116,6 +116,9 @@ pub const PYIN_LAG_HOPS: usize = 10;
 /// chorales' organ basses up to 0.04); off on clean stems, where it cost isolated `timgm`
 /// bass 0.982 → 0.957 (weak fundamentals of low plucked notes pushed an octave up).
 pub const MIXTURE_FUNDAMENTAL_RATIO: f32 = 0.1;
+
+/// Pitch ranges up to this top (Hz) are a bass line for [`PitchMethod::Shs`]; above, a melody.
+const BASS_MAX_HZ: f32 = 500.0;
 
 /// Shared geometry of every track in one engine.
 #[derive(Debug, Clone, Copy)]
@@ -300,7 +303,13 @@ impl PitchTrack {
                 Box::new(Pyin::new(pc)?)
             }
             PitchMethod::Shs => {
-                let mut sc = ShsConfig::new(rate, fmin_hz, fmax_hz);
+                // The bass range gets the bass defaults; a higher range (the lead) the
+                // melody defaults (`tactus_dsp::shs` module docs).
+                let mut sc = if fmax_hz <= BASS_MAX_HZ {
+                    ShsConfig::new(rate, fmin_hz, fmax_hz)
+                } else {
+                    ShsConfig::melody(rate, fmin_hz, fmax_hz)
+                };
                 sc.hop = yc.hop;
                 sc.lag_hops = PYIN_LAG_HOPS;
                 if mixture {
@@ -430,6 +439,23 @@ impl PitchTrack {
         self.bins = bin_levels(&levels, self.hop, self.geo.bin_samples);
         self.f0 = f0;
         self.hop_levels = levels;
+    }
+
+    /// Per-hop and per-bin values held (what [`crate::Engine::retained_values`] sums).
+    pub fn retained(&self) -> usize {
+        self.bins.len()
+            + self.f0.len()
+            + self.hop_levels.len()
+            + self.raw_f0.len()
+            + self.raw_rms.len()
+    }
+
+    /// Streaming: forgets the first `d` bins and the per-hop values already binned
+    /// ([`crate::Engine::discard_before`]).
+    pub fn discard(&mut self, d: usize) {
+        self.bins.drain(..d.min(self.bins.len()));
+        self.f0.clear();
+        self.hop_levels.clear();
     }
 
     /// Back to the initial state.
@@ -564,6 +590,17 @@ impl OnsetTrack {
             .filter(|(_, &o)| o)
             .map(|(i, _)| i as f64 * hop_s)
             .collect()
+    }
+
+    /// Per-hop and per-bin values held.
+    pub fn retained(&self) -> usize {
+        self.bins.len() + self.onsets.len() + self.raw_onset.len() + self.raw_rms.len()
+    }
+
+    /// Streaming: forgets the first `d` bins and the per-hop onsets already binned.
+    pub fn discard(&mut self, d: usize) {
+        self.bins.drain(..d.min(self.bins.len()));
+        self.onsets.clear();
     }
 
     /// Back to the initial state.

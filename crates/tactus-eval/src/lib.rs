@@ -31,6 +31,7 @@
 #![forbid(unsafe_code)]
 
 pub mod features;
+pub mod files;
 pub mod glove_log;
 pub mod levels;
 pub mod melody;

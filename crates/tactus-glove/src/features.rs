@@ -21,7 +21,7 @@
 //! files without them; readers ignore unknown keys.
 
 use std::collections::BTreeMap;
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::Path;
 
 use serde::Serialize;
@@ -177,25 +177,6 @@ impl Features {
         f.validate()?;
         Ok(f)
     }
-
-    /// Parses features from JSON text.
-    pub fn from_json_str(s: &str) -> Result<Features, GloveError> {
-        Features::from_slice(s.as_bytes())
-    }
-
-    /// Reads features from `r`.
-    pub fn read_from(mut r: impl Read) -> Result<Features, GloveError> {
-        let mut bytes = Vec::new();
-        r.read_to_end(&mut bytes)?;
-        Features::from_slice(&bytes)
-    }
-
-    /// Reads a features file; errors name the file.
-    pub fn from_path(path: impl AsRef<Path>) -> Result<Features, GloveError> {
-        let path = path.as_ref();
-        std::fs::read(path)
-            .map_err(GloveError::from)
-            .and_then(|b| Features::from_slice(&b))
-            .map_err(|e| e.in_file(path))
-    }
 }
+
+crate::json::json_file_readers!(Features);

@@ -27,6 +27,10 @@ pub const CELLS: usize = 10;
 pub const DOTS_PER_CELL: usize = 8;
 /// Pins on the glove.
 pub const PINS: usize = CELLS * DOTS_PER_CELL;
+/// Time for a commanded pin to reach "up", in ms: the paper's 50 ms dot rising time.
+/// Frames are sent this much early (plus the link's latency) so a pin is up when its sound
+/// plays.
+pub const PIN_RISE_MS: u32 = 50;
 
 /// A finger of the glove, in wire order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]

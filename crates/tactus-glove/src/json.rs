@@ -9,6 +9,36 @@ use crate::GloveError;
 
 pub(crate) type Object = Map<String, Value>;
 
+/// The readers every versioned JSON file kind shares, written once: `from_json_str`,
+/// `read_from` and `from_path` (errors name the file), all through the kind's `from_slice`.
+macro_rules! json_file_readers {
+    ($t:ident) => {
+        impl $t {
+            /// Parses from JSON text.
+            pub fn from_json_str(s: &str) -> Result<$t, GloveError> {
+                $t::from_slice(s.as_bytes())
+            }
+
+            /// Reads from `r`.
+            pub fn read_from(mut r: impl std::io::Read) -> Result<$t, GloveError> {
+                let mut bytes = Vec::new();
+                r.read_to_end(&mut bytes)?;
+                $t::from_slice(&bytes)
+            }
+
+            /// Reads a file; errors name the file.
+            pub fn from_path(path: impl AsRef<std::path::Path>) -> Result<$t, GloveError> {
+                let path = path.as_ref();
+                std::fs::read(path)
+                    .map_err(GloveError::from)
+                    .and_then(|b| $t::from_slice(&b))
+                    .map_err(|e| e.in_file(path))
+            }
+        }
+    };
+}
+pub(crate) use json_file_readers;
+
 /// Parses `bytes` as one JSON object; empty input and syntax errors get their own errors.
 pub(crate) fn parse_object(bytes: &[u8], what: &'static str) -> Result<Object, GloveError> {
     if bytes.iter().all(u8::is_ascii_whitespace) {

@@ -67,6 +67,7 @@ pub mod html;
 mod json;
 pub mod map;
 pub mod pattern;
+pub mod plot;
 pub mod protocol;
 
 pub use atomic::{write_atomic, OutputError, OutputSet};
@@ -74,7 +75,7 @@ pub use error::GloveError;
 pub use features::Features;
 pub use glove::{
     dots_mask, level_dots, Dot, Finger, Frame, HexError, Pin, CELLS, CELLS_PER_FINGER,
-    DOTS_PER_CELL, PINS,
+    DOTS_PER_CELL, PINS, PIN_RISE_MS,
 };
 pub use map::{BinFeatures, CellSource, GloveMap, Needs, BUILTIN_MAPS};
 pub use pattern::{sha256_file, sha256_hex, Pattern, SourceInfo};

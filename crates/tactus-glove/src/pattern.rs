@@ -164,27 +164,6 @@ impl Pattern {
         pattern.validate()?;
         Ok(pattern)
     }
-
-    /// Parses a pattern from JSON text.
-    pub fn from_json_str(s: &str) -> Result<Pattern, GloveError> {
-        Pattern::from_slice(s.as_bytes())
-    }
-
-    /// Reads a pattern from `r`.
-    pub fn read_from(mut r: impl Read) -> Result<Pattern, GloveError> {
-        let mut bytes = Vec::new();
-        r.read_to_end(&mut bytes)?;
-        Pattern::from_slice(&bytes)
-    }
-
-    /// Reads a pattern file; errors name the file.
-    pub fn from_path(path: impl AsRef<Path>) -> Result<Pattern, GloveError> {
-        let path = path.as_ref();
-        std::fs::read(path)
-            .map_err(GloveError::from)
-            .and_then(|b| Pattern::from_slice(&b))
-            .map_err(|e| e.in_file(path))
-    }
 }
 
 fn sub<T: serde::de::DeserializeOwned>(
@@ -220,3 +199,5 @@ pub fn sha256_hex(mut r: impl Read) -> std::io::Result<String> {
 pub fn sha256_file(path: impl AsRef<Path>) -> std::io::Result<String> {
     sha256_hex(std::fs::File::open(path)?)
 }
+
+crate::json::json_file_readers!(Pattern);

@@ -39,6 +39,16 @@ pub enum PacketType {
 }
 
 impl PacketType {
+    /// The type's name in logs (the actuation log, the JSON Lines recorder): `pins`,
+    /// `all_down`, `keep_alive`.
+    pub fn name(self) -> &'static str {
+        match self {
+            PacketType::Pins => "pins",
+            PacketType::AllDown => "all_down",
+            PacketType::KeepAlive => "keep_alive",
+        }
+    }
+
     /// The type for a wire byte, if it is one.
     pub fn from_byte(b: u8) -> Option<PacketType> {
         match b {

@@ -436,3 +436,37 @@ fn sha256_known_value() {
         "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
     );
 }
+
+/// The one SHA-256 helper of the project (pattern files, `play`'s song check, the
+/// renderer): FIPS 180-2 vectors, and a file longer than one read block.
+#[test]
+fn sha256_matches_reference_values() {
+    let dir = tempfile::tempdir().unwrap();
+    // FIPS 180-2 test vectors: "" and "abc".
+    let write_temp = |_: &tempfile::TempDir, name: &str, bytes: &[u8]| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    };
+    let p = write_temp(&dir, "empty", b"");
+    assert_eq!(
+        tactus_glove::sha256_file(&p).unwrap(),
+        "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855"
+    );
+    let p = write_temp(&dir, "abc", b"abc");
+    assert_eq!(
+        tactus_glove::sha256_file(&p).unwrap(),
+        "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+    );
+    // More than one 64 KiB read: 200 000 x 'a' hashed in one go by the reference
+    // implementation must equal the streamed hash.
+    let big = vec![b'a'; 200_000];
+    let p = write_temp(&dir, "big", &big);
+    use sha2::Digest;
+    let want: String = sha2::Sha256::digest(&big)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    assert_eq!(tactus_glove::sha256_file(&p).unwrap(), want);
+    assert!(tactus_glove::sha256_file(&dir.path().join("missing")).is_err());
+}

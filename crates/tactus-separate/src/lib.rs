@@ -322,24 +322,11 @@ pub enum SeparateError {
     },
 }
 
-/// Plain signal-to-distortion ratio in dB: `10 · log10(|s|² / |s − ŝ|²)`.
-///
-/// This is *not* BSS-eval's SDR (which first projects the estimate onto the reference and
-/// is invariant to scaling): here any gain error counts as distortion. Sums are in `f64`
-/// over the common prefix of the two slices. Returns `+∞` when the error is zero (also
-/// for two silent signals) and `−∞` when the reference is silent but the estimate is not.
+/// Plain signal-to-distortion ratio in dB ([`tactus_dsp::sdr::sdr_db`]): any gain error
+/// counts as distortion, a shorter estimate's missing tail as zeros; `+∞` when the error is
+/// zero, `−∞` when the reference is silent but the estimate is not.
 pub fn sdr(reference: &[f32], estimate: &[f32]) -> f32 {
-    let (mut s2, mut e2) = (0.0f64, 0.0f64);
-    for (&s, &e) in reference.iter().zip(estimate) {
-        let (s, e) = (s as f64, e as f64);
-        s2 += s * s;
-        e2 += (s - e) * (s - e);
-    }
-    if e2 == 0.0 {
-        f32::INFINITY
-    } else {
-        (10.0 * (s2 / e2).log10()) as f32
-    }
+    tactus_dsp::sdr::sdr_db(reference, estimate) as f32
 }
 
 #[cfg(test)]

@@ -7,41 +7,16 @@
 //! harness's other threads do not interfere).
 mod common;
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
-
 use common::synthetic_mix;
 use tactus_separate::none::NoneSeparator;
 use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
 use tactus_separate::{Separator, Stem, StemOutput, StemSet};
 
-thread_local! {
-    static ALLOCATIONS: Cell<usize> = const { Cell::new(0) };
-}
-
-struct Counting;
-
-// SAFETY: forwards every call unchanged to `System`, which upholds the GlobalAlloc
-// contract; the counter is a const-initialised thread-local that never allocates.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: tactus_testkit::Counting = tactus_testkit::Counting;
 
 fn allocations() -> usize {
-    ALLOCATIONS.with(|c| c.get())
+    tactus_testkit::allocations()
 }
 
 const SR: u32 = 44_100;

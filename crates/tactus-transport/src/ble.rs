@@ -31,7 +31,7 @@ use tokio::runtime::Runtime;
 use uuid::Uuid;
 
 use crate::devices::BleDevice;
-use crate::sink::Link;
+use crate::link::Link;
 use crate::spec::BleTarget;
 use crate::TransportError;
 

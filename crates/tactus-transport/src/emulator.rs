@@ -35,11 +35,11 @@ use std::time::{Duration, Instant};
 use tactus_glove::protocol::PACKET_LEN;
 use tactus_glove::{Decoder, DecoderStats, Frame, Packet, PacketType, PINS};
 
-use crate::sink::Link;
+use crate::link::Link;
 use crate::TransportError;
 
-/// Time for a commanded pin to reach "up", in ms (the paper's 50 ms dot rising time).
-pub const RISE_MS: f64 = 50.0;
+/// Time for a commanded pin to reach "up", in ms ([`tactus_glove::PIN_RISE_MS`]).
+pub const RISE_MS: f64 = tactus_glove::PIN_RISE_MS as f64;
 
 /// One pins packet as the glove received it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -77,6 +77,37 @@ pub struct EmulatorReport {
     pub final_frame: Frame,
     /// Every pins packet, in arrival order.
     pub frames: Vec<ReceivedFrame>,
+}
+
+impl EmulatorReport {
+    /// The report as `tactus emulate` prints it on stdout; with `frames`, every received
+    /// pin frame too.
+    pub fn to_json(&self, frames: bool) -> serde_json::Value {
+        let mut report = serde_json::json!({
+            "packets": self.packets,
+            "pin_frames": self.frames.len(),
+            "crc_errors": self.crc_errors,
+            "malformed": self.malformed,
+            "sequence_gaps": self.sequence_gaps,
+            "garbage_bytes": self.garbage_bytes,
+            "all_downs": self.all_downs,
+            "keep_alives": self.keep_alives,
+            "actuations": self.actuations,
+            "final_frame": self.final_frame.to_hex(),
+        });
+        if frames {
+            report["frames"] = self
+                .frames
+                .iter()
+                .map(|f| {
+                    serde_json::json!({
+                        "arrival_ms": f.arrival_ms, "seq": f.seq, "time_ms": f.time_ms, "frame": f.frame.to_hex()
+                    })
+                })
+                .collect();
+        }
+        report
+    }
 }
 
 /// The virtual glove (see the module docs).
@@ -209,7 +240,7 @@ impl VirtualGlove {
                 "arrival_ms": (arrival_ms * 1e3).round() / 1e3,
                 "seq": p.seq,
                 "time_ms": p.time_ms,
-                "type": packet_type_name(p.kind),
+                "type": p.kind.name(),
                 "frame": new.to_hex(),
                 "raised": raised,
                 "lowered": lowered,
@@ -274,13 +305,9 @@ impl VirtualGlove {
     }
 }
 
-/// The wire type's name in logs: `pins`, `all_down`, `keep_alive`.
+/// The wire type's name in logs ([`PacketType::name`]).
 pub fn packet_type_name(kind: PacketType) -> &'static str {
-    match kind {
-        PacketType::Pins => "pins",
-        PacketType::AllDown => "all_down",
-        PacketType::KeepAlive => "keep_alive",
-    }
+    kind.name()
 }
 
 /// The in-process `emulator` sink's link.

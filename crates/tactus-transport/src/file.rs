@@ -22,8 +22,7 @@ use std::time::{Instant, SystemTime, UNIX_EPOCH};
 use tactus_glove::protocol::PACKET_LEN;
 use tactus_glove::Packet;
 
-use crate::emulator::packet_type_name;
-use crate::sink::Link;
+use crate::link::Link;
 
 pub(crate) struct FileLink {
     path: PathBuf,
@@ -76,7 +75,7 @@ impl Link for FileLink {
             "wall_ms": wall_ms,
             "seq": packet.seq,
             "time_ms": packet.time_ms,
-            "type": packet_type_name(packet.kind),
+            "type": packet.kind.name(),
             "frame": hex(&bytes[5..15]),
             "bytes": hex(bytes),
         });

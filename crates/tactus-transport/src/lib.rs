@@ -10,6 +10,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`spec`] | [`SinkSpec`]: the `--glove SINK` syntax (`serial:PATH[@BAUD]`, `ble[:NAME]`, ...) |
+//! | [`factory`] | [`open_sink`]: the link a spec names, started on its sink thread |
 //! | [`sink`] | [`SinkHandle`], [`SinkCommand`], [`SinkStats`], reconnect with exponential backoff |
 //! | [`serial`] | the UART sink ([`serialport`], no DTR/RTS/CTS), [`list_serial_ports`] |
 //! | `ble` | the BLE sink (feature `ble`: btleplug over BlueZ/D-Bus), [`list_ble_devices`] |
@@ -47,7 +48,10 @@ mod ble;
 pub mod devices;
 pub mod emulator;
 mod error;
+pub mod factory;
 pub mod file;
+mod link;
+mod null;
 pub mod player;
 pub mod serial;
 pub mod sink;
@@ -56,8 +60,9 @@ pub mod spec;
 pub use devices::{devices_report, list_ble_devices, BleDevice};
 pub use emulator::{run_emulator_on_port, EmulatorOptions, EmulatorReport, VirtualGlove};
 pub use error::TransportError;
+pub use factory::open_sink;
 pub use player::{lead_ms, play_frames, Clock, PlayReport, PlayStatus, WallClock};
 pub use serial::{list_serial_ports, SerialPortEntry};
-pub use sink::{open_sink, SinkCommand, SinkHandle, SinkOptions, SinkStats};
+pub use sink::{SinkCommand, SinkHandle, SinkOptions, SinkStats};
 pub use spec::{SinkSpec, DEFAULT_BAUD};
 pub use tactus_glove::Frame;

@@ -25,7 +25,6 @@ use std::time::{Duration, Instant};
 
 use tactus_glove::Frame;
 
-use crate::emulator::RISE_MS;
 use crate::sink::SinkHandle;
 use crate::spec::SinkSpec;
 
@@ -117,7 +116,7 @@ pub fn lead_ms(spec: &SinkSpec, user_offset_ms: i64) -> i64 {
         SinkSpec::Ble(_) => 15,
         _ => 0,
     };
-    RISE_MS as i64 + link + user_offset_ms
+    i64::from(tactus_glove::PIN_RISE_MS) + link + user_offset_ms
 }
 
 /// Waits until `t_ms` on `clock`; false if `stop` was set first.

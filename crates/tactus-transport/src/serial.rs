@@ -18,7 +18,7 @@ use std::time::Duration;
 use tactus_glove::protocol::PACKET_LEN;
 use tactus_glove::Packet;
 
-use crate::sink::Link;
+use crate::link::Link;
 use crate::TransportError;
 
 /// How long one packet write may take before the link counts as stuck.

@@ -30,10 +30,10 @@ use std::sync::{mpsc, Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use tactus_glove::protocol::PACKET_LEN;
 use tactus_glove::{Frame, Packet};
 
 use crate::emulator::VirtualGlove;
+use crate::link::Link;
 use crate::spec::SinkSpec;
 use crate::TransportError;
 
@@ -103,20 +103,6 @@ impl Default for SinkOptions {
             close_timeout: Duration::from_secs(1),
             scan_timeout: Duration::from_secs(10),
         }
-    }
-}
-
-/// One link as the sink thread sees it. Implementations block; the thread serialises calls.
-pub(crate) trait Link: Send {
-    /// Opens (or re-opens) the link.
-    fn connect(&mut self) -> Result<(), String>;
-    /// Writes one packet (`bytes` is `packet.encode()`).
-    fn write(&mut self, packet: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), String>;
-    /// Closes the link; the next call is `connect`.
-    fn disconnect(&mut self);
-    /// The MTU, where the link knows one.
-    fn mtu(&self) -> Option<u16> {
-        None
     }
 }
 
@@ -236,39 +222,14 @@ impl Drop for SinkHandle {
     }
 }
 
-/// Opens the sink named by `spec`: starts its thread and makes the first connection.
-///
-/// Errors when the first connection fails (no such port, BLE device not found within
-/// [`SinkOptions::scan_timeout`], log file not creatable) or the spec needs a cargo
-/// feature this build lacks. Later link failures are handled by reconnecting.
-pub fn open_sink(spec: &SinkSpec, opts: &SinkOptions) -> Result<SinkHandle, TransportError> {
-    let mut glove = None;
-    let link: Box<dyn Link> = match spec {
-        SinkSpec::Null => Box::new(NullLink),
-        SinkSpec::File(path) => Box::new(crate::file::FileLink::new(path.clone())),
-        SinkSpec::Emulator(log) => {
-            let g = Arc::new(Mutex::new(VirtualGlove::new(
-                log.as_deref(),
-                crate::emulator::RISE_MS,
-            )?));
-            glove = Some(Arc::clone(&g));
-            Box::new(crate::emulator::EmulatorLink(g))
-        }
-        SinkSpec::Serial { path, baud } => {
-            Box::new(crate::serial::SerialLink::new(path.clone(), *baud))
-        }
-        #[cfg(feature = "ble")]
-        SinkSpec::Ble(target) => {
-            Box::new(crate::ble::BleLink::new(target.clone(), opts.scan_timeout)?)
-        }
-        #[cfg(not(feature = "ble"))]
-        SinkSpec::Ble(_) => {
-            return Err(TransportError::NotBuilt {
-                what: "the ble sink",
-                feature: "ble",
-            })
-        }
-    };
+/// Starts the sink thread on `link` and waits for its first connection; the connection's
+/// failure comes back as the link's reason ([`crate::factory::open_sink`] makes it typed).
+pub(crate) fn start(
+    link: Box<dyn Link>,
+    glove: Option<Arc<Mutex<VirtualGlove>>>,
+    spec: &SinkSpec,
+    opts: &SinkOptions,
+) -> Result<Result<SinkHandle, String>, TransportError> {
     let shared = Arc::new(Shared {
         mailbox: Mutex::new(Mailbox::default()),
         wake: Condvar::new(),
@@ -282,15 +243,15 @@ pub fn open_sink(spec: &SinkSpec, opts: &SinkOptions) -> Result<SinkHandle, Tran
         .spawn(move || run_sink(link, thread_shared, thread_opts, ready_tx))
         .map_err(TransportError::Thread)?;
     match ready_rx.recv() {
-        Ok(Ok(())) => Ok(SinkHandle {
+        Ok(Ok(())) => Ok(Ok(SinkHandle {
             shared,
             thread: Some(thread),
             glove,
             spec: spec.to_string(),
-        }),
+        })),
         Ok(Err(e)) => {
             let _ = thread.join();
-            Err(connect_error(spec, e))
+            Ok(Err(e))
         }
         Err(_) => {
             let _ = thread.join();
@@ -299,33 +260,6 @@ pub fn open_sink(spec: &SinkSpec, opts: &SinkOptions) -> Result<SinkHandle, Tran
             )))
         }
     }
-}
-
-/// The error for a failed first connection of `spec`.
-fn connect_error(spec: &SinkSpec, reason: String) -> TransportError {
-    match spec {
-        SinkSpec::Serial { path, .. } => TransportError::Serial {
-            path: path.clone(),
-            reason,
-        },
-        SinkSpec::File(path) | SinkSpec::Emulator(Some(path)) => TransportError::File {
-            path: path.clone(),
-            source: std::io::Error::other(reason),
-        },
-        _ => TransportError::Ble(reason),
-    }
-}
-
-struct NullLink;
-
-impl Link for NullLink {
-    fn connect(&mut self) -> Result<(), String> {
-        Ok(())
-    }
-    fn write(&mut self, _: &Packet, _: &[u8; PACKET_LEN]) -> Result<(), String> {
-        Ok(())
-    }
-    fn disconnect(&mut self) {}
 }
 
 /// The sink thread: see the module docs.

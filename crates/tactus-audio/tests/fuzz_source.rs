@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use tactus_engine::source::decode_all;
+use tactus_audio::source::decode_all;
 
 const CI_CASES: u64 = 2_000;
 const LONG_CASES: u64 = 1_000_000;

@@ -48,7 +48,6 @@ use std::fs::File;
 use std::io::{self, Read, Seek};
 use std::path::{Path, PathBuf};
 
-use sha2::{Digest, Sha256};
 use symphonia::core::audio::{Channels, Position};
 use symphonia::core::codecs::audio::{AudioDecoder, AudioDecoderOptions};
 use symphonia::core::codecs::CodecParameters;
@@ -744,23 +743,4 @@ pub fn decode_all(path: &Path) -> Result<Decoded, SourceError> {
         skipped_packets: source.skipped_packets(),
         truncated: source.truncated(),
     })
-}
-
-/// SHA-256 of a file's bytes as 64 lower-case hex digits, read in 64 KiB blocks.
-pub fn file_sha256(path: &Path) -> io::Result<String> {
-    let mut file = File::open(path)?;
-    let mut hasher = Sha256::new();
-    let mut buf = vec![0u8; 1 << 16];
-    loop {
-        let n = file.read(&mut buf)?;
-        if n == 0 {
-            break;
-        }
-        hasher.update(&buf[..n]);
-    }
-    Ok(hasher
-        .finalize()
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect())
 }

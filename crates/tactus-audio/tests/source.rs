@@ -8,8 +8,8 @@ use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
 use proptest::prelude::*;
-use tactus_engine::resample::{resample_all, ResampleError, StreamResampler};
-use tactus_engine::source::{decode_all, file_sha256, AudioSource, Decoded, SourceError};
+use tactus_audio::resample::{resample_all, ResampleError, StreamResampler};
+use tactus_audio::source::{decode_all, AudioSource, Decoded, SourceError};
 
 // ---------------------------------------------------------------------------------------------
 // Reference signals and measurements
@@ -594,33 +594,6 @@ fn unsupported_codecs_are_named() {
     let p = write_temp(&dir, "gsm.wav", &b);
     let e = open_err(&p);
     assert!(matches!(e, SourceError::UnsupportedCodec { .. }), "{e:?}");
-}
-
-#[test]
-fn sha256_matches_reference_values() {
-    let dir = tempfile::tempdir().unwrap();
-    // FIPS 180-2 test vectors: "" and "abc".
-    let p = write_temp(&dir, "empty", b"");
-    assert_eq!(
-        file_sha256(&p).unwrap(),
-        "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855"
-    );
-    let p = write_temp(&dir, "abc", b"abc");
-    assert_eq!(
-        file_sha256(&p).unwrap(),
-        "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
-    );
-    // More than one 64 KiB read: 200 000 x 'a' hashed in one go by the reference
-    // implementation must equal the streamed hash.
-    let big = vec![b'a'; 200_000];
-    let p = write_temp(&dir, "big", &big);
-    use sha2::Digest;
-    let want: String = sha2::Sha256::digest(&big)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
-    assert_eq!(file_sha256(&p).unwrap(), want);
-    assert!(file_sha256(&dir.path().join("missing")).is_err());
 }
 
 // ---------------------------------------------------------------------------------------------

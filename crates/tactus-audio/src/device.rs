@@ -1,50 +1,43 @@
-//! Audio I/O at the edge (cargo feature `audio`): cpal capture for `tactus live`, cpal
-//! output and the audio-output clock for `tactus play`, and the audio part of
-//! `tactus devices`. cpal's default host on Linux is ALSA; with PulseAudio running, ALSA's
-//! `default` and `pulse` devices go through the sound server (README, "Live audio").
+//! Audio devices through cpal (feature `device`): capture for live input, playback fed by
+//! the caller's samples, the audio clock, and the device listing. cpal's default host on
+//! Linux is ALSA; with PulseAudio running, ALSA's `default` and `pulse` devices go through
+//! the sound server.
 //!
 //! ## Capture ([`Capture`])
-//! The input callback runs on cpal's audio thread and must never allocate, lock or block. It
-//! downmixes each interleaved frame to mono (the mean of its channels), converts it to `f32`
-//! and pushes it into a preallocated single-producer single-consumer lock-free ring
-//! ([`rtrb`], [`CAPTURE_RING_S`] = 2 s of audio). Samples that do not fit are dropped and
-//! counted as *overruns*; the callback also keeps the block's peak (input level) and the
-//! time and size of the first callback in atomics. The engine thread drains the ring with
-//! [`Capture::read`].
+//! The input callback hands each block to [`crate::ring::CaptureWriter::write`]: stereo
+//! kept, no allocation, no lock, no blocking. The engine thread drains the ring through
+//! [`Capture::reader`].
 //!
 //! ## Output and the play clock ([`Playback`])
-//! A feeder thread decodes the song (symphonia), resamples it to the device rate
-//! ([`StreamResampler`]), maps it to the device's channels and pushes it into a ring of
-//! [`OUTPUT_RING_S`] = 0.5 s, filled before the stream starts. The output callback copies
-//! what the ring holds (silence on an underrun, counted) and publishes, through a sequence
-//! lock of atomics, the callback time, the song frames written before it, how many it wrote,
-//! and cpal's output latency for the block (`playback − callback` instant).
-//! [`Playback::now_ms`] is the song time audible now:
-//! `written_before / rate + min(now − callback, written_now / rate) − output_latency`.
-//! The clock that frames follow is that position slew-limited to the wall clock's rate
-//! ± 5 %: it follows the device's crystal, not the CPU's, over a song, but not the leaps and
-//! stalls of a sound server that takes audio in bursts. Before the first callback it is
-//! `None`.
+//! [`Playback::open`] returns the playback and its [`PlaybackFeed`]: the caller pushes the
+//! song's samples at their own rate (the same decoded samples it feeds the engine, so a song
+//! is decoded once); the feed resamples them to the device rate ([`StreamResampler`]), maps
+//! them to the device's channels and pushes them into a ring of [`OUTPUT_RING_S`] = 0.5 s.
+//! The output callback copies what the ring holds (silence on an underrun, counted) and
+//! publishes, through a sequence lock of atomics, the callback time, the song frames written
+//! before it, how many it wrote, and cpal's output latency for the block (`playback −
+//! callback` instant). [`Playback::now_ms`] is the song time audible now:
+//! `written_before / rate + min(now − callback, written_now / rate) − output_latency`,
+//! slew-limited to the wall clock's rate ± 5 %: it follows the device's crystal, not the
+//! CPU's, over a song, but not the leaps and stalls of a sound server that takes audio in
+//! bursts. Before the first callback it is `None`.
 //!
 //! ## Latency
-//! Capture adds the device period plus at most one engine poll (2 ms) before the engine sees
-//! a sample; output adds nothing to the frames (they are timed against the sound) but the
-//! song starts only after the ring is prefilled and the device's first callback (about
-//! 1.5 s through PulseAudio).
+//! Capture adds the device period before the engine sees a sample; output adds nothing to
+//! the frames (they are timed against the sound) but the song starts only after the ring is
+//! prefilled and the device's first callback (about 1.5 s through PulseAudio).
 
-use std::path::Path;
-use std::sync::atomic::{fence, AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{fence, AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, bail, Context, Result};
 use cpal::traits::{DeviceTrait, HostTrait, StreamTrait};
 use cpal::{FromSample, Sample, SampleFormat, SizedSample};
-use tactus_engine::resample::StreamResampler;
-use tactus_engine::source::AudioSource;
 
-/// Seconds of mono audio the capture ring holds.
+use crate::resample::StreamResampler;
+use crate::ring::{capture_ring, CaptureReader, CaptureWriter};
+
+/// Seconds of audio the capture ring holds.
 pub const CAPTURE_RING_S: f64 = 2.0;
 /// Seconds of device audio the output ring holds (and is prefilled with).
 pub const OUTPUT_RING_S: f64 = 0.5;
@@ -53,6 +46,70 @@ pub const OUTPUT_RING_S: f64 = 0.5;
 const MAX_SLEW: f64 = 0.05;
 /// Marks "not yet" in the time atomics.
 const NONE: u64 = u64::MAX;
+
+type Cause = Box<dyn std::error::Error + Send + Sync>;
+
+/// Why a device could not be used.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum DeviceError {
+    /// The host has no default device of this kind.
+    #[error("no audio {what} device (no sound card or sound server; `tactus devices` lists what exists)")]
+    NoDevice {
+        /// "input" or "output".
+        what: &'static str,
+    },
+    /// No device has this name.
+    #[error("unknown {what} device {name:?}; available: {}", if available.is_empty() { "none".to_string() } else { available.join(", ") })]
+    UnknownDevice {
+        /// "input" or "output".
+        what: &'static str,
+        /// The name asked for.
+        name: String,
+        /// The names that exist.
+        available: Vec<String>,
+    },
+    /// The device's sample format is one cpal cannot convert.
+    #[error("{what} device {device}: unsupported sample format {format}")]
+    Format {
+        /// "input" or "output".
+        what: &'static str,
+        /// The device.
+        device: String,
+        /// cpal's name of the format.
+        format: String,
+    },
+    /// The device refused a step (configuration, opening, starting).
+    #[error("{what} device {device}: cannot {step}")]
+    Device {
+        /// "input" or "output".
+        what: &'static str,
+        /// The device.
+        device: String,
+        /// What failed: "read its configuration", "open", "start".
+        step: &'static str,
+        /// cpal's error.
+        #[source]
+        source: Cause,
+    },
+    /// A resampler to the device rate could not be built.
+    #[error(transparent)]
+    Resample(#[from] crate::resample::ResampleError),
+}
+
+fn device_err(
+    what: &'static str,
+    device: &str,
+    step: &'static str,
+    e: impl std::error::Error + Send + Sync + 'static,
+) -> DeviceError {
+    DeviceError::Device {
+        what,
+        device: device.to_string(),
+        step,
+        source: Box::new(e),
+    }
+}
 
 /// A device's name as `--input` accepts it: the host's id (`default`, `pulse`, `hw:0,0`).
 fn device_id(d: &cpal::Device) -> String {
@@ -71,7 +128,7 @@ fn device_label(d: &cpal::Device) -> String {
 }
 
 /// Finds an input (`input`) or output device by name; `None` = the host's default.
-fn find_device(name: Option<&str>, input: bool) -> Result<cpal::Device> {
+fn find_device(name: Option<&str>, input: bool) -> Result<cpal::Device, DeviceError> {
     let host = cpal::default_host();
     let what = if input { "input" } else { "output" };
     let Some(name) = name else {
@@ -80,9 +137,7 @@ fn find_device(name: Option<&str>, input: bool) -> Result<cpal::Device> {
         } else {
             host.default_output_device()
         };
-        return d.ok_or_else(|| {
-            anyhow!("no audio {what} device (no sound card or sound server; `tactus devices` lists what exists)")
-        });
+        return d.ok_or(DeviceError::NoDevice { what });
     };
     let devices: Vec<cpal::Device> = if input {
         host.input_devices()
@@ -102,14 +157,11 @@ fn find_device(name: Option<&str>, input: bool) -> Result<cpal::Device> {
     if let Some(i) = devices.iter().position(matches) {
         return Ok(devices.into_iter().nth(i).expect("index from position"));
     }
-    let names: Vec<String> = devices.iter().map(device_id).collect();
-    if names.is_empty() {
-        bail!("unknown {what} device {name:?}: no {what} devices found");
-    }
-    bail!(
-        "unknown {what} device {name:?}; available: {}",
-        names.join(", ")
-    )
+    Err(DeviceError::UnknownDevice {
+        what,
+        name: name.to_string(),
+        available: devices.iter().map(device_id).collect(),
+    })
 }
 
 /// The "Audio devices" section of `tactus devices`.
@@ -157,150 +209,78 @@ pub fn devices_report() -> String {
     out
 }
 
-/// Atomics shared with the input callback.
-struct CaptureShared {
-    base: Instant,
-    first_cb_ns: AtomicU64,
-    first_cb_frames: AtomicU64,
-    /// cpal's `callback − capture` for the first block, ns.
-    input_delay_ns: AtomicU64,
-    callbacks: AtomicU64,
-    frames: AtomicU64,
-    overruns: AtomicU64,
-    /// Peak |sample| since the last [`Capture::take_peak`], as `f32` bits (non-negative
-    /// floats order like their bits, so `fetch_max` works).
-    peak_bits: AtomicU32,
-    error: AtomicBool,
-}
-
 /// A running capture stream; see the module docs.
 pub struct Capture {
     _stream: cpal::Stream,
-    ring: rtrb::Consumer<f32>,
-    shared: Arc<CaptureShared>,
+    reader: CaptureReader,
     rate: u32,
     channels: u16,
     device: String,
 }
 
-/// The input callback: downmix, push, count. No allocation, no lock, no blocking.
-fn capture_callback<T>(
-    ring: &mut rtrb::Producer<f32>,
-    shared: &CaptureShared,
-    channels: usize,
-    data: &[T],
-    info: &cpal::InputCallbackInfo,
-) where
-    T: Sample,
-    f32: FromSample<T>,
-{
-    let frames = data.len() / channels;
-    if shared.first_cb_ns.load(Ordering::Relaxed) == NONE {
-        let ts = info.timestamp();
-        let delay = ts.callback.saturating_duration_since(ts.capture);
-        shared
-            .input_delay_ns
-            .store(delay.as_nanos() as u64, Ordering::Relaxed);
-        shared
-            .first_cb_frames
-            .store(frames as u64, Ordering::Relaxed);
-        shared
-            .first_cb_ns
-            .store(shared.base.elapsed().as_nanos() as u64, Ordering::Release);
-    }
-    let inv = 1.0 / channels as f32;
-    let mut peak = 0.0f32;
-    let mut dropped = 0u64;
-    for frame in data.chunks_exact(channels) {
-        let mut sum = 0.0f32;
-        for &x in frame {
-            sum += x.to_sample::<f32>();
-        }
-        let m = sum * inv;
-        let m = if m.is_finite() { m } else { 0.0 };
-        peak = peak.max(m.abs());
-        if ring.push(m).is_err() {
-            dropped += 1;
-        }
-    }
-    if dropped > 0 {
-        shared.overruns.fetch_add(dropped, Ordering::Relaxed);
-    }
-    shared
-        .peak_bits
-        .fetch_max(peak.to_bits(), Ordering::Relaxed);
-    shared.frames.fetch_add(frames as u64, Ordering::Relaxed);
-    shared.callbacks.fetch_add(1, Ordering::Relaxed);
-}
-
 fn build_input<T>(
     device: &cpal::Device,
     config: cpal::StreamConfig,
-    mut ring: rtrb::Producer<f32>,
-    shared: Arc<CaptureShared>,
+    mut writer: CaptureWriter,
 ) -> Result<cpal::Stream, cpal::Error>
 where
     T: SizedSample + Send + 'static,
     f32: FromSample<T>,
 {
     let channels = usize::from(config.channels.max(1));
-    let err_shared = shared.clone();
+    let on_error = writer.error_flag();
     device.build_input_stream::<T, _, _>(
         config,
         move |data: &[T], info: &cpal::InputCallbackInfo| {
-            capture_callback(&mut ring, &shared, channels, data, info)
+            let ts = info.timestamp();
+            let delay = ts.callback.saturating_duration_since(ts.capture);
+            writer.write(data, channels, |x: T| x.to_sample::<f32>(), delay)
         },
-        move |_e| err_shared.error.store(true, Ordering::Relaxed),
+        move |_e| on_error(),
         Some(Duration::from_secs(10)),
     )
 }
 
 impl Capture {
     /// Opens `name` (`None`: the default input device) with its default configuration and
-    /// starts capturing.
+    /// starts capturing into a ring of [`CAPTURE_RING_S`] seconds.
     ///
-    /// Errors: no input device, an unknown name (the message lists the available ones), a
+    /// Errors: no input device, an unknown name (the error lists the available ones), a
     /// sample format cpal cannot convert, or the device refusing to open.
-    pub fn open(name: Option<&str>) -> Result<Capture> {
+    pub fn open(name: Option<&str>) -> Result<Capture, DeviceError> {
+        const WHAT: &str = "input";
         let device = find_device(name, true)?;
         let label = device_id(&device);
         let sc = device
             .default_input_config()
-            .with_context(|| format!("input device {label}"))?;
+            .map_err(|e| device_err(WHAT, &label, "read its configuration", e))?;
         let config = sc.config();
         let rate = config.sample_rate;
-        let capacity = ((rate as f64 * CAPTURE_RING_S) as usize).max(4096);
-        let (producer, consumer) = rtrb::RingBuffer::new(capacity);
-        let shared = Arc::new(CaptureShared {
-            base: Instant::now(),
-            first_cb_ns: AtomicU64::new(NONE),
-            first_cb_frames: AtomicU64::new(0),
-            input_delay_ns: AtomicU64::new(0),
-            callbacks: AtomicU64::new(0),
-            frames: AtomicU64::new(0),
-            overruns: AtomicU64::new(0),
-            peak_bits: AtomicU32::new(0),
-            error: AtomicBool::new(false),
-        });
-        let s = shared.clone();
+        let frames = ((rate as f64 * CAPTURE_RING_S) as usize).max(4096);
+        let (w, reader) = capture_ring(frames);
         let stream = match sc.sample_format() {
-            SampleFormat::F32 => build_input::<f32>(&device, config, producer, s),
-            SampleFormat::I16 => build_input::<i16>(&device, config, producer, s),
-            SampleFormat::I32 => build_input::<i32>(&device, config, producer, s),
-            SampleFormat::U16 => build_input::<u16>(&device, config, producer, s),
-            SampleFormat::U8 => build_input::<u8>(&device, config, producer, s),
-            SampleFormat::I8 => build_input::<i8>(&device, config, producer, s),
-            SampleFormat::F64 => build_input::<f64>(&device, config, producer, s),
-            other => bail!("input device {label}: unsupported sample format {other}"),
+            SampleFormat::F32 => build_input::<f32>(&device, config, w),
+            SampleFormat::I16 => build_input::<i16>(&device, config, w),
+            SampleFormat::I32 => build_input::<i32>(&device, config, w),
+            SampleFormat::U16 => build_input::<u16>(&device, config, w),
+            SampleFormat::U8 => build_input::<u8>(&device, config, w),
+            SampleFormat::I8 => build_input::<i8>(&device, config, w),
+            SampleFormat::F64 => build_input::<f64>(&device, config, w),
+            other => {
+                return Err(DeviceError::Format {
+                    what: WHAT,
+                    device: label,
+                    format: other.to_string(),
+                })
+            }
         }
-        .with_context(|| format!("input device {label}: cannot open"))?;
+        .map_err(|e| device_err(WHAT, &label, "open", e))?;
         stream
             .play()
-            .with_context(|| format!("input device {label}: cannot start"))?;
+            .map_err(|e| device_err(WHAT, &label, "start", e))?;
         Ok(Capture {
             _stream: stream,
-            ring: consumer,
-            shared,
+            reader,
             rate,
             channels: config.channels,
             device: label,
@@ -312,7 +292,7 @@ impl Capture {
         self.rate
     }
 
-    /// The device's channel count (downmixed to mono).
+    /// The device's channel count (the first two are kept).
     pub fn channels(&self) -> u16 {
         self.channels
     }
@@ -322,73 +302,13 @@ impl Capture {
         &self.device
     }
 
-    /// Ring capacity in samples: [`Capture::read`] never returns more.
-    pub fn capacity(&self) -> usize {
-        self.ring.buffer().capacity()
-    }
-
-    /// Appends every captured mono sample waiting in the ring to `out`, up to `out`'s spare
-    /// capacity (reserve [`Capture::capacity`] to never allocate). Returns the count.
-    pub fn read(&mut self, out: &mut Vec<f32>) -> usize {
-        let n = self
-            .ring
-            .slots()
-            .min(out.capacity().saturating_sub(out.len()));
-        match self.ring.read_chunk(n) {
-            Ok(chunk) => {
-                let (a, b) = chunk.as_slices();
-                out.extend_from_slice(a);
-                out.extend_from_slice(b);
-                chunk.commit_all();
-                n
-            }
-            Err(_) => 0,
-        }
-    }
-
-    /// When the first callback ran and how many frames it brought.
-    pub fn first_callback(&self) -> Option<(Instant, u64)> {
-        let ns = self.shared.first_cb_ns.load(Ordering::Acquire);
-        (ns != NONE).then(|| {
-            (
-                self.shared.base + Duration::from_nanos(ns),
-                self.shared.first_cb_frames.load(Ordering::Relaxed),
-            )
-        })
-    }
-
-    /// cpal's `callback − capture` delay of the first block, ms.
-    pub fn input_delay_ms(&self) -> f64 {
-        self.shared.input_delay_ns.load(Ordering::Relaxed) as f64 / 1e6
-    }
-
-    /// Samples dropped because the ring was full.
-    pub fn overruns(&self) -> u64 {
-        self.shared.overruns.load(Ordering::Relaxed)
-    }
-
-    /// Callbacks so far.
-    pub fn callbacks(&self) -> u64 {
-        self.shared.callbacks.load(Ordering::Relaxed)
-    }
-
-    /// Frames delivered by the device so far.
-    pub fn frames(&self) -> u64 {
-        self.shared.frames.load(Ordering::Relaxed)
-    }
-
-    /// Whether cpal reported a stream error.
-    pub fn had_error(&self) -> bool {
-        self.shared.error.load(Ordering::Relaxed)
-    }
-
-    /// Peak |sample| since the last call.
-    pub fn take_peak(&self) -> f32 {
-        f32::from_bits(self.shared.peak_bits.swap(0, Ordering::Relaxed))
+    /// The ring's reading end: samples and counters.
+    pub fn reader(&mut self) -> &mut CaptureReader {
+        &mut self.reader
     }
 }
 
-/// Atomics shared with the output callback and the feeder.
+/// Atomics shared with the output callback and the feed.
 struct OutShared {
     base: Instant,
     /// Sequence lock over the four `cb_*` fields: odd while the callback writes them.
@@ -401,7 +321,7 @@ struct OutShared {
     /// Song frames written to the device so far.
     written: AtomicU64,
     underruns: AtomicU64,
-    /// Song frames the feeder pushed in all; valid once `fed_all`.
+    /// Song frames the feed pushed in all; valid once `fed_all`.
     total: AtomicU64,
     fed_all: AtomicBool,
     /// The ring was full once (or the song ended): ready to start.
@@ -409,6 +329,8 @@ struct OutShared {
     feed_error: AtomicBool,
     /// Frames of silence before the song.
     pad: AtomicU64,
+    /// The playback was dropped: the feed stops.
+    closed: AtomicBool,
 }
 
 /// What the output callback published last.
@@ -509,97 +431,103 @@ where
     )
 }
 
-/// Pushes all of `samples` into the ring, waiting while it is full. False if `stop` was set.
-fn push_all(
-    ring: &mut rtrb::Producer<f32>,
-    mut samples: &[f32],
-    shared: &OutShared,
-    stop: &AtomicBool,
-) -> bool {
-    while !samples.is_empty() {
-        let (_, rest) = ring.push_partial_slice(samples);
-        samples = rest;
-        if !samples.is_empty() {
-            shared.prefilled.store(true, Ordering::Release);
-            if stop.load(Ordering::Relaxed) {
-                return false;
-            }
-            std::thread::sleep(Duration::from_millis(2));
-        }
-    }
-    true
-}
-
-/// The feeder thread: decode, resample to the device rate, map to its channels, push.
-fn feed(
-    mut source: AudioSource,
-    rate: u32,
-    channels: usize,
-    pad: usize,
-    mut ring: rtrb::Producer<f32>,
+/// The feeding end of a [`Playback`]: the caller pushes the song's samples here at the
+/// song's own rate; they are resampled to the device rate and mapped to its channels.
+pub struct PlaybackFeed {
+    ring: rtrb::Producer<f32>,
     shared: Arc<OutShared>,
     stop: Arc<AtomicBool>,
-) {
-    shared.pad.store(pad as u64, Ordering::Relaxed);
-    if !push_all(&mut ring, &vec![0.0; pad * channels], &shared, &stop) {
-        shared.fed_all.store(true, Ordering::Release);
-        shared.prefilled.store(true, Ordering::Release);
-        return;
-    }
-    let in_rate = source.info().sample_rate;
-    let mut rs = match StreamResampler::new(in_rate, rate, 2) {
-        Ok(r) => r,
-        Err(_) => {
-            shared.feed_error.store(true, Ordering::Relaxed);
-            shared.fed_all.store(true, Ordering::Release);
-            shared.prefilled.store(true, Ordering::Release);
-            return;
-        }
-    };
-    let (mut left, mut right) = (Vec::new(), Vec::new());
-    let mut out = vec![Vec::new(), Vec::new()];
-    let mut inter = Vec::new();
-    let mut total = 0u64;
-    loop {
-        left.clear();
-        right.clear();
-        let n = match source.read_block(&mut left, &mut right) {
-            Ok(n) => n,
-            Err(_) => {
-                shared.feed_error.store(true, Ordering::Relaxed);
-                0
+    rs: StreamResampler,
+    channels: usize,
+    out: Vec<Vec<f32>>,
+    inter: Vec<f32>,
+    total: u64,
+    done: bool,
+}
+
+impl PlaybackFeed {
+    /// Pushes interleaved device samples, waiting while the ring is full. False once the
+    /// playback's stop flag is set (or the playback was dropped).
+    fn push_all(&mut self, mut samples: &[f32]) -> bool {
+        while !samples.is_empty() {
+            let (_, rest) = self.ring.push_partial_slice(samples);
+            samples = rest;
+            if !samples.is_empty() {
+                self.shared.prefilled.store(true, Ordering::Release);
+                if self.stop.load(Ordering::Relaxed) || self.shared.closed.load(Ordering::Relaxed) {
+                    return false;
+                }
+                std::thread::sleep(Duration::from_millis(2));
             }
-        };
-        out[0].clear();
-        out[1].clear();
-        if n == 0 {
-            rs.finish(&mut out);
-        } else {
-            rs.process(&[&left, &right], &mut out);
         }
-        let len = out[0].len().min(out[1].len());
-        inter.clear();
-        for (&l, &r) in out[0][..len].iter().zip(&out[1][..len]) {
-            match channels {
-                1 => inter.push(0.5 * (l + r)),
-                _ => {
-                    inter.push(l);
-                    inter.push(r);
-                    inter.extend(std::iter::repeat_n(0.0, channels - 2));
+        true
+    }
+
+    fn push_out(&mut self) -> bool {
+        let len = self.out[0].len().min(self.out[1].len());
+        self.inter.clear();
+        for (&l, &r) in self.out[0][..len].iter().zip(&self.out[1][..len]) {
+            match self.channels {
+                1 => self.inter.push(0.5 * (l + r)),
+                c => {
+                    self.inter.push(l);
+                    self.inter.push(r);
+                    self.inter.extend(std::iter::repeat_n(0.0, c - 2));
                 }
             }
         }
-        if !push_all(&mut ring, &inter, &shared, &stop) {
-            break;
+        self.out[0].clear();
+        self.out[1].clear();
+        self.total += len as u64;
+        let inter = std::mem::take(&mut self.inter);
+        let ok = self.push_all(&inter);
+        self.inter = inter;
+        ok
+    }
+
+    /// Pushes one block of the song (planar stereo at the rate given to
+    /// [`Playback::open`]), waiting while the ring is full. Returns false when the playback
+    /// stopped: the caller stops feeding.
+    pub fn push(&mut self, left: &[f32], right: &[f32]) -> bool {
+        if self.done {
+            return false;
         }
-        total += len as u64;
-        if n == 0 {
-            break;
+        self.rs.process(&[left, right], &mut self.out);
+        self.push_out()
+    }
+
+    /// The song is complete: flushes the resampler and lets [`Playback::finished`] know
+    /// the song's length.
+    pub fn finish(&mut self) {
+        if self.done {
+            return;
+        }
+        self.rs.finish(&mut self.out);
+        self.push_out();
+        self.end(false);
+    }
+
+    /// Marks the feed as ended early because the song could not be decoded further.
+    pub fn fail(&mut self) {
+        self.shared.feed_error.store(true, Ordering::Relaxed);
+        self.end(true);
+    }
+
+    fn end(&mut self, _failed: bool) {
+        self.done = true;
+        let pad = self.shared.pad.load(Ordering::Relaxed);
+        self.shared.total.store(self.total + pad, Ordering::Relaxed);
+        self.shared.fed_all.store(true, Ordering::Release);
+        self.shared.prefilled.store(true, Ordering::Release);
+    }
+}
+
+impl Drop for PlaybackFeed {
+    fn drop(&mut self) {
+        if !self.done {
+            self.end(false);
         }
     }
-    shared.total.store(total + pad as u64, Ordering::Relaxed);
-    shared.fed_all.store(true, Ordering::Release);
-    shared.prefilled.store(true, Ordering::Release);
 }
 
 /// Counters of a playback.
@@ -617,7 +545,6 @@ pub struct PlaybackStats {
 pub struct Playback {
     stream: cpal::Stream,
     shared: Arc<OutShared>,
-    feeder: Option<JoinHandle<()>>,
     stop: Arc<AtomicBool>,
     rate: u32,
     device: String,
@@ -627,23 +554,31 @@ pub struct Playback {
 }
 
 impl Playback {
-    /// Opens the default output device, starts decoding `song` into the output ring and
-    /// waits until the ring is full. The sound starts with [`Playback::start`].
-    ///
-    /// Errors: no output device, the song cannot be opened, or the device refuses to open.
+    /// Opens the default output device for a song at `song_rate` Hz and returns it (paused)
+    /// with its feed. Push the song into the feed (from any thread), wait for
+    /// [`Playback::wait_prefilled`], then [`Playback::start`] the sound.
     ///
     /// `pad_ms` of silence precede the song (time 0 of [`Playback::now_ms`] is still the
-    /// song's first sample), so frames due before the song starts go out on time.
-    pub fn open(song: &Path, pad_ms: u32, stop: Arc<AtomicBool>) -> Result<Playback> {
+    /// song's first sample), so frames due before the song starts go out on time. Setting
+    /// `stop` makes the feed's [`PlaybackFeed::push`] return false.
+    ///
+    /// Errors: no output device, a sample format cpal cannot convert, the device refusing to
+    /// open, or no resampler for the rate pair.
+    pub fn open(
+        song_rate: u32,
+        pad_ms: u32,
+        stop: Arc<AtomicBool>,
+    ) -> Result<(Playback, PlaybackFeed), DeviceError> {
+        const WHAT: &str = "output";
         let device = find_device(None, false)?;
         let label = device_id(&device);
         let sc = device
             .default_output_config()
-            .with_context(|| format!("output device {label}"))?;
+            .map_err(|e| device_err(WHAT, &label, "read its configuration", e))?;
         let config = sc.config();
         let rate = config.sample_rate;
         let channels = usize::from(config.channels.max(1));
-        let source = AudioSource::open(song)?;
+        let rs = StreamResampler::new(song_rate, rate, 2)?;
         let pad = (u64::from(rate) * u64::from(pad_ms) / 1000) as usize;
         let capacity = ((rate as f64 * OUTPUT_RING_S) as usize * channels).max(4096 * channels);
         let (producer, consumer) = rtrb::RingBuffer::new(capacity);
@@ -662,22 +597,8 @@ impl Playback {
             prefilled: AtomicBool::new(false),
             feed_error: AtomicBool::new(false),
             pad: AtomicU64::new(pad as u64),
+            closed: AtomicBool::new(false),
         });
-        let feed_stop = Arc::new(AtomicBool::new(false));
-        let feeder = {
-            let (s, fs) = (shared.clone(), feed_stop.clone());
-            std::thread::Builder::new()
-                .name("tactus-audio-feed".into())
-                .spawn(move || feed(source, rate, channels, pad, producer, s, fs))
-                .context("starting the audio feeder")?
-        };
-        let t = Instant::now();
-        while !shared.prefilled.load(Ordering::Acquire) && t.elapsed() < Duration::from_secs(5) {
-            if stop.load(Ordering::Relaxed) {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(2));
-        }
         let s = shared.clone();
         let stream = match sc.sample_format() {
             SampleFormat::F32 => build_output::<f32>(&device, config, consumer, s),
@@ -688,34 +609,58 @@ impl Playback {
             SampleFormat::I8 => build_output::<i8>(&device, config, consumer, s),
             SampleFormat::F64 => build_output::<f64>(&device, config, consumer, s),
             other => {
-                feed_stop.store(true, Ordering::Relaxed);
-                bail!("output device {label}: unsupported sample format {other}")
+                return Err(DeviceError::Format {
+                    what: WHAT,
+                    device: label,
+                    format: other.to_string(),
+                })
             }
+        }
+        .map_err(|e| device_err(WHAT, &label, "open", e))?;
+        let mut feed = PlaybackFeed {
+            ring: producer,
+            shared: shared.clone(),
+            stop: stop.clone(),
+            rs,
+            channels,
+            out: vec![Vec::new(), Vec::new()],
+            inter: Vec::new(),
+            total: 0,
+            done: false,
         };
-        let stream = match stream {
-            Ok(s) => s,
-            Err(e) => {
-                feed_stop.store(true, Ordering::Relaxed);
-                return Err(anyhow!("output device {label}: cannot open: {e}"));
-            }
-        };
-        Ok(Playback {
-            stream,
-            shared,
-            feeder: Some(feeder),
-            stop: feed_stop,
-            rate,
-            device: label,
-            last_ms: std::cell::Cell::new(f64::NEG_INFINITY),
-            last_wall_ns: std::cell::Cell::new(None),
-        })
+        let silence = vec![0.0; pad * channels];
+        feed.push_all(&silence);
+        Ok((
+            Playback {
+                stream,
+                shared,
+                stop,
+                rate,
+                device: label,
+                last_ms: std::cell::Cell::new(f64::NEG_INFINITY),
+                last_wall_ns: std::cell::Cell::new(None),
+            },
+            feed,
+        ))
+    }
+
+    /// Waits (at most `timeout`, or until the stop flag) until the ring is full or the song
+    /// is complete: the sound can start without an underrun.
+    pub fn wait_prefilled(&self, timeout: Duration) {
+        let t = Instant::now();
+        while !self.shared.prefilled.load(Ordering::Acquire)
+            && t.elapsed() < timeout
+            && !self.stop.load(Ordering::Relaxed)
+        {
+            std::thread::sleep(Duration::from_millis(2));
+        }
     }
 
     /// Starts the sound.
-    pub fn start(&self) -> Result<()> {
+    pub fn start(&self) -> Result<(), DeviceError> {
         self.stream
             .play()
-            .with_context(|| format!("output device {}: cannot start", self.device))
+            .map_err(|e| device_err("output", &self.device, "start", e))
     }
 
     /// The output device's name.
@@ -758,7 +703,7 @@ impl Playback {
         Some(ms)
     }
 
-    /// The song's length on the device, ms, once the feeder has decoded all of it.
+    /// The song's length on the device, ms, once the feed has received all of it.
     pub fn duration_ms(&self) -> Option<f64> {
         self.shared.fed_all.load(Ordering::Acquire).then(|| {
             let song =
@@ -797,10 +742,7 @@ impl Playback {
 
 impl Drop for Playback {
     fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
+        self.shared.closed.store(true, Ordering::Relaxed);
         let _ = self.stream.pause();
-        if let Some(f) = self.feeder.take() {
-            let _ = f.join();
-        }
     }
 }

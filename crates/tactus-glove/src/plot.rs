@@ -1,0 +1,334 @@
+//! The pattern and features as a figure (`render --plot`), after the paper's Figures 5 and 7.
+//!
+//! * one panel per melodic stem: the pitch contour (semitones) and the tactile level per bin;
+//! * one raster per drum band: onsets as ticks over the beat bins they light;
+//! * the glove: a piano roll of the 80 dots over time (finger, cell, dot), runs merged.
+//!
+//! The figure is drawn as SVG ([`render_svg`]); the `tactus` binary writes it as is or
+//! rasterises it to PNG.
+//!
+//! Layout (SVG units = PNG pixels; `tests/cli.rs` checks the PNG against it): width 1400, plots
+//! from x = 110 to 1380; title at y = 22; pitch panels 140 high from y = 40, one every 166;
+//! band rasters 28 high, one every 34; then 20 more and the piano roll, 80 rows of 4 (row =
+//! 8 × cell index + dot index, cells thumb 0, thumb 1, index 0, ...), each dot drawn 3.2 high
+//! from the top of its row; a bin `k` spans `[k, k+1) × bin / duration` of the plot width.
+//! Every run of raised dots of one row is one subpath of that row's single `<path>`, so the
+//! element count stays small for any song length (usvg refuses more than 10⁶ elements).
+
+use std::fmt::Write as _;
+
+use crate::{Features, Finger, Pattern};
+
+const W: f64 = 1400.0;
+const LEFT: f64 = 110.0;
+const RIGHT: f64 = 20.0;
+const PITCH_H: f64 = 140.0;
+const BAND_H: f64 = 28.0;
+const DOT_H: f64 = 4.0;
+const GAP: f64 = 26.0;
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// Draws the plot.
+pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
+    let duration = pattern.source.duration_s.max(1e-3);
+    let plot_w = W - LEFT - RIGHT;
+    let x_of = |t: f64| LEFT + plot_w * (t / duration).clamp(0.0, 1.0);
+    let n_pitch = f.pitch_hz.len() as f64;
+    let n_bands = f.beats.len() as f64;
+    let roll_h = 80.0 * DOT_H;
+    let height = 60.0 + n_pitch * (PITCH_H + GAP) + n_bands * (BAND_H + 6.0) + GAP + roll_h + 50.0;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{height:.0}" viewBox="0 0 {W} {height:.0}" font-family="sans-serif" font-size="11">"#
+    );
+    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(
+        s,
+        r#"<text x="{LEFT}" y="22" font-size="15">{} — {:.1} s, {} bins of {} ms, {} levels</text>"#,
+        esc(&pattern.source.path),
+        duration,
+        pattern.frames.len(),
+        pattern.bin_ms,
+        pattern.levels
+    );
+    let mut y = 40.0;
+    let bin_s = pattern.bin_ms as f64 / 1000.0;
+
+    // Pitch panels.
+    for (stem, hz) in &f.pitch_hz {
+        let voiced: Vec<f64> = hz
+            .iter()
+            .filter(|&&v| v > 0.0)
+            .map(|&v| 69.0 + 12.0 * (v as f64 / 440.0).log2())
+            .collect();
+        let (lo, hi) = voiced
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        let (lo, hi) = if voiced.is_empty() {
+            (40.0, 80.0)
+        } else {
+            (lo.floor() - 1.0, hi.ceil() + 1.0)
+        };
+        let y_of = |st: f64| y + PITCH_H - PITCH_H * (st - lo) / (hi - lo).max(1.0);
+        let _ = writeln!(
+            s,
+            r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{PITCH_H}" fill="#fafafa" stroke="#ccc"/>"##
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="8" y="{}" font-size="13">{}</text>"#,
+            y + 16.0,
+            esc(stem)
+        );
+        let _ = writeln!(
+            s,
+            r##"<text x="8" y="{}" fill="#1f77b4">pitch (st)</text>"##,
+            y + 32.0
+        );
+        let _ = writeln!(
+            s,
+            r##"<text x="8" y="{}" fill="#d62728">level 0–{}</text>"##,
+            y + 46.0,
+            pattern.levels
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="{}">{:.0}</text>"#,
+            LEFT - 28.0,
+            y + 10.0,
+            hi
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="{}">{:.0}</text>"#,
+            LEFT - 28.0,
+            y + PITCH_H,
+            lo
+        );
+        // levels as a step line scaled to the panel
+        if let Some(levels) = f.levels.get(stem) {
+            let mut d = String::new();
+            let lv_y = |l: u8| y + PITCH_H - PITCH_H * l as f64 / pattern.levels.max(1) as f64;
+            for (k, &l) in levels.iter().enumerate() {
+                let (x0, x1) = (x_of(k as f64 * bin_s), x_of((k + 1) as f64 * bin_s));
+                let _ = write!(
+                    d,
+                    "{}{x0:.1},{:.1} L{x1:.1},{:.1} ",
+                    if k == 0 { "M" } else { "L" },
+                    lv_y(l),
+                    lv_y(l)
+                );
+            }
+            let _ = writeln!(
+                s,
+                r##"<path d="{d}" fill="none" stroke="#d62728" stroke-width="1" opacity="0.7"/>"##
+            );
+        }
+        // pitch contour as short segments between consecutive voiced hops
+        let mut d = String::new();
+        let mut prev = false;
+        for (i, &v) in hz.iter().enumerate() {
+            if v > 0.0 {
+                let st = 69.0 + 12.0 * (v as f64 / 440.0).log2();
+                let _ = write!(
+                    d,
+                    "{}{:.1},{:.1} ",
+                    if prev { "L" } else { "M" },
+                    x_of(i as f64 * f.hop_s),
+                    y_of(st)
+                );
+                prev = true;
+            } else {
+                prev = false;
+            }
+        }
+        let _ = writeln!(
+            s,
+            r##"<path d="{d}" fill="none" stroke="#1f77b4" stroke-width="1.2"/>"##
+        );
+        y += PITCH_H + GAP;
+    }
+
+    // Band rasters.
+    for (band, beats) in &f.beats {
+        let _ = writeln!(
+            s,
+            r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{BAND_H}" fill="#fafafa" stroke="#ccc"/>"##
+        );
+        let _ = writeln!(
+            s,
+            r#"<text x="8" y="{}" font-size="12">{}</text>"#,
+            y + 18.0,
+            esc(band)
+        );
+        let mut d = String::new();
+        for (k, &b) in beats.iter().enumerate() {
+            if b != 0 {
+                let (x0, x1) = (x_of(k as f64 * bin_s), x_of((k + 1) as f64 * bin_s));
+                let w = (x1 - x0).max(0.5);
+                let _ = write!(d, "M{x0:.1},{y}h{w:.2}v{BAND_H}h{:.2}z", -w);
+            }
+        }
+        if !d.is_empty() {
+            let _ = writeln!(s, r##"<path d="{d}" fill="#ff7f0e" fill-opacity="0.35"/>"##);
+        }
+        if let Some(on) = f.onsets_s.get(band) {
+            let mut d = String::new();
+            for &t in on {
+                let x = x_of(t);
+                let _ = write!(d, "M{x:.1},{:.1} L{x:.1},{:.1} ", y + 3.0, y + BAND_H - 3.0);
+            }
+            let _ = writeln!(s, r##"<path d="{d}" stroke="#000" stroke-width="1"/>"##);
+        }
+        y += BAND_H + 6.0;
+    }
+
+    // Piano roll of the 80 dots.
+    y += GAP - 6.0;
+    let _ = writeln!(
+        s,
+        r#"<text x="{LEFT}" y="{}" font-size="13">glove pins (finger / cell / dot 1–8)</text>"#,
+        y - 6.0
+    );
+    let _ = writeln!(
+        s,
+        r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{roll_h}" fill="#fafafa" stroke="#ccc"/>"##
+    );
+    for (fi, finger) in Finger::ALL.iter().enumerate() {
+        let fy = y + fi as f64 * 16.0 * DOT_H;
+        let _ = writeln!(
+            s,
+            r#"<text x="8" y="{}">{}</text>"#,
+            fy + 8.0 * DOT_H + 4.0,
+            finger.name()
+        );
+        let _ = writeln!(
+            s,
+            r##"<line x1="{LEFT}" y1="{fy}" x2="{}" y2="{fy}" stroke="#999"/>"##,
+            W - RIGHT
+        );
+    }
+    let colors = ["#8c564b", "#2ca02c", "#9467bd", "#1f77b4", "#e377c2"];
+    for row in 0..80usize {
+        let (cell_idx, dot) = (row / 8, row % 8);
+        let ry = y + row as f64 * DOT_H;
+        let color = colors[cell_idx / 2];
+        let mut d = String::new();
+        let mut run: Option<usize> = None;
+        for k in 0..=pattern.frames.len() {
+            let on = k < pattern.frames.len() && pattern.frames[k].0[cell_idx] & (1 << dot) != 0;
+            match (on, run) {
+                (true, None) => run = Some(k),
+                (false, Some(k0)) => {
+                    let (x0, x1) = (x_of(k0 as f64 * bin_s), x_of(k as f64 * bin_s));
+                    let w = (x1 - x0).max(0.5);
+                    let _ = write!(d, "M{x0:.1},{ry:.1}h{w:.2}v{:.1}h{:.2}z", DOT_H - 0.8, -w);
+                    run = None;
+                }
+                _ => {}
+            }
+        }
+        if !d.is_empty() {
+            let _ = writeln!(s, r#"<path d="{d}" fill="{color}"/>"#);
+        }
+    }
+    y += roll_h + 18.0;
+    // time axis
+    let step = [1.0, 2.0, 5.0, 10.0, 15.0, 30.0, 60.0]
+        .into_iter()
+        .find(|st| duration / st <= 12.0)
+        .unwrap_or(120.0);
+    let mut t = 0.0;
+    while t <= duration + 1e-9 {
+        let _ = writeln!(
+            s,
+            r#"<text x="{:.1}" y="{y}" text-anchor="middle">{t:.0} s</text>"#,
+            x_of(t)
+        );
+        t += step;
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Frame, GloveMap, SourceInfo};
+    use std::collections::BTreeMap;
+
+    /// `bins` bins of 100 ms; the index finger's cell 0 (byte 2) has every dot raised in even
+    /// bins, so each of its 8 rows has a run every other bin; the kick beats likewise.
+    fn alternating(bins: usize) -> (Pattern, Features) {
+        let frames = (0..bins)
+            .map(|k| {
+                let mut f = Frame::DOWN;
+                if k % 2 == 0 {
+                    f.0[2] = 0xFF;
+                }
+                f
+            })
+            .collect();
+        let pattern = Pattern {
+            source: SourceInfo {
+                path: "long.wav".into(),
+                sha256: "0".repeat(64),
+                duration_s: bins as f64 * 0.1,
+                sample_rate: 44_100,
+            },
+            bin_ms: 100,
+            levels: 8,
+            map: GloveMap::default(),
+            frames,
+        };
+        let mut beats = BTreeMap::new();
+        beats.insert(
+            "kick".to_string(),
+            (0..bins).map(|k| (k % 2 == 0) as u8).collect(),
+        );
+        let features = Features {
+            hop_s: 0.01,
+            bin_s: 0.1,
+            pitch_hz: BTreeMap::new(),
+            levels: BTreeMap::new(),
+            onsets_s: BTreeMap::new(),
+            beats,
+        };
+        (pattern, features)
+    }
+
+    /// Elements other than text (the time axis has more labels for a longer song).
+    fn elements(svg: &str) -> usize {
+        svg.matches('<').count() - svg.matches("</").count() - svg.matches("<text").count()
+    }
+
+    #[test]
+    fn element_count_does_not_grow_with_the_song() {
+        let (p, f) = alternating(20);
+        let short = render_svg(&p, &f);
+        // One hour: 18 000 runs in each of 8 rows and in the kick raster.
+        let (p, f) = alternating(36_000);
+        let long = render_svg(&p, &f);
+        assert_eq!(elements(&short), elements(&long));
+        assert!(elements(&long) < 30, "{}", elements(&long));
+        let runs = long.matches("zM").count() + long.matches("z\"").count();
+        assert_eq!(runs, 9 * 18_000, "one subpath per run");
+    }
+
+    #[test]
+    fn an_hour_long_plot_has_the_layout_size() {
+        // The binary rasterises at one pixel per unit (tests/cli.rs checks the PNG itself).
+        let (p, f) = alternating(36_000);
+        let svg = render_svg(&p, &f);
+        let height = (60.0 + 34.0 + GAP + 80.0 * DOT_H + 50.0) as u32;
+        let head = format!("width=\"1400\" height=\"{height}\"");
+        assert!(svg.contains(&head), "{}", &svg[..200]);
+    }
+}

@@ -1,0 +1,95 @@
+//! # tactus-session: the real-time programs as library calls
+//!
+//! | call | what |
+//! |---|---|
+//! | [`live::live`] | capture → engine → sink, as it plays; memory stays flat however long it runs |
+//! | [`play::play_song`] | a song rendered frame by frame as it plays (decoded once for the engine and the speakers) |
+//! | [`play::play_pattern`] | a pattern's frames, on its song's audio clock or the caller's clock |
+//!
+//! Each takes a source, an engine configuration (or frames), a sink
+//! ([`tactus_transport::SinkHandle`]) and a clock ([`tactus_transport::Clock`]), and returns
+//! a report; none prints. Any program can run Tactus live this way: the `tactus` binary, a
+//! notebook, a study harness. The device side (capture, speakers, the audio clock) is behind
+//! the `device` feature; without it a capture ring can still be fed by anything, such as a
+//! file, which is how the tests run a live session with the null sink.
+//!
+//! ## Tutorial
+//!
+//! A live session fed from a synthetic signal through a capture ring, frames to the null
+//! sink:
+//!
+//! ```
+//! use std::sync::atomic::AtomicBool;
+//! use std::time::Duration;
+//! use tactus_audio::ring::capture_ring;
+//! use tactus_engine::{EngineConfig, Mode};
+//! use tactus_session::live::{live, LiveInput, LiveOptions};
+//! use tactus_transport::{open_sink, SinkOptions, SinkSpec};
+//!
+//! let (mut writer, mut reader) = capture_ring(48_000);
+//! // One second of clicks at 48 kHz, mono, written as a capture callback would.
+//! let clicks: Vec<f32> = (0..48_000).map(|i| if i % 12_000 < 64 { 0.8 } else { 0.0 }).collect();
+//! writer.write(&clicks, 1, |x| x, Duration::ZERO);
+//! drop(writer); // the input ends once the ring is drained
+//!
+//! let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
+//! let config = EngineConfig { mode: Mode::Streaming, bin_ms: 25, ..EngineConfig::default() };
+//! let input = LiveInput { reader: &mut reader, rate: 48_000, name: "clicks".into() };
+//! let stop = AtomicBool::new(false);
+//! let report = live(input, config, &sink, &LiveOptions::default(), &stop, &mut |_| {}).unwrap();
+//! assert!(report.frames > 0);
+//! sink.close();
+//! ```
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod live;
+pub mod play;
+
+pub use live::{live, LiveEngine, LiveInput, LiveOptions, LiveReport, LiveStatus};
+pub use play::{play_pattern, play_song, Late, PlayOptions, PlayReport, SoundReport};
+
+/// Why a session stopped with an error. Each message is one line a user understands; the
+/// cause stays reachable through [`std::error::Error::source`].
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SessionError {
+    /// The engine could not be built or failed while running.
+    #[error(transparent)]
+    Engine(#[from] tactus_engine::EngineError),
+    /// The song could not be opened or decoded.
+    #[error(transparent)]
+    Source(#[from] tactus_audio::SourceError),
+    /// A resampler could not be built.
+    #[error(transparent)]
+    Resample(#[from] tactus_audio::ResampleError),
+    /// An audio device failed.
+    #[cfg(feature = "device")]
+    #[error(transparent)]
+    Device(#[from] tactus_audio::device::DeviceError),
+    /// The input delivered nothing.
+    #[error("input device {device} delivered no audio in {seconds} s")]
+    NoAudio {
+        /// The input.
+        device: String,
+        /// How long it was given.
+        seconds: f64,
+    },
+    /// The input device reported an error before its first sample.
+    #[error("input device {device} failed")]
+    DeviceFailed {
+        /// The input.
+        device: String,
+    },
+    /// The play clock stopped moving.
+    #[error(
+        "the play clock stopped for {seconds} s (audio output stalled?); rerun with --no-audio"
+    )]
+    ClockStalled {
+        /// How long it stood still.
+        seconds: f64,
+    },
+    /// The rendering or feeding thread could not run.
+    #[error("{0}")]
+    Renderer(String),
+}

@@ -1,0 +1,554 @@
+//! `play`: a song (rendered frame by frame as it plays) or a pattern's frames, sent to a
+//! sink on a clock.
+//!
+//! ## A song ([`play_song`])
+//! The song is decoded **once**: the engine renders it on its own thread
+//! ([`render_tapped`], streaming mode) and hands every decoded block on to a feeder thread
+//! that pushes it into the speakers ([`tactus_audio::device::PlaybackFeed`], feature
+//! `device`). The calling thread sends frame `k` when the play clock reads
+//! `k · bin_ms − lead` (the lead is the pin rise plus the link's latency plus the user's
+//! offset). The play clock is the audio output's position when speakers are asked for and
+//! open, otherwise the caller's [`Clock`] (the wall clock, or a fake one in tests). Rendering
+//! runs far faster than real time, but only [`PlayOptions::render_ahead_ms`] (2 s: 80 frames
+//! at 25 ms bins) ahead of the clock: the frames wait in a bounded queue and the renderer
+//! blocks when it holds that many. A frame that is not ready in time is skipped (the next
+//! frame carries the full state anyway). Every exit (end, stop, error) sends all-down.
+//!
+//! ## A pattern ([`play_pattern`])
+//! Its frames are the queue, sent exactly as a song's, on the audio clock of its song when
+//! one is given (decoded and played, no engine), else through
+//! [`tactus_transport::play_frames`] on the caller's clock.
+
+use std::collections::VecDeque;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+use tactus_engine::render::{render_tapped, RenderRequest};
+use tactus_engine::EngineError;
+use tactus_glove::Frame;
+use tactus_transport::{Clock, SinkHandle};
+
+use crate::SessionError;
+
+/// How far, in ms of song time, the renderer may run ahead of the play clock by default.
+pub const RENDER_AHEAD_MS: u32 = 2000;
+
+/// How a play session runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlayOptions {
+    /// Send frames this much early, ms ([`tactus_transport::lead_ms`]).
+    pub lead_ms: i64,
+    /// Play the sound on the default output device and time frames on its clock (feature
+    /// `device`; without it, or when no device opens, the caller's clock is used and the
+    /// report says why).
+    pub speakers: bool,
+    /// How far the renderer may run ahead of the clock, ms.
+    pub render_ahead_ms: u32,
+    /// A clock that stops moving for this long (a stalled audio device) ends playback.
+    pub stall: Duration,
+    /// What happens to a frame of a song that is not rendered when its time comes.
+    pub late: Late,
+}
+
+/// What happens to a frame that is not rendered when its time comes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Late {
+    /// Skip it: the next frame carries the full state anyway (real time: the default).
+    #[default]
+    Skip,
+    /// Wait for it, holding the clock's frame schedule back: for clocks that are not real
+    /// time (a simulation, a fake clock in tests), where nothing can be late.
+    Wait,
+}
+
+impl Default for PlayOptions {
+    fn default() -> Self {
+        PlayOptions {
+            lead_ms: i64::from(tactus_glove::PIN_RISE_MS),
+            speakers: false,
+            render_ahead_ms: RENDER_AHEAD_MS,
+            stall: Duration::from_secs(10),
+            late: Late::Skip,
+        }
+    }
+}
+
+/// What the speakers did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SoundReport {
+    /// The output device.
+    pub device: String,
+    /// Its rate, Hz.
+    pub rate: u32,
+    /// The song's length, s.
+    pub song_s: f64,
+    /// The audio clock at the end, s.
+    pub clock_s: f64,
+    /// Wall time from the first sample audible to the end, s.
+    pub wall_s: f64,
+    /// Output latency cpal reported, ms.
+    pub latency_ms: f64,
+    /// Output callbacks that found the ring short.
+    pub underruns: u64,
+    /// Whether decoding failed part-way.
+    pub feed_failed: bool,
+}
+
+/// What a play session did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlayReport {
+    /// Frames handed to the sink.
+    pub sent: usize,
+    /// Frames not ready in time (skipped).
+    pub skipped: usize,
+    /// The speakers, when they played.
+    pub sound: Option<SoundReport>,
+    /// Things the user should know (no audio output, and why).
+    pub warnings: Vec<String>,
+}
+
+/// Frames between the rendering thread and the sender: a bounded queue.
+#[derive(Default)]
+struct Queue {
+    /// Frames `base ..` not yet sent.
+    frames: VecDeque<Frame>,
+    /// Index of `frames[0]`.
+    base: usize,
+    done: bool,
+    error: Option<EngineError>,
+}
+
+type SharedQueue = Arc<(Mutex<Queue>, Condvar)>;
+
+fn crashed() -> SessionError {
+    SessionError::Renderer("the rendering thread crashed".into())
+}
+
+/// The speakers, when open: the playback and the clock on it.
+#[cfg(feature = "device")]
+mod speakers {
+    use super::*;
+    use tactus_audio::device::{Playback, PlaybackFeed};
+
+    /// The audio clock: song time audible now; `-inf` before the first callback.
+    pub struct AudioClock<'a>(pub &'a Playback);
+
+    impl Clock for AudioClock<'_> {
+        fn now_ms(&self) -> f64 {
+            self.0.now_ms().unwrap_or(f64::NEG_INFINITY)
+        }
+    }
+
+    /// Opens the default output for a song at `rate`; on failure the warning says why.
+    pub fn open(
+        rate: u32,
+        pad_ms: u32,
+        stop: &Arc<AtomicBool>,
+        warnings: &mut Vec<String>,
+    ) -> Option<(Playback, PlaybackFeed)> {
+        match Playback::open(rate, pad_ms, stop.clone()) {
+            Ok(p) => Some(p),
+            Err(e) => {
+                let mut msg = e.to_string();
+                let mut src = std::error::Error::source(&e);
+                while let Some(c) = src {
+                    msg.push_str(&format!(": {c}"));
+                    src = c.source();
+                }
+                warnings.push(format!(
+                    "no audio output ({}); timing frames on the wall clock",
+                    msg.replace('\n', " ")
+                ));
+                None
+            }
+        }
+    }
+
+    /// Lets the song play out, then describes the audio clock against the wall clock.
+    pub fn finish(out: &Playback, stop: &AtomicBool) -> SoundReport {
+        // The song is over when its last frame is audible; give up 5 s after it should be.
+        let t = Instant::now();
+        while !stop.load(Ordering::Relaxed) && !out.finished() {
+            let remaining = match (out.duration_ms(), out.now_ms()) {
+                (Some(d), Some(now)) => d - now,
+                _ => 10_000.0,
+            };
+            if t.elapsed() > Duration::from_secs_f64(remaining.max(0.0) / 1e3 + 5.0) {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let st = out.stats();
+        SoundReport {
+            device: out.device().to_string(),
+            rate: out.rate(),
+            song_s: out.duration_ms().unwrap_or(0.0) / 1e3,
+            clock_s: out.now_ms().unwrap_or(0.0) / 1e3,
+            // Wall time from the first sample being audible (first callback + output
+            // latency) to now.
+            wall_s: st
+                .first_callback
+                .map(|f| f.elapsed().as_secs_f64() - st.latency_ms / 1e3)
+                .unwrap_or(0.0),
+            latency_ms: st.latency_ms,
+            underruns: st.underruns,
+            feed_failed: out.feed_failed(),
+        }
+    }
+}
+
+/// Blocks of decoded audio on their way to the speakers' feed.
+#[cfg(not(feature = "device"))]
+type BlockTx = std::sync::mpsc::Sender<(Vec<f32>, Vec<f32>)>;
+
+/// Plays a song: renders it on its own thread as it plays and sends each frame on the clock
+/// (the speakers' when `opts.speakers` and they open, else `clock`). See the module docs.
+///
+/// Errors: the song cannot be opened or decoded, the engine cannot be built or fails, or the
+/// play clock stalls.
+pub fn play_song(
+    req: RenderRequest,
+    sink: &SinkHandle,
+    clock: &dyn Clock,
+    opts: &PlayOptions,
+    stop: &Arc<AtomicBool>,
+) -> Result<PlayReport, SessionError> {
+    let bin_ms = req.config.bin_ms.max(1);
+    let ahead = (opts.render_ahead_ms.div_ceil(bin_ms) as usize).max(8);
+    let mut warnings = Vec::new();
+    let pad_ms = opts.lead_ms.max(0) as u32;
+    #[cfg(feature = "device")]
+    let opened = if opts.speakers {
+        let rate = tactus_audio::AudioSource::open(&req.input)?
+            .info()
+            .sample_rate;
+        speakers::open(rate, pad_ms, stop, &mut warnings)
+    } else {
+        None
+    };
+    #[cfg(not(feature = "device"))]
+    if opts.speakers {
+        let _ = pad_ms;
+        warnings.push(
+            "built without the `audio` feature: no sound; timing frames on the wall clock (--no-audio)"
+                .into(),
+        );
+    }
+    #[cfg(feature = "device")]
+    let (playback, block_tx, feeder) = match opened {
+        Some((playback, mut feed)) => {
+            let (tx, rx) = std::sync::mpsc::channel::<(Vec<f32>, Vec<f32>)>();
+            let h = std::thread::Builder::new()
+                .name("tactus-audio-feed".into())
+                .spawn(move || {
+                    for (l, r) in rx.iter() {
+                        if !feed.push(&l, &r) {
+                            return;
+                        }
+                    }
+                    feed.finish();
+                })
+                .map_err(|e| SessionError::Renderer(format!("starting the audio feeder: {e}")))?;
+            (Some(playback), Some(tx), Some(h))
+        }
+        None => (None, None, None),
+    };
+    #[cfg(not(feature = "device"))]
+    let (block_tx, feeder): (Option<BlockTx>, Option<std::thread::JoinHandle<()>>) = (None, None);
+    let shared: SharedQueue = Arc::new((Mutex::new(Queue::default()), Condvar::new()));
+    let producer = {
+        let shared = shared.clone();
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            let (m, cv) = &*shared;
+            let tx = block_tx;
+            // Returning `false` (stopped, or a poisoned lock) ends the render at once.
+            let result = render_tapped(
+                &req,
+                &mut |_| {},
+                &mut |l, r| {
+                    if let Some(tx) = &tx {
+                        let _ = tx.send((l.to_vec(), r.to_vec()));
+                    }
+                },
+                &mut |k, f| {
+                    let Ok(mut g) = m.lock() else { return false };
+                    // The bounded buffer: wait while `ahead` frames are queued.
+                    while g.frames.len() >= ahead && !stop.load(Ordering::Relaxed) {
+                        g = match cv.wait_timeout(g, Duration::from_millis(50)) {
+                            Ok(r) => r.0,
+                            Err(_) => return false,
+                        };
+                    }
+                    if stop.load(Ordering::Relaxed) {
+                        return false;
+                    }
+                    if k < g.base + g.frames.len() {
+                        return true;
+                    }
+                    if g.frames.is_empty() {
+                        g.base = k;
+                    }
+                    g.frames.push_back(f);
+                    cv.notify_all();
+                    true
+                },
+            );
+            drop(tx);
+            // A stop is not an error to report.
+            let result = match result {
+                Err(EngineError::Cancelled) => Ok(()),
+                other => other.map(|_| ()),
+            };
+            if let Ok(mut g) = m.lock() {
+                g.done = true;
+                if let Err(e) = result {
+                    g.error = Some(e);
+                }
+                cv.notify_all();
+            }
+        })
+    };
+    let outcome = wait_first_frame(&shared, stop).and_then(|()| {
+        #[cfg(feature = "device")]
+        if let Some(playback) = &playback {
+            playback.wait_prefilled(Duration::from_secs(5));
+            playback.start()?;
+            return schedule(
+                &shared,
+                sink,
+                bin_ms,
+                opts.lead_ms,
+                stop,
+                &speakers::AudioClock(playback),
+                opts.stall,
+                opts.late,
+            );
+        }
+        schedule(
+            &shared,
+            sink,
+            bin_ms,
+            opts.lead_ms,
+            stop,
+            clock,
+            opts.stall,
+            opts.late,
+        )
+    });
+    if outcome.is_err() {
+        sink.all_down();
+    }
+    #[cfg(feature = "device")]
+    let sound = playback
+        .as_ref()
+        .filter(|_| outcome.is_ok())
+        .map(|p| speakers::finish(p, stop));
+    #[cfg(not(feature = "device"))]
+    let sound = None;
+    stop.store(true, Ordering::SeqCst);
+    #[cfg(feature = "device")]
+    drop(playback);
+    let _ = producer.join();
+    if let Some(f) = feeder {
+        let _ = f.join();
+    }
+    let (sent, skipped) = outcome?;
+    Ok(PlayReport {
+        sent,
+        skipped,
+        sound,
+        warnings,
+    })
+}
+
+/// Plays a pattern's frames. With `song` (and speakers asked for), the song is decoded and
+/// played and the frames follow its audio clock; otherwise they follow `clock` through
+/// [`tactus_transport::play_frames`], whose report is returned too.
+pub fn play_pattern(
+    frames: &[Frame],
+    bin_ms: u32,
+    song: Option<&Path>,
+    sink: &SinkHandle,
+    clock: &dyn Clock,
+    opts: &PlayOptions,
+    stop: &Arc<AtomicBool>,
+    status: &mut dyn FnMut(tactus_transport::PlayStatus),
+) -> Result<(PlayReport, Option<tactus_transport::PlayReport>), SessionError> {
+    #[cfg_attr(not(feature = "device"), allow(unused_mut))]
+    let mut warnings = Vec::new();
+    #[cfg(feature = "device")]
+    if let (Some(song), true) = (song, opts.speakers) {
+        let mut source = tactus_audio::AudioSource::open(song)?;
+        let rate = source.info().sample_rate;
+        if let Some((playback, mut feed)) =
+            speakers::open(rate, opts.lead_ms.max(0) as u32, stop, &mut warnings)
+        {
+            let feeder = std::thread::Builder::new()
+                .name("tactus-audio-feed".into())
+                .spawn(move || {
+                    let (mut l, mut r) = (Vec::new(), Vec::new());
+                    loop {
+                        l.clear();
+                        r.clear();
+                        match source.read_block(&mut l, &mut r) {
+                            Ok(0) => break feed.finish(),
+                            Ok(_) => {
+                                if !feed.push(&l, &r) {
+                                    break;
+                                }
+                            }
+                            Err(_) => break feed.fail(),
+                        }
+                    }
+                })
+                .map_err(|e| SessionError::Renderer(format!("starting the audio feeder: {e}")))?;
+            // The whole pattern is the queue: nothing to render.
+            let shared: SharedQueue = Arc::new((
+                Mutex::new(Queue {
+                    frames: frames.iter().copied().collect(),
+                    base: 0,
+                    done: true,
+                    error: None,
+                }),
+                Condvar::new(),
+            ));
+            playback.wait_prefilled(Duration::from_secs(5));
+            let outcome = playback.start().map_err(SessionError::from).and_then(|()| {
+                schedule(
+                    &shared,
+                    sink,
+                    bin_ms.max(1),
+                    opts.lead_ms,
+                    stop,
+                    &speakers::AudioClock(&playback),
+                    opts.stall,
+                    opts.late,
+                )
+            });
+            if outcome.is_err() {
+                sink.all_down();
+            }
+            let sound = outcome.is_ok().then(|| speakers::finish(&playback, stop));
+            stop.store(true, Ordering::SeqCst);
+            drop(playback);
+            let _ = feeder.join();
+            let (sent, skipped) = outcome?;
+            return Ok((
+                PlayReport {
+                    sent,
+                    skipped,
+                    sound,
+                    warnings,
+                },
+                None,
+            ));
+        }
+    }
+    #[cfg(not(feature = "device"))]
+    let _ = song;
+    let r = tactus_transport::play_frames(frames, bin_ms, sink, clock, opts.lead_ms, stop, status);
+    Ok((
+        PlayReport {
+            sent: r.frames_sent,
+            skipped: 0,
+            sound: None,
+            warnings,
+        },
+        Some(r),
+    ))
+}
+
+/// Waits (holding the lock between checks) while `pending(queue)` holds, the renderer is
+/// not done and `stop` is not set; then reports a rendering error if there is one.
+fn wait_while<'a>(
+    shared: &'a SharedQueue,
+    mut g: std::sync::MutexGuard<'a, Queue>,
+    stop: &AtomicBool,
+    pending: impl Fn(&Queue) -> bool,
+) -> Result<std::sync::MutexGuard<'a, Queue>, SessionError> {
+    while pending(&g) && !g.done && !stop.load(Ordering::Relaxed) {
+        g = shared
+            .1
+            .wait_timeout(g, Duration::from_millis(50))
+            .map_err(|_| crashed())?
+            .0;
+    }
+    if let Some(e) = g.error.take() {
+        return Err(e.into());
+    }
+    Ok(g)
+}
+
+/// Waits until the renderer has produced its first frame (or failed, or ended).
+fn wait_first_frame(shared: &SharedQueue, stop: &AtomicBool) -> Result<(), SessionError> {
+    let g = shared.0.lock().map_err(|_| crashed())?;
+    wait_while(shared, g, stop, |q| q.frames.is_empty()).map(drop)
+}
+
+/// The scheduler: sends frame `k` when `clock` reads `k · bin_ms − lead_ms`. Returns
+/// (sent, skipped). Ends with all-down.
+fn schedule(
+    shared: &SharedQueue,
+    sink: &SinkHandle,
+    bin_ms: u32,
+    lead_ms: i64,
+    stop: &AtomicBool,
+    clock: &dyn Clock,
+    stall: Duration,
+    late: Late,
+) -> Result<(usize, usize), SessionError> {
+    let (m, cv) = &**shared;
+    let (mut k, mut sent, mut skipped) = (0usize, 0usize, 0usize);
+    let (mut last, mut moved) = (f64::NAN, Instant::now());
+    'frames: while !stop.load(Ordering::Relaxed) {
+        let due = k as f64 * f64::from(bin_ms) - lead_ms as f64;
+        loop {
+            if stop.load(Ordering::Relaxed) {
+                break 'frames;
+            }
+            let now = clock.now_ms();
+            if now != last {
+                (last, moved) = (now, Instant::now());
+            } else if moved.elapsed() > stall {
+                sink.all_down();
+                return Err(SessionError::ClockStalled {
+                    seconds: stall.as_secs_f64(),
+                });
+            }
+            if now >= due {
+                break;
+            }
+            clock.sleep_ms(if now.is_finite() {
+                (due - now).min(10.0)
+            } else {
+                2.0
+            });
+        }
+        let g = m.lock().map_err(|_| crashed())?;
+        let wait = late == Late::Wait;
+        let mut g = wait_while(shared, g, stop, |q| wait && q.base + q.frames.len() <= k)?;
+        // Frames that came too late for their turn.
+        while g.base < k && !g.frames.is_empty() {
+            g.frames.pop_front();
+            g.base += 1;
+        }
+        if g.base == k && !g.frames.is_empty() {
+            let f = g.frames.pop_front().expect("checked non-empty");
+            g.base += 1;
+            cv.notify_all();
+            drop(g);
+            sink.send_frame(f, (k as u64 * u64::from(bin_ms)) as u32);
+            sent += 1;
+        } else if g.done {
+            break;
+        } else {
+            skipped += 1;
+        }
+        k += 1;
+    }
+    sink.all_down();
+    Ok((sent, skipped))
+}
