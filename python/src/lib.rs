@@ -85,6 +85,7 @@ fn result_dict<'py>(py: Python<'py>, out: &RenderOutput) -> PyResult<Bound<'py, 
         .collect();
     d.set_item("stages_s", stages)?;
     d.set_item("warnings", out.warnings.clone())?;
+    d.set_item("report", out.report_text())?;
     d.set_item("separator", out.separator)?;
     d.set_item(
         "stems",

@@ -106,17 +106,12 @@ class Result:
     stems: List[str] = field(default_factory=list)
     pattern_json: str = field(default="", repr=False)
     features_json: str = field(default="", repr=False)
+    report_text: str = field(default="", repr=False)
 
     def report(self) -> str:
-        """The stage costs and latency budget, as ``tactus render --verbose`` prints them."""
-        lines = [f"separator {self.separator or 'none needed'}, stems {', '.join(self.stems)}"]
-        for name, t in self.stages_s:
-            lines.append(f"  {name:<36} {t:>9.3f} s")
-        lines.append("  latency budget (streaming):")
-        for name, ms in self.latency_ms:
-            lines.append(f"    {name:<44} {ms:>7.1f} ms")
-        lines.append(f"    {'total':<44} {sum(ms for _, ms in self.latency_ms):>7.1f} ms")
-        return "\n".join(lines)
+        """What ran, the stage costs, the speed and the latency budget: the report that
+        ``tactus render --verbose`` prints (the same Rust code)."""
+        return self.report_text
 
     def save(self, pattern: PathLike, features: Optional[PathLike] = None) -> None:
         """Writes the pattern (and features) files, as ``render -o`` / ``--features``."""
@@ -151,6 +146,7 @@ def _result(d: Dict[str, Any]) -> Result:
         stems=list(d["stems"]),
         pattern_json=d["pattern_json"],
         features_json=d["features_json"],
+        report_text=d["report"],
     )
 
 

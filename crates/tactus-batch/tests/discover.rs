@@ -66,7 +66,7 @@ fn a_directory_is_walked_for_audio_by_content() {
     // The output directory inside the library is never an input.
     fs::create_dir_all(lib.join("out")).unwrap();
     wav(&lib.join("out/old.wav"));
-    let p = plan(&[lib.clone()], Some(&lib.join("out"))).unwrap();
+    let p = plan(std::slice::from_ref(&lib), Some(&lib.join("out"))).unwrap();
     let bases: Vec<PathBuf> = p.jobs.iter().map(|j| j.base.clone()).collect();
     assert_eq!(
         bases,
