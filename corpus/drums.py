@@ -11,6 +11,8 @@ one of five families:
 * timgm     TimGM6mb bank 128 (same presets)
 * csound    sf_GMbank (csound-soundfont) bank 128 (same presets)
 * sonicpi   one-shot samples from sonic-pi-samples mixed with numpy (velocity as gain)
+* synth     every drum synthesised with numpy from random parameters per song (sine kicks with and
+            without pitch sweeps, tuned snares, toms from 60 to 400 Hz, metallic or noise cymbals)
 * musescore MuseScore_General_Full bank 128: the HELD-OUT family (evaluate only, never train)
 
 FluidR3_GS.sf2 has only an SFX kit in bank 128, so it contributes no drum kit.
@@ -56,7 +58,7 @@ FAMILY_SF2 = {
     "csound": "sf_GMbank.sf2",
     "musescore": "MuseScore_General_Full.sf2",
 }
-FAMILIES = ["fluid", "timgm", "csound", "sonicpi", "musescore"]
+FAMILIES = ["fluid", "timgm", "csound", "sonicpi", "musescore", "synth"]
 HELD_OUT = {"musescore"}
 # Kit order per song index: the acoustic kits cycle; Electronic (24) and TR-808 (25) once each.
 KIT_ORDER = [0, 8, 16, 32, 40, 24, 0, 8, 16, 32, 40, 25]
@@ -567,6 +569,188 @@ def sonicpi_render(hits_s, kit, levels, n_samples):
     return y, exact
 
 
+# ---------------------------------------------------------------------------------------
+# The "synth" family: every sound synthesised with numpy from random parameters (sine
+# kicks with and without a pitch sweep, tuned snare bodies under band-passed noise, swept
+# toms tuned anywhere from 60 to 400 Hz, metallic square-wave or noise cymbals), so the
+# transcriber meets electronic and unusually tuned kits in training. No samples are used.
+
+
+def _band_noise(rng, n, lo, hi):
+    """White noise band-passed to [lo, hi] Hz (raised-cosine edges), unit peak."""
+    x = rng.standard_normal(n)
+    return _band(x, lo, hi)
+
+
+def _band(x, lo, hi):
+    n = len(x)
+    X = np.fft.rfft(x)
+    f = np.fft.rfftfreq(n, 1.0 / SR)
+    w = np.clip((f - 0.7 * lo) / (0.3 * lo + 1e-9), 0, 1) * np.clip((1.3 * hi - f) / (0.3 * hi), 0, 1)
+    y = np.fft.irfft(X * np.sin(0.5 * np.pi * w) ** 2, n)
+    return y / max(1e-9, float(np.max(np.abs(y))))
+
+
+def _sweep(f_start, f_end, tau, n):
+    t = np.arange(n) / SR
+    f = f_end + (f_start - f_end) * np.exp(-t / tau)
+    return np.sin(2 * np.pi * np.cumsum(f) / SR)
+
+
+def _finish(x, fade_s=0.01):
+    x = x / max(1e-9, float(np.max(np.abs(x))))
+    k = min(len(x), int(fade_s * SR))
+    x[-k:] *= np.linspace(1, 0, k)
+    return x
+
+
+def _darken(x, cutoff):
+    """One-pole low-pass (soft hits are darker), unit peak."""
+    a = math.exp(-2 * math.pi * cutoff / SR)
+    X = np.fft.rfft(x)
+    f = np.fft.rfftfreq(len(x), 1.0 / SR)
+    y = np.fft.irfft(X * (1 - a) / np.abs(1 - a * np.exp(-2j * np.pi * f / SR)), len(x))
+    return y / max(1e-9, float(np.max(np.abs(y))))
+
+
+def synth_kick(rng):
+    n = int(rng.uniform(0.35, 0.8) * SR)
+    t = np.arange(n) / SR
+    f_end = rng.uniform(38, 75)
+    ratio = 1.0 if rng.random() < 0.25 else rng.uniform(1.3, 5.0)
+    x = _sweep(f_end * ratio, f_end, rng.uniform(0.008, 0.07), n) * np.exp(-t / rng.uniform(0.07, 0.45))
+    if rng.random() < 0.7:  # beater click
+        k = int(rng.uniform(0.001, 0.006) * SR)
+        c = _band_noise(rng, k, rng.uniform(1000, 3000), rng.uniform(5000, 12000)) * np.exp(-np.arange(k) / (0.3 * k))
+        x[:k] += rng.uniform(0.05, 0.6) * c
+    if rng.random() < 0.4:  # drive
+        g = rng.uniform(1.5, 5)
+        x = np.tanh(g * x) / math.tanh(g)
+    return _finish(x)
+
+
+def synth_snare(rng, electronic):
+    n = int(rng.uniform(0.25, 0.5) * SR)
+    t = np.arange(n) / SR
+    f0 = rng.uniform(150, 340)
+    body = _sweep(f0 * rng.uniform(1.0, 1.4), f0, 0.01, n) * np.exp(-t / rng.uniform(0.03, 0.14))
+    body += rng.uniform(0.2, 0.7) * _sweep(f0 * 1.6, f0 * 1.55, 0.01, n) * np.exp(-t / rng.uniform(0.02, 0.08))
+    lo = rng.uniform(900, 3500) if not electronic else rng.uniform(2000, 6000)
+    noise = _band_noise(rng, n, lo, rng.uniform(7000, 15000)) * np.exp(-t / rng.uniform(0.06, 0.3))
+    x = body / np.max(np.abs(body)) + rng.uniform(0.4, 2.0) * noise
+    return _finish(x)
+
+
+def synth_rim(rng):
+    n = int(0.15 * SR)
+    t = np.arange(n) / SR
+    x = np.sin(2 * np.pi * rng.uniform(400, 1200) * t) * np.exp(-t / rng.uniform(0.008, 0.03))
+    x += rng.uniform(0.3, 1.0) * _band_noise(rng, n, 1500, 9000) * np.exp(-t / rng.uniform(0.002, 0.008))
+    return _finish(x)
+
+
+def synth_tom(rng, f0, electronic):
+    n = int(rng.uniform(0.4, 0.9) * SR)
+    t = np.arange(n) / SR
+    tau = rng.uniform(0.12, 0.6)
+    x = _sweep(f0 * rng.uniform(1.05, 1.6 if electronic else 1.3), f0, rng.uniform(0.02, 0.12), n) * np.exp(-t / tau)
+    if not electronic:
+        x += rng.uniform(0.1, 0.4) * _sweep(f0 * 1.6, f0 * 1.5, 0.03, n) * np.exp(-t / (0.4 * tau))
+        k = int(0.006 * SR)
+        x[:k] += rng.uniform(0.03, 0.25) * _band_noise(rng, k, 1000, 6000) * np.exp(-np.arange(k) / (0.3 * k))
+    return _finish(x)
+
+
+def _metal(rng, n, scale):
+    t = np.arange(n) / SR
+    fr = np.array([205.3, 304.4, 369.6, 522.7, 540.0, 800.0]) * scale
+    return sum(np.sign(np.sin(2 * np.pi * f * t + rng.uniform(0, 6.3))) for f in fr)
+
+
+def synth_cymbal(rng, kind, metal_scale, metallic):
+    length = {"closed": 0.2, "pedal": 0.2, "open": 1.0, "ride": 2.0, "bell": 2.0, "crash": 2.5,
+              "splash": 1.0, "china": 2.0}[kind]
+    n = int(length * SR)
+    t = np.arange(n) / SR
+    lo, hi, tau = {
+        "closed": (rng.uniform(5000, 9000), 16000, rng.uniform(0.015, 0.06)),
+        "pedal": (rng.uniform(5000, 9000), 14000, rng.uniform(0.015, 0.04)),
+        "open": (rng.uniform(5000, 9000), 16000, rng.uniform(0.2, 0.6)),
+        "ride": (rng.uniform(2500, 5000), 15000, rng.uniform(0.6, 1.6)),
+        "bell": (rng.uniform(1500, 3000), 12000, rng.uniform(0.6, 1.6)),
+        "crash": (rng.uniform(1500, 4000), 16000, rng.uniform(0.6, 2.0)),
+        "splash": (rng.uniform(2500, 5000), 16000, rng.uniform(0.2, 0.6)),
+        "china": (rng.uniform(800, 2000), 12000, rng.uniform(0.5, 1.5)),
+    }[kind]
+    src = rng.uniform(0.3, 1.0) * rng.standard_normal(n)
+    if metallic:
+        m = _metal(rng, n, metal_scale)
+        src = src + m / np.max(np.abs(m))
+    x = _band(src, lo, hi) * np.exp(-t / tau)
+    if kind in ("ride", "bell"):
+        fb = rng.uniform(600, 1200)
+        x += (0.6 if kind == "bell" else 0.15) * sum(
+            np.sin(2 * np.pi * fb * r * t) for r in (1.0, 2.76, 5.4)) / 3 * np.exp(-t / rng.uniform(0.4, 1.0))
+    k = int(0.002 * SR)
+    x[:k] *= np.linspace(0, 1, k)  # no DC step
+    return _finish(x)
+
+
+def synth_kit(rng):
+    """note -> (soft, hard, pan) arrays, levels, name."""
+    electronic = bool(rng.random() < 0.4)
+    metallic = bool(rng.random() < 0.5)
+    mscale = rng.uniform(0.8, 2.0)
+    kick = synth_kick(rng)
+    kick2 = synth_kick(rng) if rng.random() < 0.3 else kick
+    snare = synth_snare(rng, electronic)
+    snare2 = synth_snare(rng, electronic) if rng.random() < 0.3 else snare
+    rim = synth_rim(rng)
+    base = rng.uniform(60, 130)
+    step = rng.uniform(1.12, 1.35)
+    kit = {35: (kick2, 0.0), 36: (kick, 0.0), 37: (rim, -0.05), 38: (snare, -0.1), 40: (snare2, -0.1)}
+    for k, (note, pan) in enumerate(zip((41, 43, 45, 47, 48, 50), (-0.5, -0.35, -0.1, 0.1, 0.3, 0.45))):
+        kit[note] = (synth_tom(rng, base * step ** k, electronic), pan)
+    for note, kind, pan in ((42, "closed", 0.4), (44, "pedal", 0.4), (46, "open", 0.4), (51, "ride", -0.4),
+                            (53, "bell", -0.4), (59, "ride", -0.4), (49, "crash", 0.3), (57, "crash", -0.3),
+                            (55, "splash", 0.2), (52, "china", -0.2)):
+        kit[note] = (synth_cymbal(rng, kind, mscale, metallic), pan)
+    dark = rng.uniform(1500, 5000)
+    out = {n: (_darken(x, dark), x, pan) for n, (x, pan) in kit.items()}
+    levels = {35: 1.0, 36: 1.0, 37: 0.6, 38: 0.9, 40: 0.9, 42: 0.35, 44: 0.3, 46: 0.4, 51: 0.35, 53: 0.4,
+              59: 0.35, 49: 0.55, 57: 0.55, 55: 0.45, 52: 0.5}
+    for n in levels:  # kits are balanced differently
+        levels[n] *= 10 ** (rng.uniform(-4, 4) / 20)
+    name = ("elec" if electronic else "acou") + ("-metal" if metallic else "-noise")
+    return out, levels, name
+
+
+def synth_render(hits_s, kit, levels, n_samples):
+    y = np.zeros((n_samples, 2))
+    exact = []
+    hats = sorted((t, n) for t, n, _v in hits_s if n in (42, 44, 46))
+    for t, n, v in hits_s:
+        soft, hard, pan = kit[n]
+        x = soft if v < 70 else hard
+        pos = int(round(t * SR))
+        if n == 46:  # choke the open hat at the next closed / pedal hat
+            nxt = [u for u, m in hats if u > t + 1e-6 and m in (42, 44)]
+            if nxt:
+                L = max(1, int(round((nxt[0] - t) * SR)))
+                x = x[:L].copy()
+                f = min(len(x), int(0.01 * SR))
+                x[-f:] *= np.linspace(1, 0, f)
+        g = levels.get(n, 0.8) * (v / 127.0) ** 2
+        L = min(len(x), n_samples - pos)
+        if L <= 0:
+            continue
+        a = math.pi / 4 * (pan + 1)
+        y[pos:pos + L, 0] += g * math.cos(a) * x[:L]
+        y[pos:pos + L, 1] += g * math.sin(a) * x[:L]
+        exact.append((pos / SR, n, v))
+    return y, exact
+
+
 def simple_reverb(rng, y):
     """Exponentially decaying noise IR (stereo, decorrelated), wet -18..-12 dB."""
     tau = rng.uniform(0.12, 0.35)
@@ -594,7 +778,7 @@ def rms(x):
 def song_plan(family, index):
     """Kit, style, seed for song `index` of `family` (deterministic)."""
     seed = seed_of("tactus-drums-v1", family, index)
-    if family == "sonicpi":
+    if family in ("sonicpi", "synth"):
         kit = None
     else:
         kit = KIT_ORDER[index] if index < len(KIT_ORDER) else ACOUSTIC_KITS[index % len(ACOUSTIC_KITS)]
@@ -614,6 +798,9 @@ def build_song(args):
         style = "train" if STYLES[style][1] == 4 else "swing"
     if family == "sonicpi":
         sp_kit, sp_levels, kit_name = sonicpi_kit(rng)
+        song = f"{kit_name}_s{index:02d}"
+    elif family == "synth":
+        sy_kit, sy_levels, kit_name = synth_kit(rng)
         song = f"{kit_name}_s{index:02d}"
     else:
         kit_name = f"{KIT_ABBR[kit]}{kit:02d}"
@@ -646,6 +833,12 @@ def build_song(args):
                 y = simple_reverb(rng, y)
             audio["drums"] = y
             kit_desc = {"samples": {str(n): list(v[:3]) for n, v in sorted(sp_kit.items())}, "dir": SONICPI_DIR}
+        elif family == "synth":
+            y, exact = synth_render(hits_s, sy_kit, sy_levels, n_samples)
+            if reverb:
+                y = simple_reverb(rng, y)
+            audio["drums"] = y
+            kit_desc = {"synthesised": kit_name, "seed": seed}
         else:
             sf2 = os.path.join(SF2_DIR, FAMILY_SF2[family])
             mp_ = os.path.join(tmp, "drums.mid")

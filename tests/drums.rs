@@ -167,10 +167,14 @@ fn the_band_method_stays_available_and_is_worse() {
 }
 
 /// Measured F on these two excerpts (kick, snare, toms, cymbals) minus about 0.1: isolated
-/// 0.96 / 0.60 / 0.63 / 0.85, mix 0.96 / 0.62 / 0.56 / 0.81. The excerpts are short (4–26
-/// hits per class), so these are regression guards; README's table has the corpus figures.
-const ISOLATED_FLOORS: [f64; 4] = [0.86, 0.50, 0.53, 0.75];
-const MIX_FLOORS: [f64; 4] = [0.86, 0.52, 0.46, 0.71];
+/// 0.98 / 0.60 / 0.67 / 0.85, mix 0.95 / 0.48 / 0.62 / 0.85 (2026-11-24, the model trained
+/// with the synth family). The excerpts are short (4–52 hits per class), so these are
+/// regression guards; README's table has the corpus figures. The mix snare floor is lower
+/// than the previous model's (0.52): on these 23 snare hits the current model fires 52 snare
+/// onsets on the mix (18 right), the previous one fewer, while on the 24 held-out corpus songs
+/// its mix snare F is higher (0.54 against 0.51).
+const ISOLATED_FLOORS: [f64; 4] = [0.88, 0.50, 0.57, 0.75];
+const MIX_FLOORS: [f64; 4] = [0.86, 0.38, 0.52, 0.75];
 /// The 21.6 ms live model (`--drums classes-live`) on the same excerpts, isolated: measured
 /// 0.95 / 0.46 / 0.61 / 0.75, minus about 0.1.
 const LIVE_ISOLATED_FLOORS: [f64; 4] = [0.85, 0.36, 0.51, 0.65];

@@ -155,14 +155,17 @@ def sigmoid(z):
     return 1.0 / (1.0 + np.exp(-np.clip(z, -40, 40)))
 
 
+SHIFT = 2  # mel bands, --shift
+
+
 def augment(x, rng):
     """Kit-to-kit variation in feature space: a random spectral tilt and smooth EQ
-    (+-6 dB), a shift of +-2 mel bands (drums tuned differently), then the window
+    (+-6 dB), a shift of +-SHIFT mel bands (drums tuned differently), then the window
     normalisation of drums.rs again."""
     b = x.shape[0]
     win = x.shape[1] // BANDS
     z = x.reshape(b, win, BANDS).copy()
-    shift = rng.integers(-2, 3)
+    shift = rng.integers(-SHIFT, SHIFT + 1)
     if shift > 0:
         z[:, :, shift:] = z[:, :, :-shift].copy()
     elif shift < 0:
@@ -176,25 +179,47 @@ def augment(x, rng):
     return np.maximum(z - z.max(axis=1, keepdims=True), np.float32(FLOOR))
 
 
+def near_onset(Y, reach=3):
+    """Frames within +-reach hops of an onset of any class."""
+    any_ = Y.max(axis=1) > 0
+    near = any_.copy()
+    for d in range(1, reach + 1):
+        near[d:] |= any_[:-d]
+        near[:-d] |= any_[d:]
+    return near
+
+
 def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=None,
-          mean=None, std=None, aug=True, decay=1e-5):
+          mean=None, std=None, aug=True, decay=1e-5, neg_keep=1.0):
+    """Adam on weighted binary cross-entropy. neg_keep < 1: each epoch uses every frame
+    near an onset (+-3 hops) and a fresh random fraction neg_keep of the others, weighted
+    1 / neg_keep (the same expected loss, fewer frames per epoch)."""
     m = [[np.zeros_like(W_), np.zeros_like(b_)] for W_, b_ in ps]
     v = [[np.zeros_like(W_), np.zeros_like(b_)] for W_, b_ in ps]
     t = 0
     best = (np.inf, None)
-    n = X.shape[0]
+    near = near_onset(Y)
+    near_idx, far_idx = np.flatnonzero(near), np.flatnonzero(~near)
+    pw = np.asarray(pos_weight if pos_weight is not None else 1.0, np.float32)
     for ep in range(epochs):
-        order = rng.permutation(n)
+        if neg_keep < 1.0:
+            keep = far_idx[rng.random(len(far_idx)) < neg_keep]
+            order = rng.permutation(np.concatenate([near_idx, keep]))
+        else:
+            order = rng.permutation(X.shape[0])
+        n = len(order)
         tot = 0.0
         for s in range(0, n, batch):
             idx = order[s:s + batch]
             x, y, w = X[idx], Y[idx], W[idx]
+            if neg_keep < 1.0:
+                w = w * np.where(near[idx], 1.0, 1.0 / neg_keep).astype(np.float32)[:, None]
             if aug:
                 x = augment(x, rng)
             x = (x - mean) / std
             acts = forward(ps, x)
             p = sigmoid(acts[-1])
-            ww = w * (1 + (pos_weight - 1) * y) if pos_weight is not None else w
+            ww = w * (1 + (pw - 1) * y)
             g = (p - y) * ww / len(idx)
             tot += float(-(ww * (y * np.log(p + 1e-7) + (1 - y) * np.log(1 - p + 1e-7))).sum())
             t += 1
@@ -211,7 +236,7 @@ def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=N
                     vh = v[li][k] / (1 - 0.999 ** t)
                     ps[li][k] -= (lr * mh / (np.sqrt(vh) + 1e-8)).astype(np.float32)
         pv = sigmoid(forward(ps, (Xv - mean) / std)[-1])
-        ww = Wv * (1 + (pos_weight - 1) * Yv) if pos_weight is not None else Wv
+        ww = Wv * (1 + (pw - 1) * Yv)
         vl = float(-(ww * (Yv * np.log(pv + 1e-7) + (1 - Yv) * np.log(1 - pv + 1e-7))).sum() / len(Xv))
         print(f"epoch {ep + 1}: train {tot / n:.4f} val {vl:.4f}", flush=True)
         if vl < best[0]:
@@ -350,7 +375,7 @@ def report(ps, thr, sets):
 
 
 def main():
-    global PAST, FUTURE
+    global PAST, FUTURE, SHIFT
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
     ap.add_argument("--epochs", type=int, default=20)
@@ -366,13 +391,24 @@ def main():
     ap.add_argument("--held-out", default=",".join(HELD_OUT),
                     help="families never trained or tuned on (comma-separated)")
     ap.add_argument("--report-md", default=None)
+    ap.add_argument("--shift", type=int, default=SHIFT, help="augmentation: +- mel bands")
+    ap.add_argument("--pos-weight", default="4",
+                    help="weight of a positive frame, one value or one per class (kick,snare,toms,cymbals)")
+    ap.add_argument("--neg-keep", type=float, default=1.0,
+                    help="fraction of frames far from any onset used per epoch (1: all)")
+    ap.add_argument("--families", default=None,
+                    help="only these families (comma-separated; default: every one under --data)")
     a = ap.parse_args()
     if not os.path.exists(dumper_path()):
         sys.exit("build the feature dumper first: cargo build --release -p tactus-engine --example drum_features")
     conds = a.conds.split(",")
-    PAST, FUTURE = a.past, a.future
+    PAST, FUTURE, SHIFT = a.past, a.future, a.shift
     HELD_OUT[:] = a.held_out.split(",")
     items = songs(a.data)
+    if a.families:
+        items = [it for it in items if it[0] in a.families.split(",")]
+    pos_weight = [float(v) for v in a.pos_weight.split(",")]
+    pos_weight = pos_weight * 4 if len(pos_weight) == 1 else pos_weight
     tr, va, ho = split(items)
     print(f"songs: train {len(tr)}, validation {len(va)}, held out ({','.join(HELD_OUT)}) {len(ho)}", flush=True)
     D_tr, D_va, D_ho = load(tr, a.data, conds), load(va, a.data, CONDS), load(ho, a.data, CONDS)
@@ -399,8 +435,8 @@ def main():
         print(f"frames: train {len(X)}, validation {len(Xv)}; positives per class {Y.sum(0)}", flush=True)
         sizes = [X.shape[1]] + [int(h) for h in a.hidden.split(",")] + [4]
         ps = init(sizes, rng)
-        ps = train(ps, X, Y, W, Xv, Yv, Wv, a.epochs, rng, pos_weight=4.0, mean=mean, std=std,
-                   aug=not a.no_augment)
+        ps = train(ps, X, Y, W, Xv, Yv, Wv, a.epochs, rng, pos_weight=pos_weight, mean=mean, std=std,
+                   aug=not a.no_augment, neg_keep=a.neg_keep)
         # Tune thresholds on validation, over every condition pooled.
         acts = [sigmoid(forward(ps, (context(m) - mean) / std)[-1]) for (_, _, _, m, _) in D_va]
         thr = tune(acts, [t for (*_, t) in D_va])

@@ -97,6 +97,29 @@ pub enum DeviceError {
     Resample(#[from] crate::resample::ResampleError),
 }
 
+/// `$build::<T>(args)` with `T` the device's sample type; an unsupported format returns
+/// [`DeviceError::Format`] from the calling function.
+macro_rules! by_format {
+    ($format:expr, $what:expr, $label:expr, $build:ident($($arg:expr),*)) => {
+        match $format {
+            SampleFormat::F32 => $build::<f32>($($arg),*),
+            SampleFormat::I16 => $build::<i16>($($arg),*),
+            SampleFormat::I32 => $build::<i32>($($arg),*),
+            SampleFormat::U16 => $build::<u16>($($arg),*),
+            SampleFormat::U8 => $build::<u8>($($arg),*),
+            SampleFormat::I8 => $build::<i8>($($arg),*),
+            SampleFormat::F64 => $build::<f64>($($arg),*),
+            other => {
+                return Err(DeviceError::Format {
+                    what: $what,
+                    device: $label,
+                    format: other.to_string(),
+                })
+            }
+        }
+    };
+}
+
 fn device_err(
     what: &'static str,
     device: &str,
@@ -258,22 +281,12 @@ impl Capture {
         let rate = config.sample_rate;
         let frames = ((rate as f64 * CAPTURE_RING_S) as usize).max(4096);
         let (w, reader) = capture_ring(frames);
-        let stream = match sc.sample_format() {
-            SampleFormat::F32 => build_input::<f32>(&device, config, w),
-            SampleFormat::I16 => build_input::<i16>(&device, config, w),
-            SampleFormat::I32 => build_input::<i32>(&device, config, w),
-            SampleFormat::U16 => build_input::<u16>(&device, config, w),
-            SampleFormat::U8 => build_input::<u8>(&device, config, w),
-            SampleFormat::I8 => build_input::<i8>(&device, config, w),
-            SampleFormat::F64 => build_input::<f64>(&device, config, w),
-            other => {
-                return Err(DeviceError::Format {
-                    what: WHAT,
-                    device: label,
-                    format: other.to_string(),
-                })
-            }
-        }
+        let stream = by_format!(
+            sc.sample_format(),
+            WHAT,
+            label,
+            build_input(&device, config, w)
+        )
         .map_err(|e| device_err(WHAT, &label, "open", e))?;
         stream
             .play()
@@ -600,22 +613,12 @@ impl Playback {
             closed: AtomicBool::new(false),
         });
         let s = shared.clone();
-        let stream = match sc.sample_format() {
-            SampleFormat::F32 => build_output::<f32>(&device, config, consumer, s),
-            SampleFormat::I16 => build_output::<i16>(&device, config, consumer, s),
-            SampleFormat::I32 => build_output::<i32>(&device, config, consumer, s),
-            SampleFormat::U16 => build_output::<u16>(&device, config, consumer, s),
-            SampleFormat::U8 => build_output::<u8>(&device, config, consumer, s),
-            SampleFormat::I8 => build_output::<i8>(&device, config, consumer, s),
-            SampleFormat::F64 => build_output::<f64>(&device, config, consumer, s),
-            other => {
-                return Err(DeviceError::Format {
-                    what: WHAT,
-                    device: label,
-                    format: other.to_string(),
-                })
-            }
-        }
+        let stream = by_format!(
+            sc.sample_format(),
+            WHAT,
+            label,
+            build_output(&device, config, consumer, s)
+        )
         .map_err(|e| device_err(WHAT, &label, "open", e))?;
         let mut feed = PlaybackFeed {
             ring: producer,

@@ -468,5 +468,5 @@ fn sha256_matches_reference_values() {
         .map(|b| format!("{b:02x}"))
         .collect();
     assert_eq!(tactus_glove::sha256_file(&p).unwrap(), want);
-    assert!(tactus_glove::sha256_file(&dir.path().join("missing")).is_err());
+    assert!(tactus_glove::sha256_file(dir.path().join("missing")).is_err());
 }

@@ -320,23 +320,12 @@ pub fn play_song(
                 &shared,
                 sink,
                 bin_ms,
-                opts.lead_ms,
+                opts,
                 stop,
                 &speakers::AudioClock(playback),
-                opts.stall,
-                opts.late,
             );
         }
-        schedule(
-            &shared,
-            sink,
-            bin_ms,
-            opts.lead_ms,
-            stop,
-            clock,
-            opts.stall,
-            opts.late,
-        )
+        schedule(&shared, sink, bin_ms, opts, stop, clock)
     });
     if outcome.is_err() {
         sink.all_down();
@@ -364,6 +353,9 @@ pub fn play_song(
     })
 }
 
+// Eight arguments: the frames and their bin, the song, the sink, the clock, the options, the
+// stop flag and the status callback are each a separate thing the caller owns.
+#[allow(clippy::too_many_arguments)]
 /// Plays a pattern's frames. With `song` (and speakers asked for), the song is decoded and
 /// played and the frames follow its audio clock; otherwise they follow `clock` through
 /// [`tactus_transport::play_frames`], whose report is returned too.
@@ -421,11 +413,9 @@ pub fn play_pattern(
                     &shared,
                     sink,
                     bin_ms.max(1),
-                    opts.lead_ms,
+                    opts,
                     stop,
                     &speakers::AudioClock(&playback),
-                    opts.stall,
-                    opts.late,
                 )
             });
             if outcome.is_err() {
@@ -494,12 +484,11 @@ fn schedule(
     shared: &SharedQueue,
     sink: &SinkHandle,
     bin_ms: u32,
-    lead_ms: i64,
+    opts: &PlayOptions,
     stop: &AtomicBool,
     clock: &dyn Clock,
-    stall: Duration,
-    late: Late,
 ) -> Result<(usize, usize), SessionError> {
+    let (lead_ms, stall, late) = (opts.lead_ms, opts.stall, opts.late);
     let (m, cv) = &**shared;
     let (mut k, mut sent, mut skipped) = (0usize, 0usize, 0usize);
     let (mut last, mut moved) = (f64::NAN, Instant::now());
