@@ -16,6 +16,7 @@ use tactus_engine::{
 };
 use tactus_glove::{write_atomic, GloveMap, OutputSet};
 
+mod batch;
 mod play;
 mod plot;
 
@@ -162,8 +163,12 @@ impl EngineArgs {
 enum Cmd {
     /// Render a song to a glove pattern (and optionally features and a plot).
     Render {
-        /// The song: WAV, FLAC, MP3, OGG/Vorbis, AAC/M4A.
-        input: PathBuf,
+        /// The song: WAV, FLAC, MP3, OGG/Vorbis, AAC/M4A. With --out-dir, any number of
+        /// songs, directories (searched recursively for audio files) and quoted globs.
+        #[arg(required = true, num_args = 1..)]
+        inputs: Vec<PathBuf>,
+        #[command(flatten)]
+        batch: batch::BatchArgs,
         /// Pattern file to write ("-" for stdout).
         #[arg(short = 'o', long = "output")]
         output: Option<PathBuf>,
@@ -608,7 +613,8 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Cmd::Render {
-            input,
+            inputs,
+            batch,
             output,
             features,
             plot,
@@ -618,6 +624,39 @@ fn run(cli: Cli) -> Result<()> {
             mode,
             verbose,
         } => {
+            if let Some(dir) = &batch.out_dir {
+                let single = [
+                    ("-o", output.is_some()),
+                    ("--features", features.is_some()),
+                    ("--plot", plot.is_some()),
+                    ("--html", html.is_some()),
+                    ("--export", !export.is_empty()),
+                    ("--stem", !engine.stems.is_empty()),
+                ];
+                if let Some((flag, _)) = single.iter().find(|(_, on)| *on) {
+                    bail!(
+                        "{flag} names one song's output and does not go with --out-dir \
+                         (use --with-features or --with-plot svg|png for a library)"
+                    );
+                }
+                return batch::run(&inputs, dir, &batch, &engine, mode, verbose);
+            }
+            if let Some(flag) = batch.given() {
+                bail!("{flag} needs --out-dir DIR");
+            }
+            let [input] = &inputs[..] else {
+                bail!(
+                    "{} inputs: rendering several songs needs --out-dir DIR",
+                    inputs.len()
+                );
+            };
+            if input.is_dir() {
+                bail!(
+                    "{} is a directory: add --out-dir DIR to render the songs in it",
+                    input.display()
+                );
+            }
+            let input = input.clone();
             let mode = match mode {
                 ModeArg::Offline => Mode::Offline,
                 ModeArg::Streaming => Mode::Streaming,

@@ -76,6 +76,12 @@ pub struct EngineConfig {
     pub threads: usize,
     /// Latency profile ([`crate::profile`]): `Full` by default, `Live` for the live glove.
     pub profile: Profile,
+    /// Whether the engine may start threads of its own: the stem chains on one thread
+    /// each, separation overlapped with the chains ([`EngineConfig::pipeline`]), the
+    /// offline driver's decoder a few blocks ahead. `true` by default (one song, every
+    /// core); a batch that renders one song per core turns it off so that each job runs on
+    /// the calling thread alone. Results are identical either way.
+    pub parallel: bool,
 }
 
 impl Default for EngineConfig {
@@ -94,6 +100,7 @@ impl Default for EngineConfig {
             pipeline: false,
             threads: 0,
             profile: Profile::Full,
+            parallel: true,
         }
     }
 }
@@ -390,7 +397,12 @@ fn onnx_separator(
 
 /// Feeds one block to every chain: supplied stems where given, separated ones otherwise.
 /// Chains run on their own threads when the block is large enough to pay for it.
-fn feed(chains: &mut [StemChain], sep_out: &StemOutput, supplied: &[(Stem, &[f32])]) {
+fn feed(
+    chains: &mut [StemChain],
+    sep_out: &StemOutput,
+    supplied: &[(Stem, &[f32])],
+    parallel: bool,
+) {
     let inputs: Vec<(&mut StemChain, &[f32])> = chains
         .iter_mut()
         .map(|c| {
@@ -404,7 +416,7 @@ fn feed(chains: &mut [StemChain], sep_out: &StemOutput, supplied: &[(Stem, &[f32
         })
         .collect();
     let big = inputs.iter().map(|(_, x)| x.len()).max().unwrap_or(0) >= PARALLEL_MIN_BLOCK;
-    if big && inputs.len() > 1 {
+    if parallel && big && inputs.len() > 1 {
         std::thread::scope(|s| {
             for (c, x) in inputs {
                 s.spawn(move || c.process(x));
@@ -619,7 +631,7 @@ impl Engine {
 
     fn process_inner(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {
         self.n_in += left.len();
-        if self.cfg.pipeline && self.separator.is_some() {
+        if self.cfg.pipeline && self.cfg.parallel && self.separator.is_some() {
             self.process_pipelined(left, right, supplied);
             return;
         }
@@ -629,7 +641,7 @@ impl Engine {
             sep.process(left, right, &mut self.sep_out);
             self.t_separate += t.elapsed();
         }
-        feed(&mut self.chains, &self.sep_out, supplied);
+        feed(&mut self.chains, &self.sep_out, supplied, self.cfg.parallel);
     }
 
     /// Separates this block on the calling thread while the chains work on the previous one.
@@ -655,7 +667,7 @@ impl Engine {
                 s.spawn(move || {
                     let views: Vec<(Stem, &[f32])> =
                         p_sup.iter().map(|(st, v)| (*st, v.as_slice())).collect();
-                    feed(chains, p_out, &views);
+                    feed(chains, p_out, &views, true);
                 });
             }
             let t = Instant::now();
@@ -675,16 +687,16 @@ impl Engine {
         if let Some((p_out, p_sup)) = self.pending.take() {
             let views: Vec<(Stem, &[f32])> =
                 p_sup.iter().map(|(st, v)| (*st, v.as_slice())).collect();
-            feed(&mut self.chains, &p_out, &views);
+            feed(&mut self.chains, &p_out, &views, self.cfg.parallel);
         }
         if let Some(sep) = &mut self.separator {
             let t = Instant::now();
             self.sep_out.clear();
             sep.finish(&mut self.sep_out);
             self.t_separate += t.elapsed();
-            feed(&mut self.chains, &self.sep_out, &[]);
+            feed(&mut self.chains, &self.sep_out, &[], self.cfg.parallel);
         }
-        let parallel = self.chains.len() > 1 && self.cfg.mode == Mode::Offline;
+        let parallel = self.cfg.parallel && self.chains.len() > 1 && self.cfg.mode == Mode::Offline;
         if parallel {
             std::thread::scope(|s| {
                 for c in &mut self.chains {

@@ -28,9 +28,34 @@ struct DecodedBlock {
     last: bool,
 }
 
-/// The reader thread: decodes blocks of about [`BLOCK`] frames (reusing the buffers sent
-/// back on `spare`) until the stream ends, an error occurs (sent on, then it stops) or the
-/// receiver hangs up. Returns the source (for its warnings) and the time spent decoding.
+/// Decodes one block of about [`BLOCK`] frames into `block` (its buffers reused).
+fn decode_block(
+    source: &mut AudioSource,
+    block: &mut DecodedBlock,
+) -> Result<(), crate::source::SourceError> {
+    block.left.clear();
+    block.right.clear();
+    block.last = false;
+    while block.left.len() < BLOCK {
+        if source.read_block(&mut block.left, &mut block.right)? == 0 {
+            block.last = true;
+            break;
+        }
+    }
+    Ok(())
+}
+
+fn new_block() -> DecodedBlock {
+    DecodedBlock {
+        left: Vec::with_capacity(BLOCK * 2),
+        right: Vec::with_capacity(BLOCK * 2),
+        last: false,
+    }
+}
+
+/// The reader thread: decodes blocks (reusing the buffers sent back on `spare`) until the
+/// stream ends, an error occurs (sent on, then it stops) or the receiver hangs up. Returns
+/// the source (for its warnings) and the time spent decoding.
 fn decode_blocks(
     mut source: AudioSource,
     blocks: &mpsc::SyncSender<Result<DecodedBlock, EngineError>>,
@@ -38,30 +63,14 @@ fn decode_blocks(
 ) -> (AudioSource, Duration) {
     let mut spent = Duration::ZERO;
     loop {
-        let mut block = spare.try_recv().unwrap_or_else(|_| DecodedBlock {
-            left: Vec::with_capacity(BLOCK * 2),
-            right: Vec::with_capacity(BLOCK * 2),
-            last: false,
-        });
-        block.left.clear();
-        block.right.clear();
-        block.last = false;
+        let mut block = spare.try_recv().unwrap_or_else(|_| new_block());
         let t = Instant::now();
-        while block.left.len() < BLOCK {
-            match source.read_block(&mut block.left, &mut block.right) {
-                Ok(0) => {
-                    block.last = true;
-                    break;
-                }
-                Ok(_) => {}
-                Err(e) => {
-                    spent += t.elapsed();
-                    let _ = blocks.send(Err(e.into()));
-                    return (source, spent);
-                }
-            }
-        }
+        let r = decode_block(&mut source, &mut block);
         spent += t.elapsed();
+        if let Err(e) = r {
+            let _ = blocks.send(Err(e.into()));
+            return (source, spent);
+        }
         let last = block.last;
         if blocks.send(Ok(block)).is_err() || last {
             return (source, spent);
@@ -275,79 +284,97 @@ pub fn render_tapped(
     let mut frames_in: u64 = 0;
     let total = info.frames.unwrap_or(0);
     let mut delivered = 0usize;
-    // Decoding runs on its own thread, a few blocks ahead (a bounded channel), so that it
-    // overlaps the separator and the stem chains; blocks go back to it for reuse.
-    let (block_tx, block_rx) =
-        mpsc::sync_channel::<Result<DecodedBlock, EngineError>>(DECODE_AHEAD);
-    let (spare_tx, spare_rx) = mpsc::channel::<DecodedBlock>();
-    let (source, t_dec) = std::thread::scope(|scope| -> Result<_, EngineError> {
-        let reader = scope.spawn(move || decode_blocks(source, &block_tx, &spare_rx));
-        let mut result = Ok(());
-        for block in block_rx.iter() {
-            let block = match block {
-                Ok(b) => b,
-                Err(e) => {
+    // Everything done with one decoded block (at the file's rate).
+    let mut consume = |block: &DecodedBlock| -> Result<(), EngineError> {
+        frames_in += block.left.len() as u64;
+        let t = Instant::now();
+        match &mut resampler {
+            Some(rs) => {
+                rs.process(&[&block.left, &block.right], &mut out);
+                if block.last {
+                    rs.finish(&mut out);
+                }
+            }
+            None => {
+                out[0].extend_from_slice(&block.left);
+                out[1].extend_from_slice(&block.right);
+            }
+        }
+        t_resample += t.elapsed();
+        let len = out[0].len().min(out[1].len());
+        feed(&mut engine, &out[0][..len], &out[1][..len], &mut supplied);
+        out[0].clear();
+        out[1].clear();
+        if let Some(e) = engine.take_separator_error() {
+            return Err(e);
+        }
+        if req.config.mode == crate::Mode::Streaming {
+            let ready = engine.ready_bins();
+            while delivered < ready {
+                if !on_frame(delivered, engine.frame(delivered)) {
+                    return Err(EngineError::Cancelled);
+                }
+                delivered += 1;
+            }
+        }
+        on_block(&block.left, &block.right);
+        if total > 0 {
+            progress(match engine.segment_stats() {
+                Some(st) => {
+                    let samples = total * rate as u64 / info.sample_rate.max(1) as u64;
+                    let expected = st.expected_segments(samples);
+                    (st.segments as f64 / expected as f64).min(0.999)
+                }
+                None => (frames_in as f64 / total as f64).min(1.0),
+            });
+        }
+        Ok(())
+    };
+    let (source, t_dec) = if req.config.parallel {
+        // Decoding runs on its own thread, a few blocks ahead (a bounded channel), so that
+        // it overlaps the separator and the stem chains; blocks go back to it for reuse.
+        let (block_tx, block_rx) =
+            mpsc::sync_channel::<Result<DecodedBlock, EngineError>>(DECODE_AHEAD);
+        let (spare_tx, spare_rx) = mpsc::channel::<DecodedBlock>();
+        std::thread::scope(|scope| -> Result<_, EngineError> {
+            let reader = scope.spawn(move || decode_blocks(source, &block_tx, &spare_rx));
+            let mut result = Ok(());
+            for block in block_rx.iter() {
+                let r = block.and_then(|b| {
+                    let r = consume(&b);
+                    // The reader may be gone after the last block; the buffer is simply
+                    // dropped then.
+                    let _ = spare_tx.send(b);
+                    r
+                });
+                if let Err(e) = r {
                     result = Err(e);
                     break;
                 }
-            };
-            frames_in += block.left.len() as u64;
-            let t = Instant::now();
-            match &mut resampler {
-                Some(rs) => {
-                    rs.process(&[&block.left, &block.right], &mut out);
-                    if block.last {
-                        rs.finish(&mut out);
-                    }
-                }
-                None => {
-                    out[0].extend_from_slice(&block.left);
-                    out[1].extend_from_slice(&block.right);
-                }
             }
-            t_resample += t.elapsed();
-            let len = out[0].len().min(out[1].len());
-            feed(&mut engine, &out[0][..len], &out[1][..len], &mut supplied);
-            out[0].clear();
-            out[1].clear();
-            if let Some(e) = engine.take_separator_error() {
-                result = Err(e);
+            // Dropping the receiver stops a reader that is still decoding (after an error).
+            drop(block_rx);
+            let joined = reader
+                .join()
+                .map_err(|_| EngineError::Config("the decoding thread panicked".into()))?;
+            result.map(|()| joined)
+        })?
+    } else {
+        // One thread (EngineConfig::parallel off): decode a block, then process it.
+        let mut source = source;
+        let mut block = new_block();
+        let mut spent = Duration::ZERO;
+        loop {
+            let t = Instant::now();
+            decode_block(&mut source, &mut block)?;
+            spent += t.elapsed();
+            consume(&block)?;
+            if block.last {
                 break;
             }
-            if req.config.mode == crate::Mode::Streaming {
-                let ready = engine.ready_bins();
-                while delivered < ready {
-                    if !on_frame(delivered, engine.frame(delivered)) {
-                        result = Err(EngineError::Cancelled);
-                        break;
-                    }
-                    delivered += 1;
-                }
-                if result.is_err() {
-                    break;
-                }
-            }
-            on_block(&block.left, &block.right);
-            // The reader may be gone after the last block; the buffer is simply dropped then.
-            let _ = spare_tx.send(block);
-            if total > 0 {
-                progress(match engine.segment_stats() {
-                    Some(st) => {
-                        let samples = total * rate as u64 / info.sample_rate.max(1) as u64;
-                        let expected = st.expected_segments(samples);
-                        (st.segments as f64 / expected as f64).min(0.999)
-                    }
-                    None => (frames_in as f64 / total as f64).min(1.0),
-                });
-            }
         }
-        // Dropping the receiver stops a reader that is still decoding (after an error).
-        drop(block_rx);
-        let joined = reader
-            .join()
-            .map_err(|_| EngineError::Config("the decoding thread panicked".into()))?;
-        result.map(|()| joined)
-    })?;
+        (source, spent)
+    };
     t_decode += t_dec;
     engine.finish();
     if let Some(e) = engine.take_separator_error() {

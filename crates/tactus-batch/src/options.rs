@@ -1,0 +1,202 @@
+//! The render options as the user spells them (the CLI's flags, the Python package's
+//! keyword arguments), their engine configuration, and the key a batch compares to decide
+//! whether an output is up to date.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+use tactus_dsp::Stem;
+use tactus_engine::{DrumMethod, EngineConfig, LevelRule, Mode, PitchMethod, SeparatorChoice};
+use tactus_glove::GloveMap;
+
+use crate::BatchError;
+
+/// Render options by their CLI names (`--separator` is `separator`, `--bin-ms` is
+/// `bin_ms`, ...). `None` means the CLI's default for `render`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderOptions {
+    /// `spectral` (default), `htdemucs`, `spleeter` or `none`.
+    pub separator: Option<String>,
+    /// ONNX model for `htdemucs` / `spleeter`.
+    pub model: Option<PathBuf>,
+    /// Bin length in ms (default 100).
+    pub bin_ms: Option<u32>,
+    /// Pitch levels per melodic stem, 1..=8 (default 8).
+    pub levels: Option<u8>,
+    /// A built-in map name or a TOML map file (default: the paper's map).
+    pub map: Option<String>,
+    /// `auto` (default), `yin`, `pyin` or `shs`.
+    pub pitch: Option<String>,
+    /// `classes` (default), `bands` or `adtlib`.
+    pub drums: Option<String>,
+    /// ONNX model for `drums = "adtlib"`.
+    pub drum_model: Option<PathBuf>,
+    /// `follow` (default) or `paper`.
+    pub levels_rule: Option<String>,
+    /// `offline` (default) or `streaming`.
+    pub mode: Option<String>,
+    /// Stems supplied directly, `(name, path)`: drums, bass, vocals, other (single
+    /// renders only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub stems: Vec<(String, PathBuf)>,
+    /// ONNX Runtime intra-op threads (0 or `None`: the available cores). Does not change
+    /// the result.
+    pub threads: Option<u32>,
+}
+
+fn choice<'a>(
+    flag: &str,
+    given: Option<&'a str>,
+    default: &'a str,
+    allowed: &[&str],
+) -> Result<&'a str, BatchError> {
+    let v = given.unwrap_or(default);
+    if allowed.contains(&v) {
+        Ok(v)
+    } else {
+        Err(BatchError::Options(format!(
+            "invalid value '{v}' for '--{flag} <{}>' [possible values: {}]",
+            flag.to_uppercase().replace('-', "_"),
+            allowed.join(", ")
+        )))
+    }
+}
+
+impl RenderOptions {
+    /// The engine configuration, with the CLI's defaults and its one-line messages.
+    /// `parallel`: whether the engine may start threads of its own
+    /// ([`EngineConfig::parallel`]).
+    pub fn to_config(
+        &self,
+        parallel: bool,
+    ) -> Result<(EngineConfig, Vec<(Stem, PathBuf)>), BatchError> {
+        let err = |s: String| BatchError::Options(s);
+        let model = |name: &str| -> Result<PathBuf, BatchError> {
+            self.model.clone().ok_or_else(|| {
+                err(format!(
+                    "--separator {name} needs --model PATH (see README, \"ONNX models\")"
+                ))
+            })
+        };
+        let separator = match choice(
+            "separator",
+            self.separator.as_deref(),
+            "spectral",
+            &["spectral", "htdemucs", "spleeter", "none"],
+        )? {
+            "spectral" => SeparatorChoice::Spectral,
+            "none" => SeparatorChoice::None,
+            "spleeter" => SeparatorChoice::Spleeter(model("spleeter")?),
+            _ => SeparatorChoice::HtDemucs(model("htdemucs")?),
+        };
+        let map = match &self.map {
+            Some(p) => GloveMap::from_name_or_path(p).map_err(|e| err(format!("--map: {e}")))?,
+            None => GloveMap::default(),
+        };
+        let levels = self.levels.unwrap_or(8);
+        if !(1..=8).contains(&levels) {
+            return Err(err(format!(
+                "invalid value '{levels}' for '--levels <LEVELS>': {levels} is not in 1..=8"
+            )));
+        }
+        let bin_ms = self.bin_ms.unwrap_or(100);
+        if !(1..=10_000).contains(&bin_ms) {
+            return Err(err(format!(
+                "invalid value '{bin_ms}' for '--bin-ms <BIN_MS>': {bin_ms} is not in 1..=10000"
+            )));
+        }
+        let pitch = match choice(
+            "pitch",
+            self.pitch.as_deref(),
+            "auto",
+            &["auto", "yin", "pyin", "shs"],
+        )? {
+            "yin" => PitchMethod::Yin,
+            "pyin" => PitchMethod::Pyin,
+            "shs" => PitchMethod::Shs,
+            _ => PitchMethod::Auto,
+        };
+        let level_rule = match choice(
+            "levels-rule",
+            self.levels_rule.as_deref(),
+            "follow",
+            &["follow", "paper"],
+        )? {
+            "paper" => LevelRule::Paper,
+            _ => LevelRule::Follow,
+        };
+        let drums = match choice(
+            "drums",
+            self.drums.as_deref(),
+            "classes",
+            &["classes", "bands", "adtlib"],
+        )? {
+            "bands" => DrumMethod::Bands,
+            "adtlib" => DrumMethod::AdtLib(self.drum_model.clone().ok_or_else(|| {
+                err("--drums adtlib needs --drum-model PATH (see README, \"ONNX models\")".into())
+            })?),
+            _ => DrumMethod::Classes,
+        };
+        let mode = match choice(
+            "mode",
+            self.mode.as_deref(),
+            "offline",
+            &["offline", "streaming"],
+        )? {
+            "streaming" => Mode::Streaming,
+            _ => Mode::Offline,
+        };
+        let stems = self
+            .stems
+            .iter()
+            .map(|(name, path)| {
+                Stem::from_name(name)
+                    .map(|s| (s, path.clone()))
+                    .ok_or_else(|| {
+                        err(format!(
+                            "--stem {name}={}: unknown stem {name:?} (drums, bass, vocals, other)",
+                            path.display()
+                        ))
+                    })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let cfg = EngineConfig {
+            bin_ms,
+            levels,
+            mode,
+            pitch,
+            level_rule,
+            map,
+            separator,
+            drums,
+            threads: self.threads.map_or(0, |n| n as usize),
+            parallel,
+            ..EngineConfig::default()
+        };
+        Ok((cfg, stems))
+    }
+
+    /// What decides whether a batch output is up to date: every option that can change
+    /// the result, with defaults filled in, the map as the SHA-256 of its TOML (so an
+    /// edited map file renders again), and the Tactus version. `threads` is left out (it
+    /// changes only the speed).
+    pub fn key(&self) -> Result<serde_json::Value, BatchError> {
+        let (cfg, _) = self.to_config(false)?;
+        let map_sha = tactus_glove::sha256_hex(cfg.map.to_toml_string().as_bytes())
+            .map_err(|e| BatchError::Options(e.to_string()))?;
+        Ok(serde_json::json!({
+            "tactus": env!("CARGO_PKG_VERSION"),
+            "separator": self.separator.as_deref().unwrap_or("spectral"),
+            "model": self.model.as_ref().map(|p| p.display().to_string()),
+            "bin_ms": cfg.bin_ms,
+            "levels": cfg.levels,
+            "map_sha256": map_sha,
+            "pitch": self.pitch.as_deref().unwrap_or("auto"),
+            "drums": self.drums.as_deref().unwrap_or("classes"),
+            "drum_model": self.drum_model.as_ref().map(|p| p.display().to_string()),
+            "levels_rule": self.levels_rule.as_deref().unwrap_or("follow"),
+            "mode": self.mode.as_deref().unwrap_or("offline"),
+        }))
+    }
+}
