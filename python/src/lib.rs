@@ -19,7 +19,7 @@ use tactus_batch::{BatchSpec, Job, Record, RenderOptions};
 use tactus_engine::render::{render as render_file, RenderOutput, RenderRequest};
 use tactus_engine::resample::StreamResampler;
 use tactus_engine::{Engine, EngineError, ENGINE_RATE};
-use tactus_glove::{Pattern, SourceInfo};
+use tactus_glove::SourceInfo;
 
 create_exception!(
     _native,
@@ -143,9 +143,6 @@ fn render_samples(
             "sample rate must be at least 1 Hz".into(),
         ));
     }
-    let bin_ms = config.bin_ms;
-    let levels = config.levels;
-    let map = config.map.clone();
     config.pipeline = true;
     let mut engine = Engine::new(config)?;
     let frames_n = samples.len() / channels;
@@ -211,33 +208,21 @@ fn render_samples(
     }
     let bytes: Vec<u8> = le_f32(samples);
     let duration_s = engine.samples_in() as f64 / ENGINE_RATE as f64;
-    let pattern = Pattern {
-        source: SourceInfo {
-            path: "<array>".into(),
-            sha256: tactus_glove::sha256_hex(&bytes[..])
-                .map_err(|e| EngineError::Config(e.to_string()))?,
-            duration_s,
-            sample_rate: rate,
-        },
-        bin_ms,
-        levels,
-        map,
-        frames: engine.frames(),
-    };
-    let mut times = engine.stage_times();
-    times.stages.insert(0, ("resample".into(), t_resample));
-    times.stages.push(("total (wall)".into(), t_all.elapsed()));
-    Ok(RenderOutput {
-        features: engine.features(),
-        latency: engine.latency_budget(),
-        stems: engine.stems(),
-        separator: engine.separator_name(),
-        segments: engine.segment_stats(),
-        pattern,
-        warnings,
-        times,
+    let source = SourceInfo {
+        path: "<array>".into(),
+        sha256: tactus_glove::sha256_hex(&bytes[..])
+            .map_err(|e| EngineError::Config(e.to_string()))?,
         duration_s,
-    })
+        sample_rate: rate,
+    };
+    Ok(RenderOutput::from_engine(
+        &engine,
+        source,
+        engine.frames(),
+        &[("resample", t_resample)],
+        t_all,
+        warnings,
+    ))
 }
 
 /// Renders interleaved little-endian f32 samples (`channels` per frame, `sample_rate` Hz).

@@ -113,6 +113,47 @@ pub struct RenderOutput {
 }
 
 impl RenderOutput {
+    /// Assembles the output of a finished `engine` whose input was `source`: the pattern
+    /// from `frames` and the engine's configuration, the features, the latency budget, and
+    /// the stage times with `outside` (stages timed by the caller, such as decode and
+    /// resample) first and the wall time since `started` last.
+    pub fn from_engine(
+        engine: &Engine,
+        source: SourceInfo,
+        frames: Vec<tactus_glove::Frame>,
+        outside: &[(&str, Duration)],
+        started: Instant,
+        warnings: Vec<String>,
+    ) -> Self {
+        let cfg = engine.config();
+        let duration_s = source.duration_s;
+        let pattern = Pattern {
+            source,
+            bin_ms: cfg.bin_ms,
+            levels: cfg.levels,
+            map: cfg.map.clone(),
+            frames,
+        };
+        let mut times = engine.stage_times();
+        for (k, (name, t)) in outside.iter().enumerate() {
+            times.stages.insert(k, ((*name).into(), *t));
+        }
+        times
+            .stages
+            .push(("total (wall)".into(), started.elapsed()));
+        RenderOutput {
+            features: engine.features(),
+            latency: engine.latency_budget(),
+            stems: engine.stems(),
+            separator: engine.separator_name(),
+            segments: engine.segment_stats(),
+            pattern,
+            warnings,
+            times,
+            duration_s,
+        }
+    }
+
     /// The report `render --verbose` prints: what ran, what each stage cost, the speed, an
     /// ONNX separator's segments, and the latency budget (stage by stage, then the total).
     pub fn report_text(&self) -> String {
@@ -421,34 +462,21 @@ pub fn render_tapped(
             return Err(EngineError::Cancelled);
         }
     }
-    let pattern = Pattern {
-        source: SourceInfo {
-            path: req.input.display().to_string(),
-            sha256: tactus_glove::sha256_file(&req.input)
-                .map_err(|e| EngineError::Io(req.input.clone(), e))?,
-            duration_s,
-            sample_rate: info.sample_rate,
-        },
-        bin_ms: req.config.bin_ms,
-        levels: req.config.levels,
-        map: req.config.map.clone(),
-        frames,
-    };
-    let mut times = engine.stage_times();
-    times.stages.insert(0, ("decode".into(), t_decode));
-    times.stages.insert(1, ("resample".into(), t_resample));
-    times.stages.push(("total (wall)".into(), t_all.elapsed()));
-    Ok(RenderOutput {
-        features: engine.features(),
-        latency: engine.latency_budget(),
-        stems: engine.stems(),
-        separator: engine.separator_name(),
-        segments: engine.segment_stats(),
-        pattern,
-        warnings,
-        times,
+    let source = SourceInfo {
+        path: req.input.display().to_string(),
+        sha256: tactus_glove::sha256_file(&req.input)
+            .map_err(|e| EngineError::Io(req.input.clone(), e))?,
         duration_s,
-    })
+        sample_rate: info.sample_rate,
+    };
+    Ok(RenderOutput::from_engine(
+        &engine,
+        source,
+        frames,
+        &[("decode", t_decode), ("resample", t_resample)],
+        t_all,
+        warnings,
+    ))
 }
 
 fn feed(engine: &mut Engine, l: &[f32], r: &[f32], supplied: &mut [SuppliedStem]) {
