@@ -47,8 +47,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from live_latency import Reader, pct  # noqa: E402  (same directory)
 
 RATE = 48_000
-WINDOW_S = 1.0  # excerpt correlated with the recording
-STEP_S = 5.0  # one lag estimate per STEP_S of song
+WINDOW_S = 0.5  # excerpt correlated with the recording
+STEP_S = 0.5  # one lag estimate per STEP_S of song (a dropout moves the lag)
 ENVELOPE_S = 2.0  # half-width of the window for the arrival lower envelope
 
 
@@ -98,24 +98,27 @@ def lags(song, rec, np):
         x = song[p:p + w]
         if np.sqrt(np.mean(x * x)) < 1e-3:
             continue  # silence: nothing to align
-        if prev is None:
-            lo, hi = 0, len(rec)  # first excerpt: search the whole recording
+        # Near the last lag first (±1 s), then the whole recording (a gap or a repeat).
+        spans = [] if prev is None else [(max(0, p + prev - RATE),
+                                          min(len(rec), p + prev + w + RATE))]
+        spans.append((0, len(rec)))
+        for lo, hi in spans:
+            y = rec[lo:hi]
+            if len(y) < w:
+                continue
+            n = 1 << int(math.ceil(math.log2(len(y) + w)))
+            c = np.fft.irfft(np.fft.rfft(y, n) * np.conj(np.fft.rfft(x, n)), n)[:len(y) - w + 1]
+            # Normalised by the recording's energy under the excerpt.
+            c2 = np.concatenate(([0.0], np.cumsum(y * y)))
+            e = np.sqrt(np.maximum(c2[w:] - c2[:-w], 1e-12))
+            r = c / (e * np.sqrt(np.sum(x * x)))
+            k = int(np.argmax(r))
+            if r[k] > 0.5:
+                prev = lo + k - p
+                out.append((p, prev, float(r[k])))
+                break
         else:
-            lo, hi = max(0, p + prev - RATE), min(len(rec), p + prev + w + RATE)
-        y = rec[lo:hi]
-        if len(y) < w:
-            break
-        n = 1 << int(math.ceil(math.log2(len(y) + w)))
-        c = np.fft.irfft(np.fft.rfft(y, n) * np.conj(np.fft.rfft(x, n)), n)[:len(y) - w + 1]
-        # Normalised by the recording's energy under the excerpt.
-        c2 = np.concatenate(([0.0], np.cumsum(y * y)))
-        e = np.sqrt(np.maximum(c2[w:] - c2[:-w], 1e-12))
-        r = c / (e * np.sqrt(np.sum(x * x)))
-        k = int(np.argmax(r))
-        lag = lo + k - p
-        out.append((p, lag, float(r[k])))
-        if r[k] > 0.5:
-            prev = lag
+            out.append((p, None, 0.0))
     return out
 
 
@@ -128,7 +131,11 @@ def run(args, extra, np):
     env = dict(os.environ, XDG_RUNTIME_DIR=rt)
     procs = []
     try:
+        # Real-time, as a desktop's PulseAudio runs (rtkit): on a loaded machine a
+        # normal-priority server drops out for hundreds of ms, and those gaps are the
+        # sound server's, not the player's.
         subprocess.run(["pulseaudio", "-D", "-n", "--exit-idle-time=-1",
+                        "--realtime=yes", "--high-priority=yes",
                         "-L", "module-native-protocol-unix",
                         "-L", f"module-null-sink sink_name=vsink rate={RATE}",
                         "-L", "module-always-sink"],
@@ -192,8 +199,10 @@ def analyse(args, np, reader, rec, err):
     if os.environ.get("PLAY_SYNC_DEBUG"):
         np.save("/tmp/play_sync_rec.npy", y)
         np.save("/tmp/play_sync_stamps.npy", np.array(rec.stamps))
+        with open("/tmp/play_sync_packets.json", "w") as f:
+            json.dump([(t, k, q, m, list(c)) for t, k, q, m, c in reader.packets], f)
         print("lags", lag, file=sys.stderr)
-    good = [(p, l) for p, l, q in lag if q > 0.5]
+    good = [(p, l) for p, l, q in lag if l is not None]
     if not good:
         raise RuntimeError("the song was not found in the monitor recording")
     changes = sum(1 for i in range(1, len(good)) if good[i][1] != good[i - 1][1])
@@ -234,6 +243,7 @@ def analyse(args, np, reader, rec, err):
         "max_abs_dev_ms": max(abs(v) for v in dev),
         "first_s_lead_ms": [round(v, 1) for s, v in leads if s < args.settle][:8],
         "lag_estimates": len(good),
+        "lag_misses": len(lag) - len(good),
         "lag_changes": changes,
         "bad_crc": reader.bad,
         "tactus_stderr": err.strip().splitlines()[-6:],
