@@ -877,8 +877,14 @@ mod tests {
                 assert!((c - t).abs() < 1.0, "at {t} ms: {c}");
             }
         }
-        // The slew alone would still be 750 ms ahead after 2 s (5 % of 2 s = 100 ms).
-        assert!(MAX_SLEW * 2_000.0 < 750.0);
+        // The slew alone would still be 700 ms ahead after 2 s (5 % of 2 s = 100 ms).
+        let mut slewed = 800.0;
+        for k in 1..=400 {
+            let t = 5.0 * k as f64;
+            let p = slewed + 5.0;
+            slewed = p + (raw(t) - p).clamp(-MAX_SLEW * 5.0, MAX_SLEW * 5.0);
+        }
+        assert!(slewed - 2_000.0 > 650.0, "{slewed}");
     }
 
     #[test]
