@@ -67,6 +67,8 @@ pub enum LinkState {
     Up,
     /// Lost; the sink is reconnecting.
     Down,
+    /// Closed at the end of the session.
+    Closed,
 }
 
 /// What the view shows besides the dots.
@@ -102,6 +104,7 @@ pub fn render(frame: &Frame, status: &ViewStatus) -> Vec<String> {
             LinkState::Unknown => "-",
             LinkState::Up => "up",
             LinkState::Down => "DOWN",
+            LinkState::Closed => "closed",
         }
     );
     if let Some((ms, what)) = &status.latency {
@@ -316,7 +319,10 @@ mod tests {
         screen.push("tactus: something else".into());
         assert_eq!(read_frame(&screen), Some(frame));
         // A truncated view (a terminal too narrow or too short) is not a frame.
-        let cut: Vec<String> = screen.iter().map(|l| l.chars().take(40).collect()).collect();
+        let cut: Vec<String> = screen
+            .iter()
+            .map(|l| l.chars().take(40).collect())
+            .collect();
         assert_eq!(read_frame(&cut), None);
         assert_eq!(read_frame(&screen[..screen.len() - 3]), None);
         assert_eq!(read_frame::<&str>(&[]), None);
@@ -340,7 +346,10 @@ mod tests {
         // -23.4 dBFS: (60 - 23.4) / 3 = 12 steps of 20.
         assert_eq!(lines[1], "input  -23.4 dBFS [############--------]");
         assert_eq!(lines[2], "frames 1230  overruns 0");
-        assert_eq!(lines[3], "         thumb    index    middle   ring     pinky");
+        assert_eq!(
+            lines[3],
+            "         thumb    index    middle   ring     pinky"
+        );
         let quiet = render(
             &Frame::DOWN,
             &ViewStatus {
@@ -349,7 +358,10 @@ mod tests {
             },
         );
         assert_eq!(quiet[1], "input   -inf dBFS [--------------------]");
-        assert_eq!(render(&Frame::DOWN, &ViewStatus::default())[1], "input  none");
+        assert_eq!(
+            render(&Frame::DOWN, &ViewStatus::default())[1],
+            "input  none"
+        );
         // Long or non-ASCII counters keep the width promise.
         let wide = render(
             &Frame([0xFF; 10]),

@@ -215,9 +215,7 @@ impl BlockTimes {
     /// merged into the ranges ≤ 50 µs, 100, 200, 500 µs, 1, 2, 5, 10, 20, 50, 100 ms and
     /// above.
     pub fn ranges(&self) -> Vec<(f64, u64)> {
-        const EDGES: [f64; 11] = [
-            50.0, 100.0, 200.0, 500.0, 1e3, 2e3, 5e3, 1e4, 2e4, 5e4, 1e5,
-        ];
+        const EDGES: [f64; 11] = [50.0, 100.0, 200.0, 500.0, 1e3, 2e3, 5e3, 1e4, 2e4, 5e4, 1e5];
         let mut out: Vec<(f64, u64)> = EDGES.iter().map(|&e| (e, 0)).collect();
         out.push((f64::INFINITY, 0));
         for (i, &c) in self.counts.iter().enumerate() {

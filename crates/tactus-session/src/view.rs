@@ -5,8 +5,8 @@
 //! sink last wrote to the link ([`tactus_transport::SinkStats::shown`]), so the view shows
 //! the glove, not the engine's intentions; the link state comes from the sink too. The
 //! session adds what only it knows (input level, latency, counters) through the
-//! [`ViewFeed`] it is given. When the session returns, the view is drawn once more and the
-//! cursor is left below it.
+//! [`ViewFeed`] it is given. When the session returns, the sink is closed (all pins down)
+//! and the view is drawn once more from the final counters, the cursor left below it.
 //!
 //! The drawing thread only reads counters and writes to its output: a slow terminal never
 //! holds up the session.
@@ -17,7 +17,7 @@ use std::sync::Mutex;
 use std::time::Duration;
 
 use tactus_glove::tui::{redraw, render, LinkState, ViewStatus};
-use tactus_transport::SinkHandle;
+use tactus_transport::{SinkHandle, SinkStats};
 
 /// How often the view is redrawn: 20 times a second, faster than the 50 ms pin rise.
 pub const VIEW_EVERY: Duration = Duration::from_millis(50);
@@ -48,14 +48,16 @@ impl ViewFeed {
     }
 }
 
-/// The view's lines now: the sink's shown frame and link, the feed's extras.
-pub fn snapshot(sink: &SinkHandle, title: &str, feed: &ViewFeed) -> Vec<String> {
-    let st = sink.stats();
+/// The view's lines for the sink's counters `st` (`closed`: after [`SinkHandle::close`])
+/// and the feed's extras.
+pub fn snapshot(st: &SinkStats, closed: bool, title: &str, feed: &ViewFeed) -> Vec<String> {
     let extra = feed.get();
     let status = ViewStatus {
         title: title.to_string(),
         time_s: f64::from(st.shown_time_ms) / 1e3,
-        link: if st.link_up {
+        link: if closed {
+            LinkState::Closed
+        } else if st.link_up {
             LinkState::Up
         } else if st.sent > 0 || st.errors > 0 {
             LinkState::Down
@@ -69,50 +71,53 @@ pub fn snapshot(sink: &SinkHandle, title: &str, feed: &ViewFeed) -> Vec<String> 
     render(&st.shown, &status)
 }
 
-/// Runs `body` (the session) with the view drawn on `out` every [`VIEW_EVERY`] (see the
-/// module docs); with `out` `None`, just runs `body`. A write error (the terminal gone)
-/// stops the drawing, not the session.
+/// Runs `body` (the session, given the sink) with the view drawn on `out` every
+/// [`VIEW_EVERY`] (see the module docs), then closes the sink and returns its final
+/// counters; with `out` `None`, the same without drawing. A write error (the terminal
+/// gone) stops the drawing, not the session.
 pub fn with_view<R>(
-    sink: &SinkHandle,
+    sink: SinkHandle,
     title: &str,
     out: Option<&mut (dyn Write + Send)>,
-    body: impl FnOnce(&ViewFeed) -> R,
-) -> R {
+    body: impl FnOnce(&SinkHandle, &ViewFeed) -> R,
+) -> (R, SinkStats) {
     let feed = ViewFeed::default();
     let Some(out) = out else {
-        return body(&feed);
+        let r = body(&sink, &feed);
+        return (r, sink.close());
     };
     let done = AtomicBool::new(false);
-    std::thread::scope(|scope| {
-        let (feed, done) = (&feed, &done);
+    let (r, (out, shown, ok)) = std::thread::scope(|scope| {
+        let (feed, done, sink) = (&feed, &done, &sink);
         let drawer = scope.spawn(move || {
             let mut shown = 0;
             // Hide the cursor while drawing.
             let mut ok = out.write_all(b"\x1b[?25l").is_ok();
-            loop {
-                let last = done.load(Ordering::Acquire);
-                if ok {
-                    let lines = snapshot(sink, title, feed);
-                    ok = out
-                        .write_all(redraw(&lines, shown).as_bytes())
-                        .and_then(|()| out.flush())
-                        .is_ok();
-                    shown = lines.len();
-                }
-                if last {
-                    break;
-                }
+            while ok && !done.load(Ordering::Acquire) {
+                let lines = snapshot(&sink.stats(), false, title, feed);
+                ok = out
+                    .write_all(redraw(&lines, shown).as_bytes())
+                    .and_then(|()| out.flush())
+                    .is_ok();
+                shown = lines.len();
                 std::thread::park_timeout(VIEW_EVERY);
             }
-            let _ = out.write_all(b"\x1b[?25h");
-            let _ = out.flush();
+            (out, shown, ok)
         });
-        let r = body(&feed);
+        let r = body(sink, feed);
         done.store(true, Ordering::Release);
         drawer.thread().unpark();
-        let _ = drawer.join();
-        r
-    })
+        // The drawer only writes and reads counters: it does not panic.
+        (r, drawer.join().expect("the view's drawing thread"))
+    });
+    let stats = sink.close();
+    if ok {
+        let lines = snapshot(&stats, true, title, &feed);
+        let _ = out.write_all(redraw(&lines, shown).as_bytes());
+    }
+    let _ = out.write_all(b"\x1b[?25h");
+    let _ = out.flush();
+    (r, stats)
 }
 
 #[cfg(test)]
@@ -142,7 +147,7 @@ mod tests {
         frame.set_cell(Finger::Ring, 1, 0b0100_0010);
         let screen = Screen::default();
         let mut out = screen.clone();
-        let r = with_view(&sink, "live", Some(&mut out), |feed| {
+        let (r, stats) = with_view(sink, "live", Some(&mut out), |sink, feed| {
             sink.send_frame(frame, 1500);
             feed.set(ViewExtra {
                 level_dbfs: Some(-12.0),
@@ -159,23 +164,33 @@ mod tests {
             42
         });
         assert_eq!(r, 42);
+        assert_eq!(stats.shown, Frame::DOWN, "closed");
         let text = String::from_utf8(screen.0.lock().unwrap().clone()).unwrap();
         assert!(text.starts_with("\x1b[?25l") && text.ends_with("\x1b[?25h"));
-        // The last complete view drawn: its dots are the frame.
-        let last = text.rsplit("\x1b[?25h").nth(1).unwrap();
-        let last = last.rsplit('\r').next().unwrap();
-        let lines: Vec<&str> = last.lines().map(|l| l.trim_end_matches("\x1b[K")).collect();
-        assert_eq!(read_frame(&lines), Some(frame), "{last}");
-        assert!(lines[0].starts_with("tactus live   1.50 s   link up   latency 17.0 ms"));
-        assert!(lines[1].starts_with("input  -12.0 dBFS"));
-        assert_eq!(lines[2], "frames 1");
-        sink.close();
+        let views: Vec<Vec<&str>> = text
+            .trim_end_matches("\x1b[?25h")
+            .split('\r')
+            .map(|v| v.lines().map(|l| l.trim_end_matches("\x1b[K")).collect())
+            .collect();
+        // The view before the last showed the frame; the last one, after closing, all down.
+        let shown = &views[views.len() - 2];
+        assert_eq!(read_frame(shown), Some(frame), "{text}");
+        assert!(shown[0].starts_with("tactus live   1.50 s   link up   latency 17.0 ms"));
+        assert!(shown[1].starts_with("input  -12.0 dBFS"));
+        assert_eq!(shown[2], "frames 1");
+        let last = views.last().unwrap();
+        assert_eq!(read_frame(last), Some(Frame::DOWN), "{text}");
+        assert!(last[0].contains("link closed"), "{}", last[0]);
     }
 
     #[test]
     fn without_an_output_the_body_just_runs() {
         let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
-        assert_eq!(with_view(&sink, "play", None, |_| 7), 7);
-        sink.close();
+        let (r, stats) = with_view(sink, "play", None, |sink, _| {
+            sink.send_frame(Frame([1; 10]), 0);
+            7
+        });
+        assert_eq!(r, 7);
+        assert_eq!(stats.frames_sent + stats.dropped, 1);
     }
 }

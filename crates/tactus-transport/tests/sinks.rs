@@ -122,7 +122,10 @@ fn stats_show_what_the_last_packet_put_on_the_glove() {
         sink.send_frame(*f, 100 * k as u32 + 7);
         let t0 = std::time::Instant::now();
         while sink.stats().shown_time_ms != 100 * k as u32 + 7 {
-            assert!(t0.elapsed() < Duration::from_secs(5), "frame {k} never written");
+            assert!(
+                t0.elapsed() < Duration::from_secs(5),
+                "frame {k} never written"
+            );
             std::thread::sleep(Duration::from_millis(1));
         }
         assert_eq!(sink.stats().shown, *f);
