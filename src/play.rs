@@ -388,7 +388,7 @@ pub fn live(
     );
     let (b50, b99, bmax, blast) = r.backlog_ms;
     eprintln!(
-        "tactus: backlog (audio waiting when read): median {b50:.1} ms, p99 {b99:.1} ms, max {bmax:.1} ms, last {blast:.1} ms; caught up {} times, dropping {:.3} s of audio (backlog over {} ms); xruns {}",
+        "tactus: backlog (audio waiting in the ring, and in the device beyond its usual delay): median {b50:.1} ms, p99 {b99:.1} ms, max {bmax:.1} ms, last {blast:.1} ms; caught up {} times, dropping {:.3} s of audio (backlog over {} ms); xruns {}",
         r.caught_up.0,
         r.caught_up.1 as f64 / f64::from(rate),
         tactus_session::MAX_BACKLOG.as_millis(),

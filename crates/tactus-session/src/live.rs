@@ -11,12 +11,16 @@
 //! the ring's writer is gone and the ring is empty (a file fed through the ring).
 //!
 //! Real-time hygiene (issue 13): the loop records how long it takes per 256-sample block
-//! ([`BlockTimes`], printed at exit) and how much audio waited in the ring at each read (the
-//! backlog). When the thread falls behind, whether starved of the CPU or slower than real
+//! ([`BlockTimes`], printed at exit) and, at each read, the backlog: the audio that waited
+//! in the ring plus how much longer than usual the newest block waited in the device (its
+//! `callback − capture` delay over the smallest of the last few seconds: a stopped or starved
+//! process finds seconds of audio queued in the sound server, which then arrive in one
+//! burst). When the thread falls behind, whether starved of the CPU or slower than real
 //! time, the backlog would grow until the ring overruns and then stay there, every frame
 //! late by the ring's length. With [`LiveOptions::max_backlog`] set (the CLI sets
-//! [`MAX_BACKLOG`]) it instead drops the oldest audio once more than that waits, keeping the
-//! newest quarter of it, and goes on from there: frames resume on time at once. Dropped
+//! [`MAX_BACKLOG`]) it instead drops the oldest audio once more than that waits, keeping
+//! only audio younger than a quarter of the bound, and goes on from there: frames resume
+//! on time at once. Dropped
 //! audio is counted ([`LiveReport::caught_up`]); frame times include it, so a frame's
 //! `time_ms` stays the time of its audio. The engine sees a splice; a pin may rise there.
 //! Frames the ring could not take (overruns) and device-side xruns are counted too.
@@ -65,8 +69,9 @@ pub struct LiveOptions {
     pub first_sample_timeout: Duration,
     /// How often `status` is called.
     pub status_every: Duration,
-    /// Drop the oldest audio once more than this waits in the ring, keeping the newest
-    /// quarter (see the module docs; [`MAX_BACKLOG`] for a device). `None` (the default):
+    /// Drop the oldest audio once more than this waits (in the ring, and in the device beyond
+    /// its usual delay), keeping audio younger than a quarter of it (see the module docs;
+    /// [`MAX_BACKLOG`] for a device). `None` (the default):
     /// process every sample however late, as for an input that is not real time (a file fed
     /// through the ring as fast as it is read).
     pub max_backlog: Option<Duration>,
@@ -97,7 +102,8 @@ pub struct LiveStatus {
     pub peak: f32,
     /// Device-side overruns (xruns) so far.
     pub xruns: u64,
-    /// Audio that waited in the ring at the latest read, ms (the backlog).
+    /// The backlog at the latest read, ms: audio waiting in the ring plus the device's delay
+    /// beyond its usual (see the module docs).
     pub backlog_ms: f64,
     /// Audio dropped to catch up so far, s.
     pub caught_up_s: f64,
@@ -121,7 +127,7 @@ pub struct LiveReport {
     pub xruns: u64,
     /// Audio dropped to catch up (see the module docs): (times, device frames).
     pub caught_up: (u64, u64),
-    /// The backlog (audio waiting in the ring when read), ms: (median, p99, max) over the
+    /// The backlog at each read (see the module docs), ms: (median, p99, max) over the
     /// reads, and the last read's.
     pub backlog_ms: (f64, f64, f64, f64),
     /// Time per 256-sample block of the read → process → send loop (wall clock).
@@ -141,6 +147,50 @@ pub struct LiveReport {
     /// Per-hop and per-bin feature values the engine held at the end
     /// ([`Engine::retained_values`]): stays small however long the session ran.
     pub retained_values: usize,
+}
+
+/// The device's usual `callback − capture` delay: the smallest seen over the last one to
+/// two buckets of [`DelayFloor::READS`] reads (about 2 s each at one read per 4 ms
+/// capture period; counted in reads, not time, so that a stall does not age the floor
+/// out). Its excess is audio that waited in the device (or sound server) longer than
+/// usual: a backlog that the ring does not show. A device whose delay rises for good stops
+/// counting as behind after two buckets, so a large but steady delay (a Bluetooth
+/// microphone) never drops audio.
+#[derive(Debug)]
+struct DelayFloor {
+    current: f64,
+    previous: f64,
+    reads: u32,
+}
+
+impl Default for DelayFloor {
+    fn default() -> Self {
+        DelayFloor {
+            current: f64::INFINITY,
+            previous: f64::INFINITY,
+            reads: 0,
+        }
+    }
+}
+
+impl DelayFloor {
+    const READS: u32 = 512;
+
+    /// Records one read's `delay_ms`; returns how far it exceeds the floor, ms.
+    fn excess(&mut self, delay_ms: f64) -> f64 {
+        let d = if delay_ms.is_finite() {
+            delay_ms.max(0.0)
+        } else {
+            0.0
+        };
+        self.current = self.current.min(d);
+        let floor = self.current.min(self.previous);
+        self.reads += 1;
+        if self.reads >= Self::READS {
+            (self.previous, self.current, self.reads) = (self.current, f64::INFINITY, 0);
+        }
+        d - floor
+    }
 }
 
 /// A histogram of durations on log-spaced buckets (10 per decade from 1 µs to 10 s), kept
@@ -274,6 +324,7 @@ impl LiveEngine {
         let (mut caught_up, mut skipped) = (0u64, 0u64);
         let mut last_backlog_ms = 0.0;
         let mut last_latency: Option<f64> = None;
+        let mut delay_floor = DelayFloor::default();
         let max_backlog = opts
             .max_backlog
             .map(|d| ((d.as_secs_f64() * f64::from(rate)) as usize).max(1));
@@ -308,18 +359,28 @@ impl LiveEngine {
                 std::thread::sleep(Duration::from_millis(2));
             } else {
                 let t_block = Instant::now();
-                // The backlog: what waited in the ring (`read` drains it all).
-                last_backlog_ms = left.len() as f64 * 1e3 / f64::from(rate);
+                // The backlog: what waited in the ring (`read` drains it all) plus what
+                // waited in the device beyond its usual delay (its buffer fills while this
+                // process is stopped, then arrives in a burst).
+                let excess_ms = delay_floor.excess(reader.input_delay_ms());
+                let ring_ms = left.len() as f64 * 1e3 / f64::from(rate);
+                last_backlog_ms = ring_ms + excess_ms;
                 backlogs.record(last_backlog_ms * 1e3);
                 if let Some(max) = max_backlog {
-                    if left.len() > max {
-                        // Fallen behind: drop the oldest audio, keep the newest quarter.
-                        let drop = left.len() - max / 4;
-                        left.drain(..drop);
-                        right.drain(..drop);
-                        caught_up += 1;
-                        skipped += drop as u64;
-                        captured += drop as u64;
+                    let max_ms = max as f64 * 1e3 / f64::from(rate);
+                    if last_backlog_ms > max_ms {
+                        // Fallen behind: keep only audio younger than a quarter of the
+                        // bound (the newest sample is `excess_ms` older than usual).
+                        let keep_ms = (max_ms / 4.0 - excess_ms).max(0.0);
+                        let keep = ((keep_ms * f64::from(rate) / 1e3) as usize).min(left.len());
+                        let drop = left.len() - keep;
+                        if drop > 0 {
+                            left.drain(..drop);
+                            right.drain(..drop);
+                            caught_up += 1;
+                            skipped += drop as u64;
+                            captured += drop as u64;
+                        }
                     }
                 }
                 if let Some(l) = limit {
