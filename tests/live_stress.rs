@@ -19,11 +19,15 @@
 //!   `tactus_session::MAX_BACKLOG`, plus 200 ms for the sink thread's own scheduling on a
 //!   saturated machine when `live` gets no real-time priority) and does not grow;
 //! * after the load and 2 s after the stall, the lag is back at the baseline: median within
-//!   20 ms (two 10 ms bins) and every frame within 100 ms (half the catch-up bound; single
-//!   frames 45 ms late were seen at load 6 on this 2-core machine, a backlog that did not
-//!   recover would show seconds), and the hits are felt again (at least 3 of every 4);
-//! * the stall was caught up by dropping audio (at least 80 % of the 3 s), and when
-//!   overruns or xruns happened their counts are printed non-zero.
+//!   20 ms (two 10 ms bins), p95 within 40 ms (the rhythm target), and no frame later than
+//!   250 ms (the catch-up bound plus one 50 ms stall of the sink thread: the sound server
+//!   and the other jobs on this 2-core machine still delay single frames by up to 100 ms;
+//!   a backlog that did not recover would show seconds), and the hits are felt again (at
+//!   least 3 of every 4);
+//! * the stall was caught up by dropping audio (at least 80 % of the 3 s), at most one
+//!   frame of it (one on its way when the process stopped) went out late, and the overrun
+//!   and xrun counters are printed (non-zero when they happened: the ring's overruns are
+//!   checked in `crates/tactus-session/tests/sessions.rs`).
 //!
 //! Needs `pulseaudio`, `pactl` and `paplay`; without them it prints SKIPPED, and fails under
 //! `CI=true`.
@@ -347,9 +351,11 @@ fn live_keeps_up_under_cpu_load_and_catches_up_after_a_stall() {
         assert!(!v.is_empty(), "no frames {what}");
         let max = show(what, &v, rises, b - a);
         let median = v[v.len() / 2];
+        let p95 = v[((v.len() as f64 * 0.95).ceil() as usize).clamp(1, v.len()) - 1];
         assert!(
-            median <= 20.0 && max <= 100.0,
-            "{what}: frames {median:.1} ms (median) and {max:.1} ms (max) later than before the load"
+            median <= 20.0 && p95 <= 40.0 && max <= 250.0,
+            "{what}: frames {median:.1} ms (median), {p95:.1} ms (p95), {max:.1} ms (max) \
+             later than before the load"
         );
         let expected = (b - a) / PERIOD;
         assert!(
@@ -358,8 +364,14 @@ fn live_keeps_up_under_cpu_load_and_catches_up_after_a_stall() {
         );
     }
     // The stall itself: what came out right after SIGCONT.
+    // Right after the stall: the stale burst was dropped, not sent. One frame may have
+    // been on its way when the process stopped (it is written on SIGCONT, 3 s late).
     let (v, rises) = extra(cont_at, cont_at + 2.0);
-    if !v.is_empty() {
-        show("first 2 s after the stall", &v, rises, 2.0);
-    }
+    assert!(!v.is_empty(), "no frames after the stall");
+    show("first 2 s after the stall", &v, rises, 2.0);
+    let stale = v.iter().filter(|&&x| x > 250.0).count();
+    assert!(
+        stale <= 1,
+        "{stale} frames of the stalled audio were sent late"
+    );
 }

@@ -20,7 +20,9 @@
 //! late by the ring's length. With [`LiveOptions::max_backlog`] set (the CLI sets
 //! [`MAX_BACKLOG`]) it instead drops the oldest audio once more than that waits, keeping
 //! only audio younger than a quarter of the bound, and goes on from there: frames resume
-//! on time at once. Dropped
+//! on time at once. The device's part counts only when a burst arrives with it (more than
+//! an eighth of the bound, 25 ms, in the ring at once): a device delay that rises and stays up is
+//! latency that no reading speed wins back, and dropping would only lose audio. Dropped
 //! audio is counted ([`LiveReport::caught_up`]); frame times include it, so a frame's
 //! `time_ms` stays the time of its audio. The engine sees a splice; a pin may rise there.
 //! Frames the ring could not take (overruns) and device-side xruns are counted too.
@@ -368,7 +370,10 @@ impl LiveEngine {
                 backlogs.record(last_backlog_ms * 1e3);
                 if let Some(max) = max_backlog {
                     let max_ms = max as f64 * 1e3 / f64::from(rate);
-                    if last_backlog_ms > max_ms {
+                    // The device's excess delay counts only with a burst in the ring (more
+                    // than a quarter of the bound arrived at once): a steady rise of the
+                    // device's delay is latency that reading faster cannot win back.
+                    if ring_ms > max_ms || (ring_ms > max_ms / 8.0 && last_backlog_ms > max_ms) {
                         // Fallen behind: keep only audio younger than a quarter of the
                         // bound (the newest sample is `excess_ms` older than usual).
                         let keep_ms = (max_ms / 4.0 - excess_ms).max(0.0);
