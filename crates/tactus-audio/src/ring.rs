@@ -247,3 +247,23 @@ impl CaptureReader {
         f32::from_bits(self.shared.peak_bits.swap(0, Ordering::Relaxed))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn xruns_are_counted_apart_from_errors_and_overruns() {
+        let (mut w, r) = capture_ring(16);
+        let xrun = w.xrun_counter();
+        xrun();
+        xrun();
+        assert_eq!(r.xruns(), 2);
+        assert!(!r.had_error(), "an xrun is not an error");
+        w.write(&[0.5f32; 64], 2, |x| x, Duration::ZERO);
+        assert_eq!(r.overruns(), 32 - 16, "16 of 32 frames fit");
+        assert_eq!(r.xruns(), 2);
+        (w.error_flag())();
+        assert!(r.had_error());
+    }
+}

@@ -527,3 +527,66 @@ pub fn live(
 ) -> Result<LiveReport, SessionError> {
     LiveEngine::new(config)?.run(input, sink, opts, stop, status)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The oracle: the nearest-rank quantile of the sorted values.
+    fn exact(v: &mut [f64], q: f64) -> f64 {
+        v.sort_by(f64::total_cmp);
+        v[((v.len() as f64 * q).ceil() as usize).clamp(1, v.len()) - 1]
+    }
+
+    #[test]
+    fn block_time_quantiles_are_within_one_bucket_of_the_sorted_values() {
+        let mut seed = 7u32;
+        let mut v = Vec::new();
+        let mut h = BlockTimes::default();
+        for _ in 0..20_000 {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            // Log-uniform from 10 us to 100 ms.
+            let us = 10f64.powf(1.0 + 4.0 * f64::from(seed >> 8) / f64::from(1u32 << 24));
+            v.push(us);
+            h.record(us);
+        }
+        for q in [0.01, 0.5, 0.9, 0.99, 0.999, 1.0] {
+            let want = exact(&mut v, q);
+            let got = h.quantile_us(q);
+            // An upper bucket edge: never below, at most one bucket (10^0.1) above.
+            assert!(
+                got >= want * (1.0 - 1e-9) && got <= want * 10f64.powf(0.1) * (1.0 + 1e-9),
+                "q {q}: {got} for {want}"
+            );
+        }
+        assert_eq!(h.count(), 20_000);
+        assert_eq!(h.max_us(), v.iter().cloned().fold(0.0, f64::max));
+        assert_eq!(h.ranges().iter().map(|r| r.1).sum::<u64>(), 20_000);
+        // Each value lands in the first range whose edge is at least its bucket's edge.
+        let mut one = BlockTimes::default();
+        one.record(150.0);
+        one.record(150_000.0);
+        let r = one.ranges();
+        assert_eq!(r.iter().find(|x| x.0 == 200.0).unwrap().1, 1);
+        assert_eq!(r.last().unwrap(), &(f64::INFINITY, 1));
+        assert_eq!(BlockTimes::default().quantile_us(0.5), 0.0);
+    }
+
+    #[test]
+    fn the_delay_floor_ignores_a_burst_and_follows_a_lasting_rise() {
+        let mut f = DelayFloor::default();
+        for _ in 0..100 {
+            assert_eq!(f.excess(5.0), 0.0);
+        }
+        // A stall: the first block after it waited 3 s longer than usual.
+        assert_eq!(f.excess(3005.0), 3000.0);
+        assert_eq!(f.excess(5.0), 0.0);
+        // A lasting rise to 250 ms counts as excess for at most two buckets of reads.
+        let n = (0..3 * DelayFloor::READS)
+            .filter(|_| f.excess(250.0) > 0.0)
+            .count();
+        assert!(n <= 2 * DelayFloor::READS as usize, "{n}");
+        assert_eq!(f.excess(250.0), 0.0);
+        assert_eq!(f.excess(f64::NAN), 0.0);
+    }
+}
