@@ -364,27 +364,10 @@ pub fn live(
     }
     // Issue 13: real-time hygiene. Time per 256-sample block of the read -> process -> send
     // loop (wall clock: preemption included), the backlog, what was dropped to catch up.
-    let bt = &r.block_times;
-    let ranges: Vec<String> = bt
-        .ranges()
-        .iter()
-        .filter(|(_, n)| *n > 0)
-        .map(|(e, n)| {
-            if e.is_finite() {
-                format!("<={} {n}", us_label(*e))
-            } else {
-                format!(">100 ms {n}")
-            }
-        })
-        .collect();
     eprintln!(
-        "tactus: processing per 256-sample block ({} reads): p50 {:.0} us, p99 {:.0} us, p99.9 {:.0} us, max {:.0} us; histogram: {}",
-        bt.count(),
-        bt.quantile_us(0.5),
-        bt.quantile_us(0.99),
-        bt.quantile_us(0.999),
-        bt.max_us(),
-        ranges.join(", ")
+        "tactus: processing per 256-sample block ({} reads): {}",
+        r.block_times.count(),
+        r.block_times
     );
     let (b50, b99, bmax, blast) = r.backlog_ms;
     eprintln!(
@@ -406,16 +389,6 @@ pub fn live(
         stats.reconnects
     );
     Ok(())
-}
-
-/// "50 us", "2 ms": a histogram edge.
-#[cfg(feature = "audio")]
-fn us_label(us: f64) -> String {
-    if us < 1e3 {
-        format!("{us:.0} us")
-    } else {
-        format!("{:.0} ms", us / 1e3)
-    }
 }
 
 pub fn emulate(

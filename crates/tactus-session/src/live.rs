@@ -283,6 +283,37 @@ impl BlockTimes {
     }
 }
 
+/// `p50 158 us, p99 631 us, p99.9 3981 us, max 16057 us; histogram: <=100 us 1855, ...`:
+/// the quantiles and the non-empty [`BlockTimes::ranges`], as `tactus live` prints them.
+impl std::fmt::Display for BlockTimes {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "p50 {:.0} us, p99 {:.0} us, p99.9 {:.0} us, max {:.0} us; histogram:",
+            self.quantile_us(0.5),
+            self.quantile_us(0.99),
+            self.quantile_us(0.999),
+            self.max_us()
+        )?;
+        let mut first = true;
+        for (edge, n) in self.ranges().into_iter().filter(|r| r.1 > 0) {
+            f.write_str(if first { " " } else { ", " })?;
+            first = false;
+            if !edge.is_finite() {
+                write!(f, ">100 ms {n}")?;
+            } else if edge < 1e3 {
+                write!(f, "<={edge:.0} us {n}")?;
+            } else {
+                write!(f, "<={:.0} ms {n}", edge / 1e3)?;
+            }
+        }
+        if first {
+            f.write_str(" empty")?;
+        }
+        Ok(())
+    }
+}
+
 /// A live pipeline, built before the input opens so that a bad configuration fails first.
 pub struct LiveEngine {
     engine: Engine,
@@ -570,6 +601,11 @@ mod tests {
         assert_eq!(r.iter().find(|x| x.0 == 200.0).unwrap().1, 1);
         assert_eq!(r.last().unwrap(), &(f64::INFINITY, 1));
         assert_eq!(BlockTimes::default().quantile_us(0.5), 0.0);
+        assert_eq!(
+            one.to_string(),
+            "p50 158 us, p99 150000 us, p99.9 150000 us, max 150000 us; histogram: \
+             <=200 us 1, >100 ms 1"
+        );
     }
 
     #[test]
