@@ -67,6 +67,7 @@ pub fn run(
         let sink = open_sink(&spec, &SinkOptions::default())?;
         let tty = std::io::stderr().is_terminal() && !tui;
         let lead = lead(opts.lead_ms);
+        let drawing = view.is_some();
         let (played, stats) = with_view(sink, "play", as_view(&mut view), |sink, feed| {
             feed.set(ViewExtra {
                 latency: Some(lead.clone()),
@@ -81,16 +82,18 @@ pub fn run(
                 &opts,
                 &stop,
                 &mut |s| {
-                    feed.set(ViewExtra {
-                        latency: Some(lead.clone()),
-                        counters: format!(
-                            "frame {}/{}  late {:+.1} ms",
-                            s.frame_index + 1,
-                            s.frames,
-                            s.late_ms
-                        ),
-                        ..ViewExtra::default()
-                    });
+                    if drawing {
+                        feed.set(ViewExtra {
+                            latency: Some(lead.clone()),
+                            counters: format!(
+                                "frame {}/{}  late {:+.1} ms",
+                                s.frame_index + 1,
+                                s.frames,
+                                s.late_ms
+                            ),
+                            ..ViewExtra::default()
+                        });
+                    }
                     if tty {
                         eprint!(
                             "\r{:>7.1} s  frame {}/{}  late {:+.1} ms  link {}   ",
