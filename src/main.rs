@@ -217,6 +217,10 @@ enum Cmd {
         /// must match the pattern's SHA-256.
         #[arg(long, value_name = "FILE", conflicts_with = "no_audio")]
         audio: Option<PathBuf>,
+        /// Draw the glove in the terminal as it plays: five fingers, two cells of eight
+        /// dots each, the link and the lead (stdout must be a terminal).
+        #[arg(long)]
+        tui: bool,
         #[command(flatten)]
         engine: EngineArgs,
     },
@@ -232,7 +236,8 @@ enum Cmd {
         /// Stop after this many seconds of captured audio (default: until Ctrl-C).
         #[arg(long, value_parser = seconds_parser(0.001, MAX_SECONDS))]
         seconds: Option<f64>,
-        /// Show a one-line status: time, frames, dropped, overruns, link, input level.
+        /// Draw the glove in the terminal as it plays: five fingers, two cells of eight
+        /// dots each, input level, latency, link and counters (stdout must be a terminal).
         #[arg(long)]
         tui: bool,
         #[command(flatten)]
@@ -534,6 +539,7 @@ fn run(cli: Cli) -> Result<()> {
             offset_ms,
             no_audio,
             audio,
+            tui,
             engine,
         } => play::run(
             &input,
@@ -541,6 +547,7 @@ fn run(cli: Cli) -> Result<()> {
             offset_ms,
             no_audio,
             audio.as_deref(),
+            tui,
             &engine,
         ),
         Cmd::Live {

@@ -11,6 +11,7 @@ use anyhow::{bail, Context, Result};
 use tactus_engine::render::RenderRequest;
 use tactus_engine::Mode;
 use tactus_glove::Pattern;
+use tactus_session::view::{with_view, ViewExtra};
 use tactus_session::{PlayOptions, PlayReport};
 use tactus_transport::{lead_ms, open_sink, SinkOptions, SinkSpec, WallClock};
 
@@ -26,10 +27,12 @@ pub fn run(
     offset_ms: i64,
     no_audio: bool,
     audio: Option<&Path>,
+    tui: bool,
     engine: &EngineArgs,
 ) -> Result<()> {
     let spec: SinkSpec = glove.parse().with_context(|| format!("--glove {glove}"))?;
     let stop = stop_flag();
+    let mut view = tui_out(tui);
     let is_pattern = input
         .extension()
         .and_then(|e| e.to_str())
@@ -62,32 +65,52 @@ pub fn run(
             None
         };
         let sink = open_sink(&spec, &SinkOptions::default())?;
-        let tty = std::io::stderr().is_terminal();
-        let (report, frames_report) = tactus_session::play_pattern(
-            &pattern.frames,
-            pattern.bin_ms,
-            song.as_deref(),
-            &sink,
-            &WallClock::new(),
-            &opts,
-            &stop,
-            &mut |s| {
-                if tty {
-                    eprint!(
-                        "\r{:>7.1} s  frame {}/{}  late {:+.1} ms  link {}   ",
-                        s.clock_ms / 1000.0,
-                        s.frame_index + 1,
-                        s.frames,
-                        s.late_ms,
-                        if s.link_up { "up" } else { "DOWN" }
-                    );
-                }
-            },
-        )?;
+        let tty = std::io::stderr().is_terminal() && !tui;
+        let lead = lead(opts.lead_ms);
+        let drawing = view.is_some();
+        let (played, stats) = with_view(sink, "play", as_view(&mut view), |sink, feed| {
+            feed.set(ViewExtra {
+                latency: Some(lead.clone()),
+                ..ViewExtra::default()
+            });
+            tactus_session::play_pattern(
+                &pattern.frames,
+                pattern.bin_ms,
+                song.as_deref(),
+                sink,
+                &WallClock::new(),
+                &opts,
+                &stop,
+                &mut |s| {
+                    if drawing {
+                        feed.set(ViewExtra {
+                            latency: Some(lead.clone()),
+                            counters: format!(
+                                "frame {}/{}  late {:+.1} ms",
+                                s.frame_index + 1,
+                                s.frames,
+                                s.late_ms
+                            ),
+                            ..ViewExtra::default()
+                        });
+                    }
+                    if tty {
+                        eprint!(
+                            "\r{:>7.1} s  frame {}/{}  late {:+.1} ms  link {}   ",
+                            s.clock_ms / 1000.0,
+                            s.frame_index + 1,
+                            s.frames,
+                            s.late_ms,
+                            if s.link_up { "up" } else { "DOWN" }
+                        );
+                    }
+                },
+            )
+        });
+        let (report, frames_report) = played?;
         if tty && frames_report.is_some() {
             eprintln!();
         }
-        let stats = sink.close();
         match frames_report {
             Some(r) => eprintln!(
                 "tactus: played {} frames to {}: jitter p95 {:.2} ms, max {:.2} ms; sent {}, dropped {} ({DROPPED}), reconnects {}{}",
@@ -114,10 +137,38 @@ pub fn run(
         config,
     };
     let sink = open_sink(&spec, &SinkOptions::default())?;
-    let report = tactus_session::play_song(req, &sink, &WallClock::new(), &opts, &stop);
-    let stats = sink.close();
+    let (report, stats) = with_view(sink, "play", as_view(&mut view), |sink, feed| {
+        feed.set(ViewExtra {
+            latency: Some(lead(opts.lead_ms)),
+            ..ViewExtra::default()
+        });
+        tactus_session::play_song(req, sink, &WallClock::new(), &opts, &stop)
+    });
     print_play(&report?, &spec, &stats);
     Ok(())
+}
+
+/// `--tui` (issue 13): the terminal to draw the glove view on, stdout when it is a terminal;
+/// otherwise one line saying so, and the session runs without the view.
+fn tui_out(tui: bool) -> Option<std::io::Stdout> {
+    if !tui {
+        return None;
+    }
+    if std::io::stdout().is_terminal() {
+        Some(std::io::stdout())
+    } else {
+        eprintln!("tactus: --tui: stdout is not a terminal, so the glove view is not drawn");
+        None
+    }
+}
+
+fn as_view(out: &mut Option<std::io::Stdout>) -> Option<&mut (dyn std::io::Write + Send)> {
+    out.as_mut().map(|o| o as &mut (dyn std::io::Write + Send))
+}
+
+/// The latency `play`'s view shows: the frames' lead.
+fn lead(lead_ms: i64) -> (f64, String) {
+    (lead_ms as f64, "frames sent early".to_string())
 }
 
 /// The lines `play` prints after a song or an audio-clocked pattern.
@@ -238,32 +289,37 @@ pub fn live(
     let opts = LiveOptions {
         seconds,
         lead_ms: lead_ms(&spec, 0),
+        // Issue 13: fallen behind by more than this, drop audio to catch up.
+        max_backlog: Some(tactus_session::MAX_BACKLOG),
         ..LiveOptions::default()
     };
+    let mut view = tui_out(tui);
     let live_input = LiveInput {
         reader: cap.reader(),
         rate,
         name: device,
     };
-    let result = pipeline.run(live_input, &sink, &opts, &stop, &mut |s| {
-        if tui {
-            let st = sink.stats();
-            let db = 20.0 * f64::from(s.peak.max(1e-6)).log10();
-            let bar = "#".repeat((((db + 60.0) / 3.0).clamp(0.0, 20.0)) as usize);
-            eprint!(
-                "\r{:>7.1} s  frames {}  dropped {}  overruns {}  link {}  level {db:>6.1} dBFS {bar:<20}",
-                s.captured_s,
-                s.frames,
-                st.dropped,
-                s.overruns,
-                if st.link_up { "up" } else { "DOWN" },
-            );
-        }
+    let drawing = view.is_some();
+    let (result, stats) = with_view(sink, "live", as_view(&mut view), |sink, feed| {
+        pipeline.run(live_input, sink, &opts, &stop, &mut |s| {
+            if !drawing {
+                return;
+            }
+            feed.set(ViewExtra {
+                level_dbfs: Some(20.0 * s.peak.max(1e-6).log10()),
+                latency: s.latency_ms.map(|l| (l, "bin end -> sent".to_string())),
+                counters: format!(
+                    "frames {}  dropped {}  overruns {}  xruns {}  backlog {:.0} ms  caught up {:.1} s",
+                    s.frames,
+                    sink.stats().dropped,
+                    s.overruns,
+                    s.xruns,
+                    s.backlog_ms,
+                    s.caught_up_s
+                ),
+            });
+        })
     });
-    if tui {
-        eprintln!();
-    }
-    let stats = sink.close();
     let r = result?;
     // Issue 13: the capture device's own buffering on its own line, then one budget per
     // finger group (stages in samples at the engine rate and in ms).
@@ -309,6 +365,21 @@ pub fn live(
             "tactus: measured bin end (captured) -> frame sent: median {median:.1} ms, p95 {p95:.1} ms, max {max:.1} ms"
         );
     }
+    // Issue 13: real-time hygiene. Time per 256-sample block of the read -> process -> send
+    // loop (wall clock: preemption included), the backlog, what was dropped to catch up.
+    eprintln!(
+        "tactus: processing per 256-sample block ({} reads): {}",
+        r.block_times.count(),
+        r.block_times
+    );
+    let (b50, b99, bmax, blast) = r.backlog_ms;
+    eprintln!(
+        "tactus: backlog (audio waiting in the ring, and in the device beyond its usual delay): median {b50:.1} ms, p99 {b99:.1} ms, max {bmax:.1} ms, last {blast:.1} ms; caught up {} times, dropping {:.3} s of audio (backlog over {} ms); xruns {}",
+        r.caught_up.0,
+        r.caught_up.1 as f64 / f64::from(rate),
+        tactus_session::MAX_BACKLOG.as_millis(),
+        r.xruns
+    );
     eprintln!(
         "tactus: captured {:.3} s ({} callbacks, overruns {} samples; capture clock {:+.1} ms vs wall since the first callback), {} frames to {spec}; sink sent {}, dropped {} ({DROPPED}), reconnects {}",
         r.captured_s,

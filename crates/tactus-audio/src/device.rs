@@ -278,6 +278,7 @@ where
 {
     let channels = usize::from(config.channels.max(1));
     let on_error = writer.error_flag();
+    let on_xrun = writer.xrun_counter();
     device.build_input_stream::<T, _, _>(
         config,
         move |data: &[T], info: &cpal::InputCallbackInfo| {
@@ -285,7 +286,15 @@ where
             let delay = ts.callback.saturating_duration_since(ts.capture);
             writer.write(data, channels, |x: T| x.to_sample::<f32>(), delay)
         },
-        move |_e| on_error(),
+        // Issue 13: an xrun (the device's buffer overflowed while nobody read it) is
+        // counted, not an error: cpal recovers the stream and capture goes on.
+        move |e: cpal::Error| {
+            if e.kind() == cpal::ErrorKind::Xrun {
+                on_xrun()
+            } else {
+                on_error()
+            }
+        },
         Some(POLL_TIMEOUT),
     )
 }
