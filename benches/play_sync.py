@@ -247,6 +247,9 @@ def analyse(args, np, packets, bad, y, stamps, err, play_rc):
                     "p95": pct(steady, 0.95), "p99": pct(steady, 0.99),
                     "min": min(steady), "max": max(steady)},
         "within_10ms_of_median": sum(1 for v in dev if abs(v) <= 10.0) / len(dev),
+        "stated_lead_ms": args.stated_lead_ms,
+        "within_10ms_of_stated": sum(1 for v in steady if abs(v - args.stated_lead_ms) <= 10.0)
+        / len(steady),
         "max_abs_dev_ms": max(abs(v) for v in dev),
         "first_s_lead_ms": [round(v, 1) for s, v in leads if s < args.settle][:8],
         "lag_estimates": len(good),
@@ -273,6 +276,8 @@ def main():
     ap.add_argument("--pattern", help="play this pattern file (its song is SONG)")
     ap.add_argument("--settle", type=float, default=5.0,
                     help="seconds at the start not scored (PulseAudio's start, the clock's slew)")
+    ap.add_argument("--stated-lead-ms", type=float, default=52.0,
+                    help="the lead play states (50 ms pin rise + 2 ms for 16 bytes at 115200 baud)")
     ap.add_argument("--json")
     ap.add_argument("--trace", action="store_true", help="keep every frame's lead in the JSON")
     ap.add_argument("--from-debug", action="store_true",
