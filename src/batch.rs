@@ -51,28 +51,6 @@ impl BatchArgs {
     }
 }
 
-fn name<T: ValueEnum>(v: &T) -> Option<String> {
-    v.to_possible_value().map(|p| p.get_name().to_string())
-}
-
-/// The CLI's engine arguments as the batch library's options.
-fn options(e: &EngineArgs, mode: ModeArg) -> tactus_batch::RenderOptions {
-    tactus_batch::RenderOptions {
-        separator: name(&e.separator),
-        model: e.model.clone(),
-        bin_ms: e.bin_ms,
-        levels: Some(e.levels),
-        map: e.map.as_ref().map(|p| p.display().to_string()),
-        pitch: e.pitch.as_ref().and_then(name),
-        drums: e.drums.as_ref().and_then(name),
-        drum_model: e.drum_model.clone(),
-        levels_rule: name(&e.levels_rule),
-        mode: name(&mode),
-        stems: Vec::new(),
-        threads: e.threads,
-    }
-}
-
 fn plot_bytes(
     out: &tactus_engine::render::RenderOutput,
     format: plot::PlotFormat,
@@ -99,7 +77,7 @@ pub fn run(
     let plot_fn = |format| move |out: &_| plot_bytes(out, format);
     let svg = plot_fn(plot::PlotFormat::Svg);
     let png = plot_fn(plot::PlotFormat::Png);
-    let mut spec = tactus_batch::BatchSpec::new(dir.to_path_buf(), options(engine, mode));
+    let mut spec = tactus_batch::BatchSpec::new(dir.to_path_buf(), engine.options(mode));
     spec.features = args.with_features;
     spec.jobs = args.jobs.map_or(0, |n| n as usize);
     spec.job_threads = args.job_threads.map_or(0, |n| n as usize);

@@ -9,12 +9,12 @@ use std::time::{Duration, Instant};
 use anyhow::{bail, Context, Result};
 
 use tactus_engine::render::RenderRequest;
-use tactus_engine::Mode;
+use tactus_batch::Command;
 use tactus_glove::Pattern;
 use tactus_session::{PlayOptions, PlayReport};
 use tactus_transport::{lead_ms, open_sink, SinkOptions, SinkSpec, WallClock};
 
-use crate::{engine_config, stop_flag, EngineArgs};
+use crate::{stop_flag, EngineArgs, ModeArg};
 
 /// What the sink's "dropped" counter means, printed next to it.
 const DROPPED: &str = "frames replaced by a newer one before the link could send them; \
@@ -107,7 +107,7 @@ pub fn run(
     if audio.is_some() {
         bail!("--audio is for a pattern file's song; a song plays itself");
     }
-    let (config, stems) = engine_config(engine, Mode::Streaming, 25, false)?;
+    let (config, stems) = engine.config(Command::Play, ModeArg::Streaming)?;
     let req = RenderRequest {
         input: input.to_path_buf(),
         stems,
@@ -199,7 +199,7 @@ pub fn live(
 ) -> Result<()> {
     use tactus_session::{LiveEngine, LiveInput, LiveOptions};
     let spec: SinkSpec = glove.parse().with_context(|| format!("--glove {glove}"))?;
-    let (config, stems) = engine_config(engine, Mode::Streaming, 25, true)?;
+    let (config, stems) = engine.config(Command::Live, ModeArg::Streaming)?;
     if !stems.is_empty() {
         bail!("--stem cannot be used with live: there is only the captured mix");
     }

@@ -43,7 +43,7 @@ use std::time::Instant;
 
 pub use discover::{plan, Job, Plan};
 pub use manifest::{Record, Status, MANIFEST};
-pub use options::RenderOptions;
+pub use options::{Command, RenderOptions};
 use tactus_engine::render::{render, RenderOutput, RenderRequest};
 use tactus_engine::EngineConfig;
 use tactus_glove::OutputSet;
