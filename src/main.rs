@@ -11,11 +11,11 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use tactus_batch::{Command, RenderOptions};
 use tactus_engine::render::{render, RenderRequest};
+use tactus_glove::png::{plot_bytes, PlotFormat};
 use tactus_glove::{write_atomic, OutputSet};
 
 mod batch;
 mod play;
-mod plot;
 
 #[derive(Parser)]
 #[command(
@@ -614,7 +614,12 @@ fn run(cli: Cli) -> Result<()> {
             inputs.extend(engine.model.as_deref());
             inputs.extend(engine.map.as_deref());
             let mut out_set = OutputSet::prepare(&outputs, &inputs)?;
-            let plot_format = plot.as_deref().map(plot::format_of).transpose()?;
+            let plot_format = match plot.as_deref() {
+                Some(p) => Some(PlotFormat::of(p).ok_or_else(|| {
+                    anyhow!("--plot {}: the plot must end in .svg or .png", p.display())
+                })?),
+                None => None,
+            };
             // Ctrl-C: remove the temporary files and leave every existing file as it was.
             let _ = ctrlc::set_handler(|| {
                 tactus_glove::atomic::remove_pending_temporaries();
@@ -654,22 +659,16 @@ fn run(cli: Cli) -> Result<()> {
             // Everything is drawn before anything is written, so a failure leaves no output.
             let mut plot_bytes = match (&plot, plot_format) {
                 (Some(p), Some(format)) => {
-                    let svg = plot::render_svg(&out.pattern, &out.features);
-                    Some(match format {
-                        plot::PlotFormat::Svg => svg.into_bytes(),
-                        plot::PlotFormat::Png => {
-                            let png = plot::render_png(&svg)
-                                .with_context(|| format!("--plot {}", p.display()))?;
-                            if !png.fonts {
-                                eprintln!(
-                                    "tactus: warning: --plot {}: no system font found, so the PNG \
-                                     has no text (install e.g. fonts-dejavu-core, or use .svg)",
-                                    p.display()
-                                );
-                            }
-                            png.bytes
-                        }
-                    })
+                    let png = plot_bytes(&out.pattern, &out.features, format)
+                        .with_context(|| format!("--plot {}", p.display()))?;
+                    if !png.fonts {
+                        eprintln!(
+                            "tactus: warning: --plot {}: no system font found, so the PNG \
+                             has no text (install e.g. fonts-dejavu-core, or use .svg)",
+                            p.display()
+                        );
+                    }
+                    Some(png.bytes)
                 }
                 _ => None,
             };

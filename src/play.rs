@@ -51,7 +51,7 @@ pub fn run(
         }
         let pattern = Pattern::from_path(input)?;
         let song = if !no_audio && cfg!(feature = "audio") {
-            Some(pattern_song(input, &pattern, audio)?)
+            Some(tactus_session::pattern_song(input, &pattern, audio)?)
         } else {
             if !no_audio {
                 eprintln!("tactus: note: built without the `audio` feature: no sound; timing frames on the wall clock");
@@ -145,49 +145,6 @@ fn print_play(r: &PlayReport, spec: &SinkSpec, stats: &tactus_transport::SinkSta
     }
 }
 
-/// The song of a pattern: `--audio FILE`, else the recorded path (as given, then relative
-/// to the pattern file's folder); its SHA-256 must be the pattern's.
-fn pattern_song(
-    pattern_path: &Path,
-    pattern: &Pattern,
-    audio: Option<&Path>,
-) -> Result<std::path::PathBuf> {
-    let recorded = Path::new(&pattern.source.path);
-    let song = match audio {
-        Some(a) => a.to_path_buf(),
-        None => {
-            let beside = pattern_path
-                .parent()
-                .map(|d| d.join(recorded))
-                .filter(|_| recorded.is_relative());
-            match std::iter::once(recorded.to_path_buf())
-                .chain(beside)
-                .find(|p| p.is_file())
-            {
-                Some(p) => p,
-                None => bail!(
-                    "the pattern's song {} was not found (nor beside the pattern): pass --audio FILE, or --no-audio to play without sound",
-                    recorded.display()
-                ),
-            }
-        }
-    };
-    let sha =
-        tactus_glove::sha256_file(&song).with_context(|| format!("reading {}", song.display()))?;
-    if sha != pattern.source.sha256 {
-        bail!(
-            "{}: SHA-256 {sha} does not match the pattern's {} (a different file?): pass the song it was rendered from with --audio FILE, or --no-audio",
-            song.display(),
-            pattern.source.sha256
-        );
-    }
-    Ok(song)
-}
-
-/// Capture period the live profile asks for (issue 13): 256 frames, 5.8 ms at 44.1 kHz.
-#[cfg(feature = "audio")]
-const LIVE_PERIOD_FRAMES: u32 = 256;
-
 /// `tactus live`: capture → engine → glove, until Ctrl-C or `seconds` of captured audio.
 #[cfg(feature = "audio")]
 pub fn live(
@@ -197,38 +154,23 @@ pub fn live(
     tui: bool,
     engine: &EngineArgs,
 ) -> Result<()> {
-    use tactus_session::{LiveEngine, LiveInput, LiveOptions};
+    use tactus_session::{device::LiveDevice, LiveEngine, LiveOptions};
     let spec: SinkSpec = glove.parse().with_context(|| format!("--glove {glove}"))?;
     let (config, stems) = engine.config(Command::Live, ModeArg::Streaming)?;
     if !stems.is_empty() {
         bail!("--stem cannot be used with live: there is only the captured mix");
     }
-    let bin_ms = config.bin_ms;
-    let profile = config.profile;
-    let live_profile = profile == tactus_engine::Profile::Live;
+    let (bin_ms, profile) = (config.bin_ms, config.profile);
     // Built before the device opens, so a bad configuration fails at once.
     let pipeline = LiveEngine::new(config)?;
     let stop = stop_flag();
-    // Issue 13: real-time scheduling for this (engine) thread, asked for before the capture
-    // and sink threads exist so that they inherit it. On a loaded machine a normal thread
-    // waited up to 300 ms for the CPU (benches/live_latency.py at load 10-16). Refused
-    // without the privilege (RLIMIT_RTPRIO, CAP_SYS_NICE): then a note, and live goes on.
-    let realtime = audio_thread_priority::promote_current_thread_to_real_time(
-        LIVE_PERIOD_FRAMES,
-        tactus_engine::ENGINE_RATE,
-    )
-    .map_err(|e| e.to_string());
-    // Issue 13: the live profile asks the device for the engine's rate (no resampler) and
-    // a short period.
-    let request = tactus_audio::device::CaptureRequest {
-        rate: live_profile.then_some(tactus_engine::ENGINE_RATE),
-        period_frames: live_profile.then_some(LIVE_PERIOD_FRAMES),
-    };
-    let mut cap = tactus_audio::device::Capture::open_with(input, &request)?;
-    let (rate, channels, device) = (cap.rate(), cap.channels(), cap.device().to_string());
+    let mut dev = LiveDevice::open(input, profile)?;
+    let rate = dev.rate();
     let sink = open_sink(&spec, &SinkOptions::default())?;
     eprintln!(
-        "tactus: live from {device} ({rate} Hz, {channels} ch) to {spec}, {bin_ms} ms bins{}",
+        "tactus: live from {} ({rate} Hz, {} ch) to {spec}, {bin_ms} ms bins{}",
+        dev.name(),
+        dev.channels(),
         if seconds.is_some() {
             ""
         } else {
@@ -240,12 +182,7 @@ pub fn live(
         lead_ms: lead_ms(&spec, 0),
         ..LiveOptions::default()
     };
-    let live_input = LiveInput {
-        reader: cap.reader(),
-        rate,
-        name: device,
-    };
-    let result = pipeline.run(live_input, &sink, &opts, &stop, &mut |s| {
+    let result = dev.run(pipeline, &sink, &opts, &stop, &mut |s| {
         if tui {
             let st = sink.stats();
             let db = 20.0 * f64::from(s.peak.max(1e-6)).log10();
@@ -267,42 +204,19 @@ pub fn live(
     let r = result?;
     // Issue 13: the capture device's own buffering on its own line, then one budget per
     // finger group (stages in samples at the engine rate and in ms).
-    let period = cap.reader().first_callback().map_or(0, |(_, n)| n);
+    let period = dev.period_frames();
     eprintln!(
         "tactus: capture: {} at {rate} Hz, period {period} frames ({:.1} ms), input delay {:.1} ms reported by the device; threads {}",
-        cap.device(),
+        dev.name(),
         period as f64 * 1e3 / f64::from(rate),
         r.input_delay_ms,
-        match &realtime {
-            Ok(_) => "real-time".to_string(),
+        match dev.realtime() {
+            Ok(()) => "real-time".to_string(),
             Err(e) => format!("at normal priority (real-time refused: {e})"),
         }
     );
-    let ms = |n: usize| n as f64 * 1e3 / f64::from(tactus_engine::ENGINE_RATE);
-    let link = (lead_ms(&spec, 0) - i64::from(tactus_glove::PIN_RISE_MS)) as f64;
-    for (group, stages) in &r.paths {
-        eprintln!(
-            "tactus: latency budget, {group} fingers ({} profile; after the capture period):",
-            profile.name()
-        );
-        let mut sum = 0.0;
-        for (name, n) in stages {
-            sum += ms(*n);
-            eprintln!("    {name:<44} {n:>6} samples {:>7.1} ms", ms(*n));
-        }
-        eprintln!("    {:<44} {:>14} {link:>7.1} ms", "link", "");
-        eprintln!(
-            "    {:<44} {:>14} {:>7.1} ms",
-            "total to the glove",
-            "",
-            sum + link
-        );
-        eprintln!(
-            "    {:<44} {:>14} {:>7.1} ms",
-            "(then the pin rise)",
-            "",
-            f64::from(tactus_glove::PIN_RISE_MS)
-        );
+    for line in r.budget_text(profile.name()).lines() {
+        eprintln!("{}{line}", if line.starts_with(' ') { "" } else { "tactus: " });
     }
     if let Some((median, p95, max)) = r.measured_ms {
         eprintln!(

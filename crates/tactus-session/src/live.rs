@@ -101,6 +101,43 @@ pub struct LiveReport {
     pub retained_values: usize,
 }
 
+impl LiveReport {
+    /// The latency budget per finger group as a table, one group after the other: each
+    /// stage in samples at the engine rate and in ms, then the link, the total to the glove
+    /// and the pin rise. `profile` names the latency profile in each heading.
+    pub fn budget_text(&self, profile: &str) -> String {
+        use std::fmt::Write;
+        let ms = |n: usize| n as f64 * 1e3 / f64::from(ENGINE_RATE);
+        let find = |name: &str| {
+            self.budget
+                .iter()
+                .find(|(n, _)| n == name)
+                .map_or(0.0, |(_, v)| *v)
+        };
+        let (link, rise) = (find("link"), find("pin rise"));
+        let mut t = String::new();
+        for (group, stages) in &self.paths {
+            let _ = writeln!(
+                t,
+                "latency budget, {group} fingers ({profile} profile; after the capture period):"
+            );
+            let mut sum = 0.0;
+            for (name, n) in stages {
+                sum += ms(*n);
+                let _ = writeln!(t, "    {name:<44} {n:>6} samples {:>7.1} ms", ms(*n));
+            }
+            for (name, v) in [
+                ("link", link),
+                ("total to the glove", sum + link),
+                ("(then the pin rise)", rise),
+            ] {
+                let _ = writeln!(t, "    {name:<44} {:>14} {v:>7.1} ms", "");
+            }
+        }
+        t
+    }
+}
+
 /// A live pipeline, built before the input opens so that a bad configuration fails first.
 pub struct LiveEngine {
     engine: Engine,

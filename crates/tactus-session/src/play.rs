@@ -541,3 +541,39 @@ fn schedule(
     sink.all_down();
     Ok((sent, skipped))
 }
+
+/// The song of a pattern: `audio` if given, else the recorded path (as given, then relative
+/// to the pattern file's folder); its SHA-256 must be the pattern's.
+///
+/// Errors: no song found ([`SessionError::SongNotFound`]), unreadable
+/// ([`SessionError::Io`]), or another file than the one rendered
+/// ([`SessionError::SongMismatch`]).
+pub fn pattern_song(
+    pattern_path: &Path,
+    pattern: &tactus_glove::Pattern,
+    audio: Option<&Path>,
+) -> Result<std::path::PathBuf, SessionError> {
+    let recorded = Path::new(&pattern.source.path);
+    let song = match audio {
+        Some(a) => a.to_path_buf(),
+        None => {
+            let beside = pattern_path
+                .parent()
+                .map(|d| d.join(recorded))
+                .filter(|_| recorded.is_relative());
+            std::iter::once(recorded.to_path_buf())
+                .chain(beside)
+                .find(|p| p.is_file())
+                .ok_or_else(|| SessionError::SongNotFound(recorded.to_path_buf()))?
+        }
+    };
+    let sha = tactus_glove::sha256_file(&song).map_err(|e| SessionError::Io(song.clone(), e))?;
+    if sha != pattern.source.sha256 {
+        return Err(SessionError::SongMismatch {
+            path: song,
+            sha256: sha,
+            want: pattern.source.sha256.clone(),
+        });
+    }
+    Ok(song)
+}
