@@ -11,6 +11,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 
 use tactus_batch::{Command, RenderOptions};
 use tactus_engine::render::{render, RenderRequest};
+use tactus_glove::export::ExportFormat;
 use tactus_glove::png::{plot_bytes, PlotFormat};
 use tactus_glove::{write_atomic, OutputSet};
 
@@ -407,40 +408,10 @@ fn check_writable(path: &Path) -> Result<()> {
     Ok(())
 }
 
-enum ExportKind {
-    Csv,
-    Ahap,
-}
-
-fn export_kind(p: &Path) -> Result<ExportKind> {
-    match p
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase())
-        .as_deref()
-    {
-        Some("csv") => Ok(ExportKind::Csv),
-        Some("ahap") => Ok(ExportKind::Ahap),
-        _ => bail!(
-            "--export {}: unknown format (use a .csv or .ahap file name)",
-            p.display()
-        ),
-    }
-}
-
-/// The `--html` page: the song file's own bytes (checked against the pattern's SHA-256, so
-/// the page plays what was rendered) embedded with the pattern and features.
-fn html_page(
-    input: &Path,
-    pattern: &tactus_glove::Pattern,
-    features: &tactus_glove::Features,
-) -> Result<Vec<u8>> {
-    let audio = std::fs::read(input).with_context(|| format!("reading {}", input.display()))?;
-    if tactus_glove::sha256_hex(&audio[..])? != pattern.source.sha256 {
-        bail!("{} changed while it was rendered", input.display());
-    }
-    let page =
-        tactus_glove::html::render_page(pattern, features, &audio, &input.display().to_string());
+/// The `--html` page, with a note of its size and a warning when browsers may not play
+/// the song.
+fn html_page(input: &Path, out: &tactus_engine::render::RenderOutput) -> Result<Vec<u8>> {
+    let page = tactus_glove::html::page_for_song(input, &out.pattern, &out.features)?;
     if let Some(why) = &page.audio.unplayable {
         eprintln!("tactus: warning: --html: browsers may not play this audio ({why}); the page's glove runs on the wall clock");
     }
@@ -595,7 +566,14 @@ fn run(cli: Cli) -> Result<()> {
             let (config, stems) = engine.config(Command::Render, mode)?;
             let export_kinds = export
                 .iter()
-                .map(|p| export_kind(p))
+                .map(|p| {
+                    ExportFormat::of(p).ok_or_else(|| {
+                        anyhow!(
+                            "--export {}: unknown format (use a .csv or .ahap file name)",
+                            p.display()
+                        )
+                    })
+                })
                 .collect::<Result<Vec<_>>>()?;
             // Outputs are one transaction: checked and their temporary files created now,
             // renamed over their targets only when every one is complete.
@@ -674,17 +652,14 @@ fn run(cli: Cli) -> Result<()> {
             };
             let mut html_bytes = match &html {
                 Some(p) => Some(
-                    html_page(&input, &out.pattern, &out.features)
+                    html_page(&input, &out)
                         .with_context(|| format!("--html {}", p.display()))?,
                 ),
                 None => None,
             };
-            let mut export_bytes = export_kinds.iter().map(|k| match k {
-                ExportKind::Csv => tactus_glove::export::to_csv(&out.pattern).into_bytes(),
-                ExportKind::Ahap => {
-                    tactus_glove::export::to_ahap(&out.pattern, &out.features).into_bytes()
-                }
-            });
+            let mut export_bytes = export_kinds
+                .iter()
+                .map(|k| k.bytes(&out.pattern, &out.features));
             let mut stdout_bytes = None;
             for (i, &(label, p)) in outputs.iter().enumerate() {
                 let bytes = match label {

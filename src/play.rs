@@ -154,17 +154,15 @@ pub fn live(
     tui: bool,
     engine: &EngineArgs,
 ) -> Result<()> {
-    use tactus_session::{device::LiveDevice, LiveEngine, LiveOptions};
+    use tactus_session::{device::LiveDevice, LiveOptions};
     let spec: SinkSpec = glove.parse().with_context(|| format!("--glove {glove}"))?;
     let (config, stems) = engine.config(Command::Live, ModeArg::Streaming)?;
     if !stems.is_empty() {
         bail!("--stem cannot be used with live: there is only the captured mix");
     }
     let (bin_ms, profile) = (config.bin_ms, config.profile);
-    // Built before the device opens, so a bad configuration fails at once.
-    let pipeline = LiveEngine::new(config)?;
     let stop = stop_flag();
-    let mut dev = LiveDevice::open(input, profile)?;
+    let mut dev = LiveDevice::open(input, config)?;
     let rate = dev.rate();
     let sink = open_sink(&spec, &SinkOptions::default())?;
     eprintln!(
@@ -182,7 +180,7 @@ pub fn live(
         lead_ms: lead_ms(&spec, 0),
         ..LiveOptions::default()
     };
-    let result = dev.run(pipeline, &sink, &opts, &stop, &mut |s| {
+    let result = dev.run(&sink, &opts, &stop, &mut |s| {
         if tui {
             let st = sink.stats();
             let db = 20.0 * f64::from(s.peak.max(1e-6)).log10();

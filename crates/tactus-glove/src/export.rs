@@ -22,6 +22,39 @@ use crate::glove::{Dot, Finger, Frame, CELLS_PER_FINGER};
 use crate::map::CellSource;
 use crate::{Band, Features, GloveError, Pattern, Stem};
 
+/// An export format, chosen by the file's extension (`render --export`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExportFormat {
+    /// [`to_csv`].
+    Csv,
+    /// [`to_ahap`].
+    Ahap,
+}
+
+impl ExportFormat {
+    /// `.csv` or `.ahap` (any case); `None` for anything else.
+    pub fn of(path: &std::path::Path) -> Option<ExportFormat> {
+        match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .as_deref()
+        {
+            Some("csv") => Some(ExportFormat::Csv),
+            Some("ahap") => Some(ExportFormat::Ahap),
+            _ => None,
+        }
+    }
+
+    /// The export's bytes.
+    pub fn bytes(self, pattern: &Pattern, features: &Features) -> Vec<u8> {
+        match self {
+            ExportFormat::Csv => to_csv(pattern).into_bytes(),
+            ExportFormat::Ahap => to_ahap(pattern, features).into_bytes(),
+        }
+    }
+}
+
 /// Longest `HapticContinuous` event Core Haptics plays, in seconds.
 pub const AHAP_MAX_CONTINUOUS_S: f64 = 30.0;
 

@@ -53,6 +53,32 @@ pub struct HtmlPage {
     pub audio: AudioKind,
 }
 
+/// The page for a song file: its own bytes embedded (checked against the pattern's SHA-256,
+/// so the page plays what was rendered) with the pattern and features, titled with its path.
+///
+/// Errors: the file cannot be read ([`GloveError::InFile`]), or it is not the file the
+/// pattern was rendered from ([`GloveError::SongChanged`]).
+pub fn page_for_song(
+    song: &std::path::Path,
+    pattern: &Pattern,
+    features: &Features,
+) -> Result<HtmlPage, crate::GloveError> {
+    let in_file = |e: crate::GloveError| crate::GloveError::InFile {
+        path: song.to_path_buf(),
+        source: Box::new(e),
+    };
+    let audio = std::fs::read(song).map_err(|e| in_file(e.into()))?;
+    if crate::sha256_hex(&audio[..]).map_err(|e| in_file(e.into()))? != pattern.source.sha256 {
+        return Err(crate::GloveError::SongChanged(song.to_path_buf()));
+    }
+    Ok(render_page(
+        pattern,
+        features,
+        &audio,
+        &song.display().to_string(),
+    ))
+}
+
 /// What an audio file's first bytes say, and whether browsers play it.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct AudioKind {

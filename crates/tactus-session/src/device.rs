@@ -1,16 +1,16 @@
-//! `live` on a real input device (the `device` feature): real-time scheduling for the
-//! engine's thread, the capture device opened as the latency profile asks, then
-//! [`LiveEngine::run`] on its ring.
+//! `live` on a real input device (the `device` feature): the engine built first (a bad
+//! configuration fails before any device opens), real-time scheduling for the engine's
+//! thread, the capture device opened as the latency profile asks, then [`LiveEngine::run`]
+//! on its ring.
 //!
 //! ```no_run
 //! use std::sync::atomic::AtomicBool;
 //! use tactus_engine::{EngineConfig, Mode, Profile};
-//! use tactus_session::{device::LiveDevice, LiveEngine, LiveOptions};
+//! use tactus_session::{device::LiveDevice, LiveOptions};
 //! use tactus_transport::{open_sink, SinkOptions, SinkSpec};
 //!
 //! let config = EngineConfig { mode: Mode::Streaming, profile: Profile::Live, ..EngineConfig::default() };
-//! let engine = LiveEngine::new(config).unwrap();
-//! let mut device = LiveDevice::open(None, Profile::Live).unwrap();
+//! let mut device = LiveDevice::open(None, config).unwrap();
 //! let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
 //! let opts = LiveOptions { seconds: Some(5.0), ..LiveOptions::default() };
 //! let report = device.run(engine, &sink, &opts, &AtomicBool::new(false), &mut |_| {}).unwrap();
@@ -20,7 +20,7 @@
 use std::sync::atomic::AtomicBool;
 
 use tactus_audio::device::{Capture, CaptureRequest};
-use tactus_engine::{Profile, ENGINE_RATE};
+use tactus_engine::{EngineConfig, Profile, ENGINE_RATE};
 use tactus_transport::SinkHandle;
 
 use crate::{LiveEngine, LiveInput, LiveOptions, LiveReport, LiveStatus, SessionError};
@@ -30,12 +30,14 @@ pub const LIVE_PERIOD_FRAMES: u32 = 256;
 
 /// An open capture device, with the calling thread's scheduling settled.
 pub struct LiveDevice {
+    engine: Option<LiveEngine>,
     capture: Capture,
     realtime: Result<audio_thread_priority::RtPriorityHandle, String>,
 }
 
 impl LiveDevice {
-    /// Asks real-time scheduling for the calling thread (the one that will run the engine;
+    /// Builds the engine for `config`, asks real-time scheduling for the calling thread
+    /// (the one that will run the engine;
     /// the capture and sink threads started after it inherit it), then opens `input`
     /// (`None`: the default input). With the live profile the device is asked for the
     /// engine's rate (no resampler) and a [`LIVE_PERIOD_FRAMES`] period.
@@ -43,19 +45,24 @@ impl LiveDevice {
     /// Issue 13: on a loaded machine a normal thread waited up to 300 ms for the CPU
     /// (benches/live_latency.py at load 10-16). Real-time scheduling refused (no
     /// RLIMIT_RTPRIO or CAP_SYS_NICE) is not an error: [`LiveDevice::realtime`] says why.
-    pub fn open(input: Option<&str>, profile: Profile) -> Result<LiveDevice, SessionError> {
+    pub fn open(input: Option<&str>, config: EngineConfig) -> Result<LiveDevice, SessionError> {
+        let live = config.profile == Profile::Live;
+        let engine = Some(LiveEngine::new(config)?);
         let realtime = audio_thread_priority::promote_current_thread_to_real_time(
             LIVE_PERIOD_FRAMES,
             ENGINE_RATE,
         )
         .map_err(|e| e.to_string());
-        let live = profile == Profile::Live;
         let request = CaptureRequest {
             rate: live.then_some(ENGINE_RATE),
             period_frames: live.then_some(LIVE_PERIOD_FRAMES),
         };
         let capture = Capture::open_with(input, &request)?;
-        Ok(LiveDevice { capture, realtime })
+        Ok(LiveDevice {
+            engine,
+            capture,
+            realtime,
+        })
     }
 
     /// The device's rate, Hz.
@@ -83,15 +90,19 @@ impl LiveDevice {
         self.capture.reader().first_callback().map_or(0, |(_, n)| n)
     }
 
-    /// Runs `engine` on what the device captures ([`LiveEngine::run`]).
+    /// Runs the engine on what the device captures ([`LiveEngine::run`]); once only (a
+    /// second call is an error).
     pub fn run(
         &mut self,
-        engine: LiveEngine,
         sink: &SinkHandle,
         opts: &LiveOptions,
         stop: &AtomicBool,
         status: &mut dyn FnMut(&LiveStatus),
     ) -> Result<LiveReport, SessionError> {
+        let engine = self
+            .engine
+            .take()
+            .ok_or_else(|| SessionError::Renderer("this live device has run already".into()))?;
         let (rate, name) = (self.rate(), self.name().to_string());
         let input = LiveInput {
             reader: self.capture.reader(),
