@@ -124,7 +124,7 @@ impl RenderOptions {
             _ => SeparatorChoice::HtDemucs(model("htdemucs")?),
         };
         let map = match &self.map {
-            Some(p) => GloveMap::from_name_or_path(p).map_err(|e| err(format!("--map: {e}")))?,
+            Some(p) => GloveMap::from_name_or_path(p).map_err(BatchError::Map)?,
             None => GloveMap::default(),
         };
         let levels = self.levels.unwrap_or(8);

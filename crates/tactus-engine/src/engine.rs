@@ -374,7 +374,7 @@ fn onnx_separator(
         },
         ..OnnxConfig::new(model)
     };
-    let err = |e: tactus_separate::onnx::OnnxError| EngineError::Config(e.to_string());
+    let err = EngineError::Onnx;
     Ok(if demucs {
         Box::new(HtDemucsSeparator::new(rate, stems, &cfg).map_err(err)?)
     } else {
@@ -539,7 +539,7 @@ impl Engine {
                             Profile::Live => profile::separator(),
                         },
                     )
-                    .map_err(|e| EngineError::Config(e.to_string()))?,
+                    .map_err(EngineError::SeparatorSetup)?,
                 ),
                 SeparatorChoice::Spleeter(model) => {
                     onnx_separator(false, model, cfg.sample_rate, separated, cfg.threads)?
@@ -549,7 +549,7 @@ impl Engine {
                 }
                 SeparatorChoice::None => Box::new(
                     NoneSeparator::new(cfg.sample_rate, separated)
-                        .map_err(|e| EngineError::Config(e.to_string()))?,
+                        .map_err(EngineError::SeparatorSetup)?,
                 ),
             })
         };

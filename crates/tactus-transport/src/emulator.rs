@@ -314,10 +314,10 @@ pub fn packet_type_name(kind: PacketType) -> &'static str {
 pub(crate) struct EmulatorLink(pub(crate) Arc<Mutex<VirtualGlove>>);
 
 impl Link for EmulatorLink {
-    fn connect(&mut self) -> Result<(), String> {
+    fn connect(&mut self) -> Result<(), crate::LinkError> {
         Ok(())
     }
-    fn write(&mut self, _: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), String> {
+    fn write(&mut self, _: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), crate::LinkError> {
         self.0
             .lock()
             .unwrap_or_else(|e| e.into_inner())
@@ -399,7 +399,7 @@ pub fn run_emulator_on_port_with(
     let mut port = Some(
         open_port(&name, opts.poll).map_err(|e| TransportError::Serial {
             path: name.clone(),
-            reason: e.to_string(),
+            source: e.into(),
         })?,
     );
     let started = Instant::now();
