@@ -389,3 +389,13 @@ impl Drop for OutputSet {
         }
     }
 }
+
+/// The value `table` pairs with `path`'s extension, compared without case (`None` for a
+/// path without one, or one not in the table): how an output's kind follows its name.
+pub fn by_extension<T: Copy>(path: &Path, table: &[(&str, T)]) -> Option<T> {
+    let ext = path.extension()?.to_str()?;
+    table
+        .iter()
+        .find(|(e, _)| e.eq_ignore_ascii_case(ext))
+        .map(|&(_, v)| v)
+}

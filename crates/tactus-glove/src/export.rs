@@ -34,16 +34,7 @@ pub enum ExportFormat {
 impl ExportFormat {
     /// `.csv` or `.ahap` (any case); `None` for anything else.
     pub fn of(path: &std::path::Path) -> Option<ExportFormat> {
-        match path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase())
-            .as_deref()
-        {
-            Some("csv") => Some(ExportFormat::Csv),
-            Some("ahap") => Some(ExportFormat::Ahap),
-            _ => None,
-        }
+        crate::atomic::by_extension(path, &[("csv", ExportFormat::Csv), ("ahap", ExportFormat::Ahap)])
     }
 
     /// The export's bytes.

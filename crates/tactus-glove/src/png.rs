@@ -30,16 +30,7 @@ pub enum PlotFormat {
 impl PlotFormat {
     /// `.svg` or `.png` (any case); `None` for anything else.
     pub fn of(path: &Path) -> Option<PlotFormat> {
-        match path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase())
-            .as_deref()
-        {
-            Some("svg") => Some(PlotFormat::Svg),
-            Some("png") => Some(PlotFormat::Png),
-            _ => None,
-        }
+        crate::atomic::by_extension(path, &[("svg", PlotFormat::Svg), ("png", PlotFormat::Png)])
     }
 }
 
