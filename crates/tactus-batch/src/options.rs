@@ -85,6 +85,19 @@ fn choice<'a>(
     }
 }
 
+/// [`choice`] for options whose values map to plain values: the value `table` pairs with
+/// the name given (or `default`).
+fn pick<T: Copy>(
+    flag: &str,
+    given: Option<&str>,
+    default: &str,
+    table: &[(&str, T)],
+) -> Result<T, BatchError> {
+    let names: Vec<&str> = table.iter().map(|(n, _)| *n).collect();
+    let name = choice(flag, given, default, &names)?;
+    Ok(table.iter().find(|(n, _)| *n == name).map_or(table[0].1, |(_, v)| *v))
+}
+
 impl RenderOptions {
     /// The engine configuration, with the CLI's defaults and its one-line messages.
     /// `parallel`: whether the engine may start threads of its own
@@ -133,15 +146,12 @@ impl RenderOptions {
                 "invalid value '{levels}' for '--levels <LEVELS>': {levels} is not in 1..=8"
             )));
         }
-        let profile = match choice(
+        let profile = pick(
             "profile",
             self.profile.as_deref(),
             if live { "live" } else { "full" },
-            &["full", "live"],
-        )? {
-            "live" => Profile::Live,
-            _ => Profile::Full,
-        };
+            &[("full", Profile::Full), ("live", Profile::Live)],
+        )?;
         let bin_ms = self.bin_ms.unwrap_or(match (profile, command) {
             (Profile::Live, _) => tactus_engine::profile::BIN_MS,
             (Profile::Full, Command::Render) => 100,
@@ -152,7 +162,7 @@ impl RenderOptions {
                 "invalid value '{bin_ms}' for '--bin-ms <BIN_MS>': {bin_ms} is not in 1..=10000"
             )));
         }
-        let pitch = match choice(
+        let pitch = pick(
             "pitch",
             self.pitch.as_deref(),
             if live && profile == Profile::Full {
@@ -160,22 +170,19 @@ impl RenderOptions {
             } else {
                 "auto"
             },
-            &["auto", "yin", "pyin", "shs"],
-        )? {
-            "yin" => PitchMethod::Yin,
-            "pyin" => PitchMethod::Pyin,
-            "shs" => PitchMethod::Shs,
-            _ => PitchMethod::Auto,
-        };
-        let level_rule = match choice(
+            &[
+                ("auto", PitchMethod::Auto),
+                ("yin", PitchMethod::Yin),
+                ("pyin", PitchMethod::Pyin),
+                ("shs", PitchMethod::Shs),
+            ],
+        )?;
+        let level_rule = pick(
             "levels-rule",
             self.levels_rule.as_deref(),
             "follow",
-            &["follow", "paper"],
-        )? {
-            "paper" => LevelRule::Paper,
-            _ => LevelRule::Follow,
-        };
+            &[("follow", LevelRule::Follow), ("paper", LevelRule::Paper)],
+        )?;
         let drums = match choice(
             "drums",
             self.drums.as_deref(),
@@ -192,7 +199,7 @@ impl RenderOptions {
             })?),
             _ => DrumMethod::Classes,
         };
-        let mode = match choice(
+        let mode = pick(
             "mode",
             self.mode.as_deref(),
             if command == Command::Render {
@@ -200,11 +207,8 @@ impl RenderOptions {
             } else {
                 "streaming"
             },
-            &["offline", "streaming"],
-        )? {
-            "streaming" => Mode::Streaming,
-            _ => Mode::Offline,
-        };
+            &[("offline", Mode::Offline), ("streaming", Mode::Streaming)],
+        )?;
         let stems = self
             .stems
             .iter()
