@@ -17,10 +17,11 @@
 //! publishes, through a sequence lock of atomics, the callback time, the song frames written
 //! before it, how many it wrote, and cpal's output latency for the block (`playback −
 //! callback` instant). [`Playback::now_ms`] is the song time audible now:
-//! `written_before / rate + min(now − callback, written_now / rate) − output_latency`,
-//! slew-limited to the wall clock's rate ± 5 %: it follows the device's crystal, not the
-//! CPU's, over a song, but not the leaps and stalls of a sound server that takes audio in
-//! bursts. Before the first callback it is `None`.
+//! `(written_before − pad) / rate + min(now − callback, written_now / rate) −
+//! output_latency`, slew-limited to the wall clock's rate ± 5 %: it follows the device's
+//! crystal, not the CPU's, over a song, but not the leaps and stalls of a sound server that
+//! takes audio in bursts. When it is more than 40 ms ahead of the device (a sound server's
+//! first burst) it waits instead. Before the first callback it is `None`.
 //!
 //! ## Latency
 //! Capture adds the device period before the engine sees a sample; output adds nothing to
@@ -44,6 +45,24 @@ pub const OUTPUT_RING_S: f64 = 0.5;
 /// Largest rate difference between the play clock and the wall clock (see
 /// [`Playback::now_ms`]).
 const MAX_SLEW: f64 = 0.05;
+/// A play clock this far ahead of the device's position stops until the sound catches up
+/// (see [`Playback::now_ms`]); below it, it slews. Above a sound server's usual stalls
+/// (10-30 ms through PulseAudio's ALSA plugin), far below its first burst.
+const HOLD_MS: f64 = 40.0;
+
+/// One step of the play clock: from `last` ms, `dt` ms of wall time later, towards the
+/// device position `raw` ms. Runs at the wall clock's rate ± [`MAX_SLEW`], holds while it
+/// is more than [`HOLD_MS`] ahead of `raw`, never goes back.
+fn clock_step(last: f64, dt: f64, raw: f64) -> f64 {
+    let predicted = last + dt;
+    let ms = if raw < predicted - HOLD_MS {
+        last
+    } else {
+        predicted + (raw - predicted).clamp(-MAX_SLEW * dt, MAX_SLEW * dt)
+    };
+    ms.max(last)
+}
+
 /// Marks "not yet" in the time atomics.
 const NONE: u64 = u64::MAX;
 
@@ -738,8 +757,10 @@ impl Playback {
         let now_ns = self.shared.base.elapsed().as_nanos() as u64;
         let rate = f64::from(self.rate);
         let since = now_ns.saturating_sub(s.cb_ns) as f64 / 1e9;
-        let pos =
-            s.start as f64 / rate + since.min(s.len as f64 / rate) - s.latency_ns as f64 / 1e9;
+        // The `pad` frames of silence before the song are not song time.
+        let pad = self.shared.pad.load(Ordering::Relaxed) as f64;
+        let pos = (s.start as f64 - pad) / rate + since.min(s.len as f64 / rate)
+            - s.latency_ns as f64 / 1e9;
         let raw = pos * 1e3;
         // Slew-limited: the clock runs at the wall clock's rate ± MAX_SLEW and steers towards
         // the device position within that band. Sound servers accept audio in bursts (the
@@ -747,12 +768,17 @@ impl Playback {
         // leaps and stalls although the sound plays smoothly; frames timed on it would
         // arrive in bursts. Over a song the device's crystal still wins: any drift below
         // MAX_SLEW (5 %, far above real crystals' ±0.01 %) is followed.
+        //
+        // One exception: a clock more than HOLD_MS ahead of the device waits for it (runs
+        // at rate 0). At the start a sound server takes a large first burst whose delay the
+        // device does not report, so the first positions run ahead of the sound by up to a
+        // second; slewing back at 5 % took 15-20 s, with every frame that early. Waiting
+        // only delays frames (each carries the whole glove state), it never bunches them.
         let ms = match self.last_wall_ns.get() {
             None => raw,
             Some(prev_ns) => {
                 let dt = now_ns.saturating_sub(prev_ns) as f64 / 1e6;
-                let predicted = self.last_ms.get() + dt;
-                predicted + (raw - predicted).clamp(-MAX_SLEW * dt, MAX_SLEW * dt)
+                clock_step(self.last_ms.get(), dt, raw)
             }
         };
         let ms = ms.max(self.last_ms.get());
@@ -802,5 +828,94 @@ impl Drop for Playback {
     fn drop(&mut self) {
         self.shared.closed.store(true, Ordering::Relaxed);
         let _ = self.stream.pause();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{clock_step, HOLD_MS, MAX_SLEW};
+
+    /// Runs the clock every `dt` ms for `ms` ms against the device position `raw(t)`;
+    /// returns (t, clock) pairs. The first reading is taken as it is, as in `now_ms`.
+    fn run(ms: f64, dt: f64, raw: impl Fn(f64) -> f64) -> Vec<(f64, f64)> {
+        let mut c = raw(0.0);
+        let mut out = vec![(0.0, c)];
+        let mut t = 0.0;
+        while t < ms {
+            t += dt;
+            c = clock_step(c, dt, raw(t));
+            out.push((t, c));
+        }
+        out
+    }
+
+    #[test]
+    fn follows_a_steady_device_and_a_drifting_crystal() {
+        for r in run(10_000.0, 5.0, |t| t) {
+            assert!((r.1 - r.0).abs() < 1e-9, "{r:?}");
+        }
+        // A crystal 1 % fast (100 times a real one's error): caught within 2 s, then held.
+        let v = run(10_000.0, 5.0, |t| 1.01 * t);
+        for &(t, c) in v.iter().filter(|r| r.0 > 2_000.0) {
+            assert!((c - 1.01 * t).abs() < 1.0, "at {t} ms: {c}");
+        }
+    }
+
+    #[test]
+    fn a_first_burst_is_waited_out_not_slewed() {
+        // A sound server takes 800 ms at once and then plays; the device's position is
+        // 800 ms ahead at first, flat until the sound reaches it, then true.
+        let raw = |t: f64| if t < 800.0 { 800.0 } else { t };
+        let v = run(20_000.0, 5.0, raw);
+        // Never ahead of the sound by more than the first burst, and within HOLD_MS plus
+        // one step of it once the device position is true; within 1 ms from 2 s on.
+        for &(t, c) in &v {
+            if t >= 800.0 {
+                assert!(c - t <= HOLD_MS + 5.0 + 1e-9, "at {t} ms: {c}");
+            }
+            if t >= 2_000.0 {
+                assert!((c - t).abs() < 1.0, "at {t} ms: {c}");
+            }
+        }
+        // The slew alone would still be 700 ms ahead after 2 s (5 % of 2 s = 100 ms).
+        let mut slewed = 800.0;
+        for k in 1..=400 {
+            let t = 5.0 * k as f64;
+            let p = slewed + 5.0;
+            slewed = p + (raw(t) - p).clamp(-MAX_SLEW * 5.0, MAX_SLEW * 5.0);
+        }
+        assert!(slewed - 2_000.0 > 650.0, "{slewed}");
+    }
+
+    #[test]
+    fn short_stalls_and_leaps_are_smoothed() {
+        // Every 200 ms the position stalls for 20 ms and then leaps back to the truth.
+        let raw = |t: f64| {
+            let ph = t % 200.0;
+            if ph < 20.0 {
+                t - ph
+            } else {
+                t
+            }
+        };
+        let v = run(5_000.0, 1.0, raw);
+        for w in v.windows(2) {
+            let rate = (w[1].1 - w[0].1) / (w[1].0 - w[0].0);
+            assert!(
+                (1.0 - MAX_SLEW - 1e-9..=1.0 + MAX_SLEW + 1e-9).contains(&rate),
+                "rate {rate} at {} ms",
+                w[1].0
+            );
+            assert!((w[1].1 - w[1].0).abs() < 2.0, "{:?}", w[1]);
+        }
+    }
+
+    #[test]
+    fn never_goes_back() {
+        let raw = |t: f64| if t < 1_000.0 { t } else { t - 500.0 };
+        let v = run(3_000.0, 5.0, raw);
+        for w in v.windows(2) {
+            assert!(w[1].1 >= w[0].1);
+        }
     }
 }

@@ -116,6 +116,26 @@ impl Default for SpectralConfig {
 /// Samples per internal block when converting L/R to mid/side.
 const BLOCK: usize = 512;
 
+/// Samples of point-reflected signal appended at the end of the stream: enough that the
+/// frame centred on the last sample and the `lookahead_frames` after it see signal, not
+/// zeros. Zero padding was a cut that the harmonic/percussive split saw as a broadband
+/// hit, so a sound lasting to the end gave the drum stem a burst (issue 11). The
+/// synthesis is limited to the real length, so none of the padding's own output leaves.
+fn end_padding(cfg: &SpectralConfig) -> usize {
+    cfg.n_fft / 2 + cfg.lookahead_frames * cfg.hop
+}
+
+/// Slides `tail` (oldest first) to end with `new`.
+fn remember(tail: &mut [f32], new: &[f32]) {
+    let n = tail.len();
+    if new.len() >= n {
+        tail.copy_from_slice(&new[new.len() - n..]);
+    } else {
+        tail.copy_within(new.len().., 0);
+        tail[n - new.len()..].copy_from_slice(new);
+    }
+}
+
 /// Mid and side samples are clamped to ±1e9 (180 dB above full scale): far beyond any
 /// real audio, low enough that an FFT sum and its square stay finite in `f32`.
 const INPUT_LIMIT: f32 = 1e9;
@@ -132,6 +152,10 @@ pub struct SpectralSeparator {
     core: Core,
     mid: Vec<f32>,
     side: Vec<f32>,
+    /// The last `tail_mid.len()` mid and side samples (the newest last), for the padding
+    /// at the end of the stream.
+    tail_mid: Vec<f32>,
+    tail_side: Vec<f32>,
 }
 
 /// Everything but the analysis, so the analysis callback can borrow it mutably.
@@ -346,8 +370,23 @@ impl SpectralSeparator {
             core,
             mid: vec![0.0; BLOCK],
             side: vec![0.0; BLOCK],
+            tail_mid: vec![0.0; end_padding(&cfg)],
+            tail_side: vec![0.0; end_padding(&cfg)],
             cfg,
         })
+    }
+
+    /// Feeds `mid[..m]` (and `side[..m]` in stereo) to the analysis.
+    fn push_block(&mut self, m: usize, out: &mut StemOutput) {
+        let core = &mut self.core;
+        let channels: [&[f32]; 2] = [&self.mid[..m], &self.side[..m]];
+        let channels = if core.stereo {
+            &channels[..]
+        } else {
+            &channels[..1]
+        };
+        self.analysis
+            .push(channels, |t, spectra| core.on_frame(t, spectra, out));
     }
 
     /// The configuration it was built with.
@@ -572,7 +611,6 @@ impl Separator for SpectralSeparator {
     fn process(&mut self, left: &[f32], right: &[f32], out: &mut StemOutput) {
         out.declare(self.stems);
         let n = left.len().min(right.len());
-        let stereo = self.core.stereo;
         for start in (0..n).step_by(BLOCK) {
             let end = (start + BLOCK).min(n);
             let m = end - start;
@@ -583,20 +621,32 @@ impl Separator for SpectralSeparator {
                 self.mid[i] = (0.5 * l + 0.5 * r).clamp(-INPUT_LIMIT, INPUT_LIMIT);
                 self.side[i] = (0.5 * l - 0.5 * r).clamp(-INPUT_LIMIT, INPUT_LIMIT);
             }
-            let core = &mut self.core;
-            let channels: [&[f32]; 2] = [&self.mid[..m], &self.side[..m]];
-            let channels = if stereo {
-                &channels[..]
-            } else {
-                &channels[..1]
-            };
-            self.analysis
-                .push(channels, |t, spectra| core.on_frame(t, spectra, out));
+            remember(&mut self.tail_mid, &self.mid[..m]);
+            remember(&mut self.tail_side, &self.side[..m]);
+            self.push_block(m, out);
         }
     }
 
     fn finish(&mut self, out: &mut StemOutput) {
         out.declare(self.stems);
+        // Continue the signal past its end by point reflection about the last sample
+        // (value and slope stay continuous; a DC offset stays constant), see `end_padding`.
+        let real = self.analysis.samples_seen();
+        self.core.synthesis.limit_output(real);
+        let n = self.tail_mid.len();
+        let pad = n.saturating_sub(1).min(real.saturating_sub(1));
+        let mut k = 0;
+        while k < pad {
+            let m = (pad - k).min(BLOCK);
+            for i in 0..m {
+                let j = n - 2 - (k + i);
+                let (em, es) = (self.tail_mid[n - 1], self.tail_side[n - 1]);
+                self.mid[i] = (2.0 * em - self.tail_mid[j]).clamp(-INPUT_LIMIT, INPUT_LIMIT);
+                self.side[i] = (2.0 * es - self.tail_side[j]).clamp(-INPUT_LIMIT, INPUT_LIMIT);
+            }
+            self.push_block(m, out);
+            k += m;
+        }
         let core = &mut self.core;
         self.analysis
             .finish(|t, spectra| core.on_frame(t, spectra, out));
@@ -606,14 +656,14 @@ impl Separator for SpectralSeparator {
         }
         let channel_stem = core.channel_stem;
         core.synthesis
-            .finish(self.analysis.samples_seen(), |ch, samples| {
-                out.extend(channel_stem[ch], samples)
-            });
+            .finish(real, |ch, samples| out.extend(channel_stem[ch], samples));
     }
 
     fn reset(&mut self) {
         self.analysis.reset();
         self.core.reset();
+        self.tail_mid.fill(0.0);
+        self.tail_side.fill(0.0);
     }
 
     fn latency_samples(&self) -> usize {

@@ -239,6 +239,9 @@ pub struct OverlapAdd {
     norm: Vec<f32>,
     frames: usize,
     emitted: usize,
+    /// No more than this many samples per channel are ever emitted (see
+    /// [`OverlapAdd::limit_output`]).
+    limit: usize,
 }
 
 impl OverlapAdd {
@@ -257,6 +260,7 @@ impl OverlapAdd {
             norm: vec![0.0; cfg.n_fft],
             frames: 0,
             emitted: 0,
+            limit: usize::MAX,
         })
     }
 
@@ -283,6 +287,14 @@ impl OverlapAdd {
         self.wsum.fill(0.0);
         self.frames = 0;
         self.emitted = 0;
+        self.limit = usize::MAX;
+    }
+
+    /// From now on, emit at most `total` samples per channel in all: a caller that pads
+    /// the input past its real end (to give the last frames signal instead of zeros) keeps
+    /// the padding's own output from ever leaving.
+    pub fn limit_output(&mut self, total: usize) {
+        self.limit = total;
     }
 
     /// Adds the spectrum (`n_fft/2 + 1` bins) of the current frame to `channel`. The
@@ -324,20 +336,22 @@ impl OverlapAdd {
         let start = self.frames * hop;
         let skip = (self.cfg.n_fft / 2).saturating_sub(start).min(hop);
         self.frames += 1;
+        // Positions past the limit (a caller's padding after the end) are never emitted.
+        let end = hop.min(skip.saturating_add(self.limit.saturating_sub(self.emitted)));
         for (ch, acc) in self.acc.iter_mut().enumerate() {
-            if skip < hop {
+            if skip < end {
                 normalise(
-                    &acc[skip..hop],
-                    &self.wsum[skip..hop],
-                    &mut self.norm[..hop - skip],
+                    &acc[skip..end],
+                    &self.wsum[skip..end],
+                    &mut self.norm[..end - skip],
                 );
-                emit(ch, &self.norm[..hop - skip]);
+                emit(ch, &self.norm[..end - skip]);
             }
             acc.copy_within(hop.., 0);
             let n = acc.len();
             acc[n - hop..].fill(0.0);
         }
-        self.emitted += hop - skip;
+        self.emitted += end.saturating_sub(skip);
         self.wsum.copy_within(hop.., 0);
         let n = self.wsum.len();
         self.wsum[n - hop..].fill(0.0);
