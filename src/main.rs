@@ -162,7 +162,10 @@ impl EngineArgs {
         &self,
         command: Command,
         mode: ModeArg,
-    ) -> Result<(tactus_engine::EngineConfig, Vec<(tactus_dsp::Stem, PathBuf)>)> {
+    ) -> Result<(
+        tactus_engine::EngineConfig,
+        Vec<(tactus_dsp::Stem, PathBuf)>,
+    )> {
         let mut opts = self.options(mode);
         for s in &self.stems {
             let (name, path) = s
@@ -652,8 +655,7 @@ fn run(cli: Cli) -> Result<()> {
             };
             let mut html_bytes = match &html {
                 Some(p) => Some(
-                    html_page(&input, &out)
-                        .with_context(|| format!("--html {}", p.display()))?,
+                    html_page(&input, &out).with_context(|| format!("--html {}", p.display()))?,
                 ),
                 None => None,
             };

@@ -8,8 +8,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 
-use tactus_engine::render::RenderRequest;
 use tactus_batch::Command;
+use tactus_engine::render::RenderRequest;
 use tactus_glove::Pattern;
 use tactus_session::{PlayOptions, PlayReport};
 use tactus_transport::{lead_ms, open_sink, SinkOptions, SinkSpec, WallClock};
@@ -214,7 +214,14 @@ pub fn live(
         }
     );
     for line in r.budget_text(profile.name()).lines() {
-        eprintln!("{}{line}", if line.starts_with(' ') { "" } else { "tactus: " });
+        eprintln!(
+            "{}{line}",
+            if line.starts_with(' ') {
+                ""
+            } else {
+                "tactus: "
+            }
+        );
     }
     if let Some((median, p95, max)) = r.measured_ms {
         eprintln!(

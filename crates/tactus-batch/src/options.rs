@@ -95,7 +95,10 @@ fn pick<T: Copy>(
 ) -> Result<T, BatchError> {
     let names: Vec<&str> = table.iter().map(|(n, _)| *n).collect();
     let name = choice(flag, given, default, &names)?;
-    Ok(table.iter().find(|(n, _)| *n == name).map_or(table[0].1, |(_, v)| *v))
+    Ok(table
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map_or(table[0].1, |(_, v)| *v))
 }
 
 impl RenderOptions {

@@ -73,8 +73,6 @@
 //! logarithms per hop; a few tens of additions for the threshold. No allocation after
 //! [`OnsetDetector::new`].
 
-
-
 use crate::framer::{Framer, WindowedFft};
 use crate::{ConfigError, HopStage};
 

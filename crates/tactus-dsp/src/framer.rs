@@ -49,9 +49,9 @@ impl WindowedFft {
             *d = x * w;
         }
         // Cannot fail: every buffer came from the plan's own make_*_vec.
-        let _ = self
-            .fft
-            .process_with_scratch(&mut self.input, &mut self.spectrum, &mut self.scratch);
+        let _ =
+            self.fft
+                .process_with_scratch(&mut self.input, &mut self.spectrum, &mut self.scratch);
         &self.spectrum
     }
 }

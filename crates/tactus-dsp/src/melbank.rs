@@ -41,8 +41,6 @@
 //! One real FFT of `frame` points and `frame/2 + 1` squared magnitudes per hop, plus about
 //! `2 · frame/2` multiply-adds for the filters. No allocation after [`MelBank::new`].
 
-
-
 use crate::framer::{Framer, WindowedFft};
 use crate::{ConfigError, HopStage};
 

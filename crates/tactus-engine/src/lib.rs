@@ -98,5 +98,3 @@ pub enum EngineError {
     #[error("rendering was stopped")]
     Cancelled,
 }
-
-

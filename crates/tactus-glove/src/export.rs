@@ -34,7 +34,10 @@ pub enum ExportFormat {
 impl ExportFormat {
     /// `.csv` or `.ahap` (any case); `None` for anything else.
     pub fn of(path: &std::path::Path) -> Option<ExportFormat> {
-        crate::atomic::by_extension(path, &[("csv", ExportFormat::Csv), ("ahap", ExportFormat::Ahap)])
+        crate::atomic::by_extension(
+            path,
+            &[("csv", ExportFormat::Csv), ("ahap", ExportFormat::Ahap)],
+        )
     }
 
     /// The export's bytes.

@@ -44,7 +44,10 @@ macro_rules! json_file_readers {
             }
 
             /// Writes the JSON to `path` atomically (`-` = stdout).
-            pub fn write_to_path(&self, path: impl AsRef<std::path::Path>) -> Result<(), GloveError> {
+            pub fn write_to_path(
+                &self,
+                path: impl AsRef<std::path::Path>,
+            ) -> Result<(), GloveError> {
                 let path = path.as_ref();
                 let text = self.to_json_string()?;
                 crate::atomic::write_atomic(path, |w| w.write_all(text.as_bytes()))

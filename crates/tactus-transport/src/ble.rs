@@ -103,10 +103,13 @@ async fn find(
     let found = loop {
         seen.clear();
         let mut hit = None;
-        let peripherals = adapter.peripherals().await.map_err(|source| LinkError::Btle {
-            what: "cannot list devices",
-            source,
-        })?;
+        let peripherals = adapter
+            .peripherals()
+            .await
+            .map_err(|source| LinkError::Btle {
+                what: "cannot list devices",
+                source,
+            })?;
         for p in peripherals {
             if let Some(d) = describe(&p).await {
                 if matches(target, &d) {
@@ -205,7 +208,10 @@ impl Link for BleLink {
     }
 
     fn write(&mut self, _: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), LinkError> {
-        let (p, ch) = self.conn.as_ref().ok_or(LinkError::NotOpen("BLE connection"))?;
+        let (p, ch) = self
+            .conn
+            .as_ref()
+            .ok_or(LinkError::NotOpen("BLE connection"))?;
         self.rt
             .block_on(async {
                 tokio::time::timeout(
@@ -249,16 +255,12 @@ pub(crate) fn scan(timeout: Duration) -> Result<Vec<BleDevice>, TransportError> 
             })?;
         tokio::time::sleep(timeout).await;
         let mut out = Vec::new();
-        for p in adapter
-            .peripherals()
-            .await
-            .map_err(|source| {
-                TransportError::Ble(LinkError::Btle {
-                    what: "cannot list devices",
-                    source,
-                })
-            })?
-        {
+        for p in adapter.peripherals().await.map_err(|source| {
+            TransportError::Ble(LinkError::Btle {
+                what: "cannot list devices",
+                source,
+            })
+        })? {
             if let Some(d) = describe(&p).await {
                 out.push(d);
             }
