@@ -234,6 +234,21 @@ fn escape_html(s: &str) -> String {
 }
 
 /// The feature a cell shows, as the name its mute checkbox uses (a stem or a drum class).
+/// A cell's group (`off` when it shows nothing), its colour and its description (escaped).
+fn cell_look(
+    pattern: &Pattern,
+    finger: Finger,
+    cell: usize,
+) -> (&'static str, &'static str, String) {
+    let source = pattern.map.get(finger, cell);
+    let group = group_of(source).unwrap_or("off");
+    (
+        group,
+        colour(group),
+        escape_html(&describe_cell(source, pattern.levels)),
+    )
+}
+
 fn group_of(source: CellSource) -> Option<&'static str> {
     match source {
         CellSource::Off => None,
@@ -361,14 +376,11 @@ pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: 
             finger.name()
         );
         for cell in 0..CELLS_PER_FINGER {
-            let source = pattern.map.get(finger, cell);
-            let group = group_of(source).unwrap_or("off");
+            let (group, colour, what) = cell_look(pattern, finger, cell);
             let _ = write!(
                 glove,
-                "<div class=\"cell\" data-group=\"{group}\" style=\"--c:{}\" title=\"{} cell {cell}: {}\">",
-                colour(group),
+                "<div class=\"cell\" data-group=\"{group}\" style=\"--c:{colour}\" title=\"{} cell {cell}: {what}\">",
                 finger.name(),
-                escape_html(&describe_cell(source, pattern.levels))
             );
             for row in 0..4 {
                 for col in 0..2 {
@@ -390,14 +402,11 @@ pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: 
     let mut legend = String::new();
     for finger in Finger::ALL {
         for cell in 0..CELLS_PER_FINGER {
-            let source = pattern.map.get(finger, cell);
-            let group = group_of(source).unwrap_or("off");
+            let (_, colour, what) = cell_look(pattern, finger, cell);
             let _ = write!(
                 legend,
-                "<tr><td>{}</td><td>{cell}</td><td><i style=\"background:{}\"></i>{}</td></tr>",
+                "<tr><td>{}</td><td>{cell}</td><td><i style=\"background:{colour}\"></i>{what}</td></tr>",
                 finger.name(),
-                colour(group),
-                escape_html(&describe_cell(source, pattern.levels))
             );
         }
     }
