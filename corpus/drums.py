@@ -47,7 +47,7 @@ import numpy as np
 import soundfile as sf
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from generate import DRUM_BANDS, HOP_S, SR, TPB, f0_track, vibrato_bends, write_midi  # noqa: E402
+from generate import DRUM_BANDS, HOP_S, SR, TPB, f0_track, save_events, vibrato_bends, write_midi  # noqa: E402
 
 SF2_DIR = "/usr/share/sounds/sf2"
 SONICPI_DIR = "/usr/share/sonic-pi/samples"
@@ -470,13 +470,7 @@ def write_drum_midi(path, hits_s, bpm, kit):
         ev.append((tk, 5, mido.Message("note_on", channel=9, note=n, velocity=v)))
         ev.append((max(tk + 1, to_tick(off)), 4, mido.Message("note_off", channel=9, note=n, velocity=0)))
         exact.append((tk * 60.0 / bpm / TPB, n, v))
-    ev.sort(key=lambda x: (x[0], x[1]))
-    last = 0
-    for tk, _o, msg in ev:
-        tr.append(msg.copy(time=tk - last))
-        last = tk
-    tr.append(mido.MetaMessage("end_of_track", time=TPB))
-    mid.save(path)
+    save_events(mid, tr, ev, path)
     return exact
 
 

@@ -369,6 +369,7 @@ fn data_json(pattern: &Pattern, features: &Features, title: &str) -> String {
 pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: &str) -> HtmlPage {
     let kind = audio_kind(audio);
     let mut glove = String::new();
+    let mut legend = String::new();
     for finger in Finger::ALL {
         let _ = write!(
             glove,
@@ -377,10 +378,15 @@ pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: 
         );
         for cell in 0..CELLS_PER_FINGER {
             let (group, colour, what) = cell_look(pattern, finger, cell);
+            let name = finger.name();
             let _ = write!(
                 glove,
-                "<div class=\"cell\" data-group=\"{group}\" style=\"--c:{colour}\" title=\"{} cell {cell}: {what}\">",
-                finger.name(),
+                "<div class=\"cell\" data-group=\"{group}\" style=\"--c:{colour}\" title=\"{name} cell {cell}: {what}\">",
+            );
+            // The legend lists the cells in the same order.
+            let _ = write!(
+                legend,
+                "<tr><td>{name}</td><td>{cell}</td><td><i style=\"background:{colour}\"></i>{what}</td></tr>",
             );
             for row in 0..4 {
                 for col in 0..2 {
@@ -399,17 +405,6 @@ pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: 
         glove.push_str("</div>");
     }
 
-    let mut legend = String::new();
-    for finger in Finger::ALL {
-        for cell in 0..CELLS_PER_FINGER {
-            let (_, colour, what) = cell_look(pattern, finger, cell);
-            let _ = write!(
-                legend,
-                "<tr><td>{}</td><td>{cell}</td><td><i style=\"background:{colour}\"></i>{what}</td></tr>",
-                finger.name(),
-            );
-        }
-    }
     let mut groups: Vec<&str> = Vec::new();
     for source in pattern.map.cells.iter().flatten() {
         if let Some(g) = group_of(*source) {
