@@ -13,7 +13,7 @@
 //! let mut device = LiveDevice::open(None, config).unwrap();
 //! let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
 //! let opts = LiveOptions { seconds: Some(5.0), ..LiveOptions::default() };
-//! let report = device.run(engine, &sink, &opts, &AtomicBool::new(false), &mut |_| {}).unwrap();
+//! let report = device.run(&sink, &opts, &AtomicBool::new(false), &mut |_| {}).unwrap();
 //! println!("{} frames", report.frames);
 //! ```
 
