@@ -113,6 +113,15 @@ pub enum SessionError {
     /// A file could not be read.
     #[error("reading {}", .0.display())]
     Io(std::path::PathBuf, #[source] std::io::Error),
+    /// A thread of the session could not be started.
+    #[error("starting the {what}: {source}")]
+    Spawn {
+        /// Which thread (`audio feeder`, ...).
+        what: &'static str,
+        /// The system's error.
+        #[source]
+        source: std::io::Error,
+    },
     /// The rendering or feeding thread could not run.
     #[error("{0}")]
     Renderer(String),

@@ -250,7 +250,10 @@ pub fn play_song(
                     }
                     feed.finish();
                 })
-                .map_err(|e| SessionError::Renderer(format!("starting the audio feeder: {e}")))?;
+                .map_err(|source| SessionError::Spawn {
+                    what: "audio feeder",
+                    source,
+                })?;
             (Some(playback), Some(tx), Some(h))
         }
         None => (None, None, None),
@@ -396,7 +399,10 @@ pub fn play_pattern(
                         }
                     }
                 })
-                .map_err(|e| SessionError::Renderer(format!("starting the audio feeder: {e}")))?;
+                .map_err(|source| SessionError::Spawn {
+                    what: "audio feeder",
+                    source,
+                })?;
             // The whole pattern is the queue: nothing to render.
             let shared: SharedQueue = Arc::new((
                 Mutex::new(Queue {
