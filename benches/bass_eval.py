@@ -25,7 +25,8 @@ import sys
 
 STEMS = ("drums", "bass", "vocals", "other")
 METRICS = (("bass", "rpa"), ("bass", "level_within_1"), ("bass", "note_f_measure"),
-           ("vocals", "rpa"), ("vocals", "level_within_1"), ("vocals", "note_f_measure"))
+           ("vocals", "rpa"), ("vocals", "level_within_1"), ("vocals", "note_f_measure"),
+           ("vocals", "voicing_recall"), ("vocals", "voicing_false_alarm"))
 
 
 def audio(song, name):
@@ -78,21 +79,28 @@ def main():
     ap.add_argument("--extra", default="", help="extra render options, one string")
     ap.add_argument("--label", default="")
     ap.add_argument("--per-song", action="store_true")
+    ap.add_argument("--jobs", type=int, default=1, help="renders run in parallel")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     extra = shlex.split(a.extra)
     rows = []
     groups = [("tuned", s) for s in a.tuned] + [("held-out", s) for s in a.held_out]
-    for group, song in groups:
-        for inp in a.inputs.split(","):
-            for mode in a.modes.split(","):
-                r = run_one(a.bin, song, inp, mode, extra, a.out, a.eval_bin)
-                r["group"] = group
-                rows.append(r)
+    tasks = [(group, song, inp, mode) for group, song in groups for inp in a.inputs.split(",")
+             for mode in a.modes.split(",")]
+
+    def one(t):
+        group, song, inp, mode = t
+        r = run_one(a.bin, song, inp, mode, extra, a.out, a.eval_bin)
+        r["group"] = group
+        return r
+
+    from concurrent.futures import ThreadPoolExecutor
+    with ThreadPoolExecutor(max(1, a.jobs)) as ex:
+        rows = list(ex.map(one, tasks))
     with open(os.path.join(a.out, "rows.json"), "w") as fh:
         json.dump(rows, fh, indent=1)
     hdr = "| " + " | ".join(["label", "group", "songs", "input", "mode"] +
-                            [f"{s} {m.replace('level_within_1', 'levels ±1').replace('note_f_measure', 'note F').replace('rpa', 'RPA')}"
+                            [f"{s} {m.replace('level_within_1', 'levels ±1').replace('note_f_measure', 'note F').replace('rpa', 'RPA').replace('voicing_recall', 'voicing R').replace('voicing_false_alarm', 'voicing FA')}"
                              for s, m in METRICS]) + " |"
     print(hdr)
     print("|" + "---|" * (5 + len(METRICS)))

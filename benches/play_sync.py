@@ -89,19 +89,24 @@ def decode(song, np):
 
 
 def lags(song, rec, np):
-    """[(song sample, monitor sample - song sample, peak quality)] every STEP_S."""
+    """[(song sample, monitor sample - song sample or None, peak quality)] every STEP_S.
+
+    The lag can only grow (a dropout delays the rest of the song; nothing plays early) and
+    music repeats itself (bars, loops), so each excerpt is looked for from the last lag
+    (less 20 ms) to 3 s after it, and the earliest peak within 3 % of the best one is
+    taken (r > 0.8); when nothing there correlates, the excerpt is left out."""
     w = int(WINDOW_S * RATE)
     step = int(STEP_S * RATE)
+    back = int(0.02 * RATE)
     out = []
     prev = None
+    c2 = np.concatenate(([0.0], np.cumsum(rec * rec)))
     for p in range(0, len(song) - w, step):
         x = song[p:p + w]
         if np.sqrt(np.mean(x * x)) < 1e-3:
             continue  # silence: nothing to align
-        # Near the last lag first (±1 s), then the whole recording (a gap or a repeat).
-        spans = [] if prev is None else [(max(0, p + prev - RATE),
-                                          min(len(rec), p + prev + w + RATE))]
-        spans.append((0, len(rec)))
+        first = 0 if prev is None else max(0, p + prev - back)
+        spans = [(first, len(rec) if prev is None else min(len(rec), p + prev + w + 3 * RATE))]
         for lo, hi in spans:
             y = rec[lo:hi]
             if len(y) < w:
@@ -109,11 +114,11 @@ def lags(song, rec, np):
             n = 1 << int(math.ceil(math.log2(len(y) + w)))
             c = np.fft.irfft(np.fft.rfft(y, n) * np.conj(np.fft.rfft(x, n)), n)[:len(y) - w + 1]
             # Normalised by the recording's energy under the excerpt.
-            c2 = np.concatenate(([0.0], np.cumsum(y * y)))
-            e = np.sqrt(np.maximum(c2[w:] - c2[:-w], 1e-12))
+            e = np.sqrt(np.maximum(c2[lo + w:hi + 1] - c2[lo:hi - w + 1], 1e-12))
             r = c / (e * np.sqrt(np.sum(x * x)))
-            k = int(np.argmax(r))
-            if r[k] > 0.5:
+            best = float(r.max())
+            if best > 0.8:
+                k = int(np.argmax(r >= 0.97 * best))
                 prev = lo + k - p
                 out.append((p, prev, float(r[k])))
                 break
@@ -164,7 +169,8 @@ def run(args, extra, np):
                               env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         err = play.stderr.decode(errors="replace")
         if play.returncode != 0:
-            raise RuntimeError(f"tactus play failed ({play.returncode}): {err}")
+            # Still analysed: where the sound and the frames stopped is the finding.
+            print(f"play_sync: tactus play failed ({play.returncode}): {err}", file=sys.stderr)
         time.sleep(0.5)
         reader.stop = True
         parec.terminate()
@@ -179,16 +185,22 @@ def run(args, extra, np):
                 pass
         subprocess.run(["pulseaudio", "-k"], env=env, stderr=subprocess.DEVNULL)
         shutil.rmtree(d, ignore_errors=True)
-    return analyse(args, np, reader, rec, err)
-
-
-def analyse(args, np, reader, rec, err):
-    song = decode(args.song, np)
     y = np.frombuffer(bytes(rec.data[:len(rec.data) // 2 * 2]), dtype="<i2") / 32768.0
+    if os.environ.get("PLAY_SYNC_DEBUG"):
+        np.save("/tmp/play_sync_rec.npy", y)
+        np.save("/tmp/play_sync_stamps.npy", np.array(rec.stamps))
+        with open("/tmp/play_sync_packets.json", "w") as f:
+            json.dump({"packets": [(t, k, q, m, list(c)) for t, k, q, m, c in reader.packets],
+                       "bad": reader.bad, "err": err, "rc": play.returncode}, f)
+    return analyse(args, np, reader.packets, reader.bad, y, rec.stamps, err, play.returncode)
+
+
+def analyse(args, np, packets, bad, y, stamps, err, play_rc):
+    song = decode(args.song, np)
     # Wall time of monitor sample m: m / RATE + the lower envelope of (arrival - count/RATE)
     # around m (a fragment arrives at the earliest when its last sample was rendered).
-    n = np.array([s for s, _ in rec.stamps], dtype=np.float64)
-    off = np.array([t - s / RATE for s, t in rec.stamps])
+    n = np.array([s for s, _ in stamps], dtype=np.float64)
+    off = np.array([t - s / RATE for s, t in stamps])
     half = ENVELOPE_S * RATE
 
     def wall(m):
@@ -196,12 +208,6 @@ def analyse(args, np, reader, rec, err):
         return m / RATE + off[lo:max(hi, lo + 1)].min()
 
     lag = lags(song, y, np)
-    if os.environ.get("PLAY_SYNC_DEBUG"):
-        np.save("/tmp/play_sync_rec.npy", y)
-        np.save("/tmp/play_sync_stamps.npy", np.array(rec.stamps))
-        with open("/tmp/play_sync_packets.json", "w") as f:
-            json.dump([(t, k, q, m, list(c)) for t, k, q, m, c in reader.packets], f)
-        print("lags", lag, file=sys.stderr)
     good = [(p, l) for p, l, q in lag if l is not None]
     if not good:
         raise RuntimeError("the song was not found in the monitor recording")
@@ -214,7 +220,7 @@ def analyse(args, np, reader, rec, err):
     # First arrival of each frame time (ms since the song's start, unwrapped).
     frames = {}
     base, last = 0, None
-    for t_arr, kind, _seq, tms, _cells in reader.packets:
+    for t_arr, kind, _seq, tms, _cells in packets:
         if kind != 1:
             continue
         if last is not None and tms < last and last - tms > 32768:
@@ -233,6 +239,7 @@ def analyse(args, np, reader, rec, err):
     dev = [v - med for v in steady]
     res = {
         "mode": "pattern" if args.pattern else "song",
+        "play_exit": play_rc,
         "frames": len(leads),
         "frames_scored": len(steady),
         "settle_s": args.settle,
@@ -245,7 +252,7 @@ def analyse(args, np, reader, rec, err):
         "lag_estimates": len(good),
         "lag_misses": len(lag) - len(good),
         "lag_changes": changes,
-        "bad_crc": reader.bad,
+        "bad_crc": bad,
         "tactus_stderr": err.strip().splitlines()[-6:],
     }
     if args.trace:
@@ -268,13 +275,22 @@ def main():
                     help="seconds at the start not scored (PulseAudio's start, the clock's slew)")
     ap.add_argument("--json")
     ap.add_argument("--trace", action="store_true", help="keep every frame's lead in the JSON")
+    ap.add_argument("--from-debug", action="store_true",
+                    help="analyse the last run saved with PLAY_SYNC_DEBUG=1 again")
     args = ap.parse_args(argv)
     try:
         import numpy as np
     except ImportError:
         print("play_sync: numpy is needed", file=sys.stderr)
         sys.exit(3)
-    res = run(args, extra, np)
+    if args.from_debug:
+        with open("/tmp/play_sync_packets.json") as f:
+            d = json.load(f)
+        stamps = [tuple(r) for r in np.load("/tmp/play_sync_stamps.npy")]
+        res = analyse(args, np, d["packets"], d["bad"], np.load("/tmp/play_sync_rec.npy"),
+                      stamps, d["err"], d["rc"])
+    else:
+        res = run(args, extra, np)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(res, f, indent=1)

@@ -257,6 +257,10 @@ enum Cmd {
         /// must match the pattern's SHA-256.
         #[arg(long, value_name = "FILE", conflicts_with = "no_audio")]
         audio: Option<PathBuf>,
+        /// Draw the glove in the terminal as it plays: five fingers, two cells of eight
+        /// dots each, the link and the lead (stdout must be a terminal).
+        #[arg(long)]
+        tui: bool,
         #[command(flatten)]
         engine: EngineArgs,
     },
@@ -272,7 +276,8 @@ enum Cmd {
         /// Stop after this many seconds of captured audio (default: until Ctrl-C).
         #[arg(long, value_parser = seconds_parser(0.001, MAX_SECONDS))]
         seconds: Option<f64>,
-        /// Show a one-line status: time, frames, dropped, overruns, link, input level.
+        /// Draw the glove in the terminal as it plays: five fingers, two cells of eight
+        /// dots each, input level, latency, link and counters (stdout must be a terminal).
         #[arg(long)]
         tui: bool,
         #[command(flatten)]
@@ -393,24 +398,6 @@ fn main() -> ExitCode {
     }
 }
 
-fn check_writable(path: &Path) -> Result<()> {
-    if path == Path::new("-") {
-        return Ok(());
-    }
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        bail!(
-            "{}: the directory {} does not exist",
-            path.display(),
-            dir.display()
-        );
-    }
-    Ok(())
-}
-
 /// The `--html` page, with a note of its size and a warning when browsers may not play
 /// the song.
 fn html_page(input: &Path, out: &tactus_engine::render::RenderOutput) -> Result<Vec<u8>> {
@@ -443,6 +430,7 @@ fn run(cli: Cli) -> Result<()> {
             offset_ms,
             no_audio,
             audio,
+            tui,
             engine,
         } => play::run(
             &input,
@@ -450,6 +438,7 @@ fn run(cli: Cli) -> Result<()> {
             offset_ms,
             no_audio,
             audio.as_deref(),
+            tui,
             &engine,
         ),
         Cmd::Live {
@@ -497,7 +486,7 @@ fn run(cli: Cli) -> Result<()> {
             json,
         } => {
             if let Some(p) = &json {
-                check_writable(p)?;
+                tactus_glove::atomic::check_location("--json", p)?;
             }
             let (text, j) = match (glove_log, pattern, truth, features) {
                 (Some(log), Some(pattern), None, f) => {

@@ -11,6 +11,7 @@ use anyhow::{bail, Context, Result};
 use tactus_batch::Command;
 use tactus_engine::render::RenderRequest;
 use tactus_glove::Pattern;
+use tactus_session::view::{with_view, ViewExtra};
 use tactus_session::{PlayOptions, PlayReport};
 use tactus_transport::{lead_ms, open_sink, SinkOptions, SinkSpec, WallClock};
 
@@ -26,10 +27,12 @@ pub fn run(
     offset_ms: i64,
     no_audio: bool,
     audio: Option<&Path>,
+    tui: bool,
     engine: &EngineArgs,
 ) -> Result<()> {
     let spec: SinkSpec = glove.parse().with_context(|| format!("--glove {glove}"))?;
     let stop = stop_flag();
+    let mut view = tui_out(tui);
     let is_pattern = input
         .extension()
         .and_then(|e| e.to_str())
@@ -62,32 +65,52 @@ pub fn run(
             None
         };
         let sink = open_sink(&spec, &SinkOptions::default())?;
-        let tty = std::io::stderr().is_terminal();
-        let (report, frames_report) = tactus_session::play_pattern(
-            &pattern.frames,
-            pattern.bin_ms,
-            song.as_deref(),
-            &sink,
-            &WallClock::new(),
-            &opts,
-            &stop,
-            &mut |s| {
-                if tty {
-                    eprint!(
-                        "\r{:>7.1} s  frame {}/{}  late {:+.1} ms  link {}   ",
-                        s.clock_ms / 1000.0,
-                        s.frame_index + 1,
-                        s.frames,
-                        s.late_ms,
-                        if s.link_up { "up" } else { "DOWN" }
-                    );
-                }
-            },
-        )?;
+        let tty = std::io::stderr().is_terminal() && !tui;
+        let lead = lead(opts.lead_ms);
+        let drawing = view.is_some();
+        let (played, stats) = with_view(sink, "play", as_view(&mut view), |sink, feed| {
+            feed.set(ViewExtra {
+                latency: Some(lead.clone()),
+                ..ViewExtra::default()
+            });
+            tactus_session::play_pattern(
+                &pattern.frames,
+                pattern.bin_ms,
+                song.as_deref(),
+                sink,
+                &WallClock::new(),
+                &opts,
+                &stop,
+                &mut |s| {
+                    if drawing {
+                        feed.set(ViewExtra {
+                            latency: Some(lead.clone()),
+                            counters: format!(
+                                "frame {}/{}  late {:+.1} ms",
+                                s.frame_index + 1,
+                                s.frames,
+                                s.late_ms
+                            ),
+                            ..ViewExtra::default()
+                        });
+                    }
+                    if tty {
+                        eprint!(
+                            "\r{:>7.1} s  frame {}/{}  late {:+.1} ms  link {}   ",
+                            s.clock_ms / 1000.0,
+                            s.frame_index + 1,
+                            s.frames,
+                            s.late_ms,
+                            if s.link_up { "up" } else { "DOWN" }
+                        );
+                    }
+                },
+            )
+        });
+        let (report, frames_report) = played?;
         if tty && frames_report.is_some() {
             eprintln!();
         }
-        let stats = sink.close();
         match frames_report {
             Some(r) => eprintln!(
                 "tactus: played {} frames to {}: jitter p95 {:.2} ms, max {:.2} ms; sent {}, dropped {} ({DROPPED}), reconnects {}{}",
@@ -114,10 +137,38 @@ pub fn run(
         config,
     };
     let sink = open_sink(&spec, &SinkOptions::default())?;
-    let report = tactus_session::play_song(req, &sink, &WallClock::new(), &opts, &stop);
-    let stats = sink.close();
+    let (report, stats) = with_view(sink, "play", as_view(&mut view), |sink, feed| {
+        feed.set(ViewExtra {
+            latency: Some(lead(opts.lead_ms)),
+            ..ViewExtra::default()
+        });
+        tactus_session::play_song(req, sink, &WallClock::new(), &opts, &stop)
+    });
     print_play(&report?, &spec, &stats);
     Ok(())
+}
+
+/// `--tui` (issue 13): the terminal to draw the glove view on, stdout when it is a terminal;
+/// otherwise one line saying so, and the session runs without the view.
+fn tui_out(tui: bool) -> Option<std::io::Stdout> {
+    if !tui {
+        return None;
+    }
+    if std::io::stdout().is_terminal() {
+        Some(std::io::stdout())
+    } else {
+        eprintln!("tactus: --tui: stdout is not a terminal, so the glove view is not drawn");
+        None
+    }
+}
+
+fn as_view(out: &mut Option<std::io::Stdout>) -> Option<&mut (dyn std::io::Write + Send)> {
+    out.as_mut().map(|o| o as &mut (dyn std::io::Write + Send))
+}
+
+/// The latency `play`'s view shows: the frames' lead.
+fn lead(lead_ms: i64) -> (f64, String) {
+    (lead_ms as f64, "frames sent early".to_string())
 }
 
 /// The lines `play` prints after a song or an audio-clocked pattern.
@@ -130,18 +181,7 @@ fn print_play(r: &PlayReport, spec: &SinkSpec, stats: &tactus_transport::SinkSta
         r.sent, r.skipped, stats.sent, stats.dropped, stats.reconnects
     );
     if let Some(s) = &r.sound {
-        eprintln!(
-            "tactus: audio on {} at {} Hz: song {:.3} s, audio clock {:.3} s after {:.3} s of wall time (drift {:+.1} ms), output latency {:.1} ms, underruns {}{}",
-            s.device,
-            s.rate,
-            s.song_s,
-            s.clock_s,
-            s.wall_s,
-            (s.clock_s - s.wall_s) * 1e3,
-            s.latency_ms,
-            s.underruns,
-            if s.feed_failed { ", decoding failed part-way" } else { "" }
-        );
+        eprintln!("tactus: {s}");
     }
 }
 
@@ -178,27 +218,32 @@ pub fn live(
     let opts = LiveOptions {
         seconds,
         lead_ms: lead_ms(&spec, 0),
+        // Issue 13: fallen behind by more than this, drop audio to catch up.
+        max_backlog: Some(tactus_session::MAX_BACKLOG),
         ..LiveOptions::default()
     };
-    let result = dev.run(&sink, &opts, &stop, &mut |s| {
-        if tui {
-            let st = sink.stats();
-            let db = 20.0 * f64::from(s.peak.max(1e-6)).log10();
-            let bar = "#".repeat((((db + 60.0) / 3.0).clamp(0.0, 20.0)) as usize);
-            eprint!(
-                "\r{:>7.1} s  frames {}  dropped {}  overruns {}  link {}  level {db:>6.1} dBFS {bar:<20}",
-                s.captured_s,
-                s.frames,
-                st.dropped,
-                s.overruns,
-                if st.link_up { "up" } else { "DOWN" },
-            );
-        }
+    let mut view = tui_out(tui);
+    let drawing = view.is_some();
+    let (result, stats) = with_view(sink, "live", as_view(&mut view), |sink, feed| {
+        dev.run(sink, &opts, &stop, &mut |s| {
+            if !drawing {
+                return;
+            }
+            feed.set(ViewExtra {
+                level_dbfs: Some(20.0 * s.peak.max(1e-6).log10()),
+                latency: s.latency_ms.map(|l| (l, "bin end -> sent".to_string())),
+                counters: format!(
+                    "frames {}  dropped {}  overruns {}  xruns {}  backlog {:.0} ms  caught up {:.1} s",
+                    s.frames,
+                    sink.stats().dropped,
+                    s.overruns,
+                    s.xruns,
+                    s.backlog_ms,
+                    s.caught_up_s
+                ),
+            });
+        })
     });
-    if tui {
-        eprintln!();
-    }
-    let stats = sink.close();
     let r = result?;
     // Issue 13: the capture device's own buffering on its own line, then one budget per
     // finger group (stages in samples at the engine rate and in ms).
@@ -223,10 +268,8 @@ pub fn live(
             }
         );
     }
-    if let Some((median, p95, max)) = r.measured_ms {
-        eprintln!(
-            "tactus: measured bin end (captured) -> frame sent: median {median:.1} ms, p95 {p95:.1} ms, max {max:.1} ms"
-        );
+    for line in r.timing_text(rate).lines() {
+        eprintln!("tactus: {line}");
     }
     eprintln!(
         "tactus: captured {:.3} s ({} callbacks, overruns {} samples; capture clock {:+.1} ms vs wall since the first callback), {} frames to {spec}; sink sent {}, dropped {} ({DROPPED}), reconnects {}",
@@ -285,21 +328,7 @@ pub fn emulate(
     if tty {
         eprintln!();
     }
-    eprintln!(
-        "tactus: emulated glove: {} packets ({} pin frames, {} all-down, {} keep-alive), \
-         {} CRC errors, {} malformed, {} sequence gaps, {} garbage bytes, {} pin changes; \
-         final frame {}",
-        r.packets,
-        r.frames.len(),
-        r.all_downs,
-        r.keep_alives,
-        r.crc_errors,
-        r.malformed,
-        r.sequence_gaps,
-        r.garbage_bytes,
-        r.actuations,
-        r.final_frame.to_hex()
-    );
+    eprintln!("tactus: emulated glove: {r}");
     let report = r.to_json(json_frames);
     println!("{report}");
     Ok(())

@@ -365,6 +365,42 @@ fn play_pattern_plays_its_song_on_the_audio_clock() {
     );
 }
 
+/// Frames due after the song's last sample still go out, and play ends cleanly: with
+/// `--offset-ms -300` the last 250 ms of frames are due after the sound has ended, when
+/// the device has no position left to follow (the play clock then runs on the wall clock;
+/// a clock that waited for the device stopped there and play failed after 10 s).
+#[test]
+fn frames_due_after_the_song_s_end_still_go_out() {
+    let Some(pulse) = Pulse::start("frames_due_after_the_song_s_end_still_go_out") else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let (_song, pattern, expected) = song_and_pattern(d.path());
+    let log = d.path().join("play.jsonl");
+    let out = pulse
+        .cmd(bin())
+        .arg("play")
+        .arg(&pattern)
+        .args(["--offset-ms", "-300", "--glove"])
+        .arg(format!("file:{}", log.display()))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "tactus play PATTERN failed: {err}");
+    assert!(
+        !err.contains("warning"),
+        "fell back to the wall clock: {err}"
+    );
+    let got: Vec<String> = pins(&log).into_iter().map(|x| x.2).collect();
+    let tail = &expected[12..];
+    assert!(
+        got.len() >= tail.len() && got[got.len() - tail.len()..] == *tail,
+        "frames sent differ from the pattern: got {}, want {}",
+        got.len(),
+        expected.len()
+    );
+}
+
 #[test]
 fn play_pattern_refuses_a_wrong_or_missing_song_and_engine_options() {
     let d = tempfile::tempdir().unwrap();

@@ -63,6 +63,13 @@ fn clock_step(last: f64, dt: f64, raw: f64) -> f64 {
     ms.max(last)
 }
 
+/// How long cpal's ALSA worker waits for the device before it checks the device's state
+/// itself. PulseAudio's ALSA plugin sometimes wakes nobody after an underrun: with cpal's
+/// usual 10 s the sound (and the play clock with it) then stopped for 9-10 s, several
+/// times in a 3.5-minute song on a loaded machine (`benches/play_sync.py`); a timeout
+/// with the device still running just polls again.
+const POLL_TIMEOUT: Duration = Duration::from_millis(100);
+
 /// Marks "not yet" in the time atomics.
 const NONE: u64 = u64::MAX;
 
@@ -271,6 +278,7 @@ where
 {
     let channels = usize::from(config.channels.max(1));
     let on_error = writer.error_flag();
+    let on_xrun = writer.xrun_counter();
     device.build_input_stream::<T, _, _>(
         config,
         move |data: &[T], info: &cpal::InputCallbackInfo| {
@@ -278,8 +286,16 @@ where
             let delay = ts.callback.saturating_duration_since(ts.capture);
             writer.write(data, channels, |x: T| x.to_sample::<f32>(), delay)
         },
-        move |_e| on_error(),
-        Some(Duration::from_secs(10)),
+        // Issue 13: an xrun (the device's buffer overflowed while nobody read it) is
+        // counted, not an error: cpal recovers the stream and capture goes on.
+        move |e: cpal::Error| {
+            if e.kind() == cpal::ErrorKind::Xrun {
+                on_xrun()
+            } else {
+                on_error()
+            }
+        },
+        Some(POLL_TIMEOUT),
     )
 }
 
@@ -514,7 +530,7 @@ where
             output_callback(&mut ring, &shared, channels, data, info)
         },
         |_e| {},
-        Some(Duration::from_secs(10)),
+        Some(POLL_TIMEOUT),
     )
 }
 
@@ -774,11 +790,28 @@ impl Playback {
         // device does not report, so the first positions run ahead of the sound by up to a
         // second; slewing back at 5 % took 15-20 s, with every frame that early. Waiting
         // only delays frames (each carries the whole glove state), it never bunches them.
+        //
+        // The first reading is capped by the wall time since the first callback: the song
+        // cannot be further along than that after its `pad` of silence, whatever the first
+        // burst's positions say (they sent the first frames 0.9 s early). After the song's
+        // last sample was written there is no position to follow: the clock runs on at the
+        // wall clock's rate (otherwise it would stop at the end and frames due just after
+        // it would never go).
+        let ended = self.shared.fed_all.load(Ordering::Acquire)
+            && s.start + s.len >= self.shared.total.load(Ordering::Relaxed);
         let ms = match self.last_wall_ns.get() {
-            None => raw,
+            None => {
+                let first = self.shared.first_cb_ns.load(Ordering::Relaxed);
+                let since_first = now_ns.saturating_sub(first) as f64 / 1e6;
+                raw.min(since_first - pad * 1e3 / rate)
+            }
             Some(prev_ns) => {
                 let dt = now_ns.saturating_sub(prev_ns) as f64 / 1e6;
-                clock_step(self.last_ms.get(), dt, raw)
+                if ended {
+                    self.last_ms.get() + dt
+                } else {
+                    clock_step(self.last_ms.get(), dt, raw)
+                }
             }
         };
         let ms = ms.max(self.last_ms.get());

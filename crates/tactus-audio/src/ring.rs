@@ -39,6 +39,8 @@ struct Shared {
     /// (non-negative floats order like their bits, so `fetch_max` works).
     peak_bits: AtomicU32,
     error: AtomicBool,
+    /// Device-side overruns (xruns) the device reported (issue 13).
+    xruns: AtomicU64,
 }
 
 /// The audio-thread side of a capture ring.
@@ -68,6 +70,7 @@ pub fn capture_ring(frames: usize) -> (CaptureWriter, CaptureReader) {
         overruns: AtomicU64::new(0),
         peak_bits: AtomicU32::new(0),
         error: AtomicBool::new(false),
+        xruns: AtomicU64::new(0),
     });
     (
         CaptureWriter {
@@ -152,6 +155,17 @@ impl CaptureWriter {
         let s = self.shared.clone();
         move || s.error.store(true, Ordering::Relaxed)
     }
+
+    /// A handle that counts a device-side overrun (an xrun: the device's own buffer filled
+    /// before the callback could take it, so audio was lost before the ring) from another
+    /// callback (cpal's error callback, `ErrorKind::Xrun`). An xrun is not an error: the
+    /// device recovers and capture goes on.
+    pub fn xrun_counter(&self) -> impl Fn() + Send + 'static {
+        let s = self.shared.clone();
+        move || {
+            s.xruns.fetch_add(1, Ordering::Relaxed);
+        }
+    }
 }
 
 impl CaptureReader {
@@ -218,6 +232,11 @@ impl CaptureReader {
         self.shared.frames.load(Ordering::Relaxed)
     }
 
+    /// Device-side overruns (xruns) reported so far.
+    pub fn xruns(&self) -> u64 {
+        self.shared.xruns.load(Ordering::Relaxed)
+    }
+
     /// Whether the device reported a stream error.
     pub fn had_error(&self) -> bool {
         self.shared.error.load(Ordering::Relaxed)
@@ -226,5 +245,25 @@ impl CaptureReader {
     /// Peak |sample| since the last call.
     pub fn take_peak(&self) -> f32 {
         f32::from_bits(self.shared.peak_bits.swap(0, Ordering::Relaxed))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn xruns_are_counted_apart_from_errors_and_overruns() {
+        let (mut w, r) = capture_ring(16);
+        let xrun = w.xrun_counter();
+        xrun();
+        xrun();
+        assert_eq!(r.xruns(), 2);
+        assert!(!r.had_error(), "an xrun is not an error");
+        w.write(&[0.5f32; 64], 2, |x| x, Duration::ZERO);
+        assert_eq!(r.overruns(), 32 - 16, "16 of 32 frames fit");
+        assert_eq!(r.xruns(), 2);
+        (w.error_flag())();
+        assert!(r.had_error());
     }
 }

@@ -37,6 +37,23 @@
 //! 6. **Output.** A voiced hop reports the candidate's f0 refined by a parabola through the
 //!    salience of the decided candidate and its neighbours (the grid is 1/`bins_per_semitone`
 //!    of a semitone).
+//! 7. **Contour voicing** (`contour_gate_db` > 0; after Salamon & Gómez, "Melody extraction
+//!    from polyphonic music signals using pitch contour characteristics", IEEE TASLP 20(6),
+//!    2012, where contours whose mean salience falls well below the track's are dropped).
+//!    A *contour* is a run of decoded voiced, non-silent hops whose bins move by at most
+//!    `contour_jump_bins` from hop to hop. Its level at hop `h` is
+//!    `L_h = 20·log10(S_h(c_h) · peak_h)`, the harmonic sum of the decoded candidate in the
+//!    input's units (`peak_h` undoes the frame's normalisation). When hop `h` is decided
+//!    (at hop `t = h + lag_hops`), its contour's mean level is taken over the contour's
+//!    emitted hops up to `h` and, along the provisional path backtracked from the best
+//!    state at `t`, its hops after `h` up to `t` (so no latency is added; offline, where
+//!    the whole track is decoded at the end, this is the whole contour). The reference is
+//!    the running mean of `L` over the emitted voiced hops, `R ← R + w·(L_h − R)` with
+//!    `w = max(1/n, hop / contour_ref_s)` (the plain mean for the first `contour_ref_s`
+//!    seconds). The hop is reported unvoiced when the contour mean is below
+//!    `R − contour_gate_db`. Off by default; the engine turns it on (6 dB) for the lead on a
+//!    band of the mix, where the chords left in the vocals band keep a pitch through the
+//!    lead's rests.
 //!
 //! ## Defaults ([`ShsConfig::new`])
 //! Range 35–400 Hz (the bass stem of docs/design.md); hop 10 ms; frame = the power of two nearest
@@ -63,6 +80,7 @@
 //! ## Latency
 //! `frame − frame / 2` (the framer) + `lag_hops × hop` samples, stated by
 //! [`HopStage::latency_samples`] and checked against a step in the tests.
+//! The contour voicing adds nothing: it looks ahead only along the Viterbi's own lag.
 //!
 //! No allocation after [`Shs::new`]: FFT plan, scratch, the harmonic-bin table, the Viterbi
 //! scores and a ring of `lag_hops + 1` hops of backpointers and salience are allocated up
@@ -128,6 +146,14 @@ pub struct ShsConfig {
     pub switch_prob: f32,
     /// Fixed Viterbi lag in hops.
     pub lag_hops: usize,
+    /// Contour voicing: a decoded voiced hop is reported unvoiced when the mean level of
+    /// its contour (dB of the harmonic sum, see the module docs) lies more than this many dB
+    /// below the running mean over the track's voiced hops. 0 turns it off.
+    pub contour_gate_db: f32,
+    /// Largest jump between consecutive hops of one contour, in bins.
+    pub contour_jump_bins: usize,
+    /// Time constant of the running reference level, seconds.
+    pub contour_ref_s: f32,
 }
 
 /// The power of two nearest `target` samples (rounding down when the next one up is more
@@ -166,6 +192,9 @@ impl ShsConfig {
             max_jump_bins: 36,
             switch_prob: 0.02,
             lag_hops: 10,
+            contour_gate_db: 0.0,
+            contour_jump_bins: 6,
+            contour_ref_s: 10.0,
         }
     }
 
@@ -271,6 +300,18 @@ impl ShsConfig {
                 "must be below the number of candidates",
             ));
         }
+        if !(self.contour_gate_db.is_finite() && self.contour_gate_db >= 0.0) {
+            return Err(ConfigError::invalid(
+                "contour_gate_db",
+                "must be finite and ≥ 0",
+            ));
+        }
+        if !(self.contour_ref_s.is_finite() && self.contour_ref_s > 0.0) {
+            return Err(ConfigError::invalid(
+                "contour_ref_s",
+                "must be finite and > 0",
+            ));
+        }
         if self.lag_hops > 1 << 20 {
             return Err(ConfigError::invalid("lag_hops", "too large"));
         }
@@ -303,6 +344,8 @@ struct Salience {
     ln_r0: f32,
     compress: f32,
     fund_ratio: f32,
+    /// Peak of the last frame before normalisation (its level).
+    last_peak: f32,
 }
 
 impl std::fmt::Debug for Salience {
@@ -370,6 +413,7 @@ impl Salience {
             ln_r0: cfg.voicing_ratio.ln(),
             compress: cfg.compress,
             fund_ratio: cfg.fundamental_ratio,
+            last_peak: 0.0,
         }
     }
 
@@ -387,6 +431,7 @@ impl Salience {
         if peak.is_nan() || peak <= 1e-9 {
             return false;
         }
+        self.last_peak = peak;
         for b in &mut self.buf[..n] {
             *b /= peak;
         }
@@ -475,6 +520,34 @@ struct Tracker {
     path: Vec<u16>,
     hops_seen: usize,
     next_emit: usize,
+    /// Frame peak per hop (ring), so that the contour level is in the input's units.
+    peak_ring: Vec<f32>,
+    contour: ContourGate,
+}
+
+/// The contour voicing state (see the module docs, "Contour voicing").
+#[derive(Debug, Clone)]
+struct ContourGate {
+    gate_db: f64,
+    jump: usize,
+    /// Weight floor of the running mean: `hop / contour_ref_s`.
+    alpha: f64,
+    /// Last emitted decoded state (a bin, or `None` after an unvoiced or silent hop).
+    prev: Option<usize>,
+    sum: f64,
+    n: usize,
+    reference: f64,
+    ref_n: usize,
+}
+
+impl ContourGate {
+    fn reset(&mut self) {
+        self.prev = None;
+        self.sum = 0.0;
+        self.n = 0;
+        self.reference = 0.0;
+        self.ref_n = 0;
+    }
 }
 
 impl Tracker {
@@ -510,12 +583,77 @@ impl Tracker {
             path: vec![0; ring],
             hops_seen: 0,
             next_emit: 0,
+            peak_ring: vec![0.0; ring],
+            contour: ContourGate {
+                gate_db: cfg.contour_gate_db as f64,
+                jump: cfg.contour_jump_bins,
+                alpha: (cfg.hop as f64 / cfg.sample_rate as f64 / cfg.contour_ref_s as f64)
+                    .min(1.0),
+                prev: None,
+                sum: 0.0,
+                n: 0,
+                reference: 0.0,
+                ref_n: 0,
+            },
         })
     }
 
     fn reset(&mut self) {
         self.hops_seen = 0;
         self.next_emit = 0;
+        self.contour.reset();
+    }
+
+    /// Level in dB of the harmonic sum of `state` at `hop` (in the input's units).
+    fn level_db(&self, hop: usize, state: usize) -> f64 {
+        let slot = hop % self.ring;
+        let a = f64::from(self.sal_ring[slot * self.m + state]) * f64::from(self.peak_ring[slot]);
+        if a > 1e-12 {
+            20.0 * a.log10()
+        } else {
+            -240.0
+        }
+    }
+
+    /// Contour voicing of the decoded `state` at `hop`, given the decoded states of the hops
+    /// after it (`ahead`, oldest first). Updates the contour and the running reference;
+    /// returns false when the hop is to be reported unvoiced.
+    fn contour_voiced(&mut self, hop: usize, state: usize, ahead: &[u16]) -> bool {
+        let slot = hop % self.ring;
+        if self.silent[slot] || state >= self.m {
+            self.contour.prev = None;
+            return true;
+        }
+        let x = self.level_db(hop, state);
+        let g = &mut self.contour;
+        let same = g.prev.is_some_and(|p| p.abs_diff(state) <= g.jump);
+        if !same {
+            g.sum = 0.0;
+            g.n = 0;
+        }
+        g.sum += x;
+        g.n += 1;
+        g.prev = Some(state);
+        g.ref_n += 1;
+        let w = (1.0 / g.ref_n as f64).max(g.alpha);
+        g.reference += w * (x - g.reference);
+        if g.gate_db <= 0.0 {
+            return true;
+        }
+        let (jump, reference, gate_db) = (g.jump, g.reference, g.gate_db);
+        let (mut sum, mut n) = (g.sum, g.n);
+        let mut last = state;
+        for (k, &s) in ahead.iter().enumerate() {
+            let s = s as usize;
+            let h = hop + 1 + k;
+            if s >= self.m || self.silent[h % self.ring] || s.abs_diff(last) > jump {
+                break;
+            }
+            sum += self.level_db(h, s);
+            n += 1;
+            last = s;
+        }
+        sum / n as f64 >= reference - gate_db
     }
 
     /// Observation log-probabilities of the current salience `s` with evidence `v` into `obs`;
@@ -550,6 +688,7 @@ impl Tracker {
         };
         let l_unvoiced = self.observe(v);
         self.sal_ring[slot * m..(slot + 1) * m].copy_from_slice(&self.s);
+        self.peak_ring[slot] = if silent { 0.0 } else { self.sal.last_peak };
         self.silent[slot] = silent;
         self.voicing[slot] = v;
         if t == 0 {
@@ -560,12 +699,20 @@ impl Tracker {
         }
         self.hops_seen = t + 1;
         if t >= self.lag {
-            let mut s = self.best_state();
-            for h in (t - self.lag + 1..=t).rev() {
-                s = self.bp[(h % self.ring) * (m + 1) + s] as usize;
-            }
+            // The provisional path from the best current state back to the hop decided now:
+            // `path[k]` is the state at hop `t − lag + k`.
             let h = t - self.lag;
-            emit(h, self.output(h, s));
+            let mut s = self.best_state();
+            for hh in (h + 1..=t).rev() {
+                self.path[hh - h] = s as u16;
+                s = self.bp[(hh % self.ring) * (m + 1) + s] as usize;
+            }
+            self.path[0] = s as u16;
+            let path = std::mem::take(&mut self.path);
+            let voiced = self.contour_voiced(h, s, &path[1..]);
+            self.path = path;
+            let out = self.output(h, if voiced { s } else { m });
+            emit(h, out);
             self.next_emit = h + 1;
         }
     }
@@ -645,9 +792,13 @@ impl Tracker {
             (start, end),
             last,
         );
+        let path = std::mem::take(&mut self.path);
         for h in start..end {
-            emit(h, self.output(h, self.path[h - start] as usize));
+            let s = path[h - start] as usize;
+            let voiced = self.contour_voiced(h, s, &path[h - start + 1..end - start]);
+            emit(h, self.output(h, if voiced { s } else { self.m }));
         }
+        self.path = path;
         self.next_emit = end;
     }
 

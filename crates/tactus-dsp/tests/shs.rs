@@ -258,30 +258,56 @@ fn salience_against_oracle(fundamental_ratio: f32) {
     assert_eq!(s.frame_salience(&vec![0.25; c.frame]).1, 0.02);
 }
 
-/// Naive whole-track Viterbi in f64 over M voiced states + 1 unvoiced, from the oracle's
-/// salience of every frame the framer cuts; returns the decoded state per hop.
-#[allow(clippy::needless_range_loop)] // the oracle reads like the textbook
-fn naive_viterbi(c: &ShsConfig, x: &[f32]) -> Vec<usize> {
-    let m = c.n_bins().unwrap();
+/// Per-hop oracle observations: salience of the normalised frame (f64), voicing evidence,
+/// and the frame's peak after removing its mean (its level; 0 for a silent frame).
+struct NaiveHop {
+    sal: Vec<f64>,
+    v: f64,
+    peak: f64,
+}
+
+/// Every frame the framer cuts from `x`, through the oracle salience.
+fn naive_hops(c: &ShsConfig, x: &[f32]) -> Vec<NaiveHop> {
     let mut framer = Framer::new(c.frame, c.hop).unwrap();
-    let mut obs: Vec<(Vec<f64>, f64)> = Vec::new();
+    let mut hops = Vec::new();
     let mut add = |_: usize, fr: &[f32]| {
-        let (s, v) = naive_salience(c, fr);
-        let peak = s.iter().cloned().fold(0.0, f64::max);
-        let o = s
+        let (sal, v) = naive_salience(c, fr);
+        let mean = fr.iter().map(|&x| x as f64).sum::<f64>() / fr.len() as f64;
+        let peak = fr
             .iter()
-            .map(|&x| {
-                if peak > 0.0 {
-                    (v * (x / peak).powf(c.sharpness as f64)).max(1e-30).ln()
-                } else {
-                    (1e-30f64).ln()
-                }
-            })
-            .collect();
-        obs.push((o, (1.0 - v).max(1e-30).ln()));
+            .map(|&x| (x as f64 - mean).abs())
+            .fold(0.0, f64::max);
+        hops.push(NaiveHop { sal, v, peak });
     };
     framer.push(x, &mut add);
     framer.finish(&mut add);
+    hops
+}
+
+/// Naive Viterbi in f64 over M voiced states + 1 unvoiced: the forward pass over all hops.
+/// Returns the scores after each hop and the backpointers into each hop (`bps[t]` leads
+/// from hop `t + 1` back to hop `t`).
+#[allow(clippy::needless_range_loop)] // the oracle reads like the textbook
+fn naive_forward(c: &ShsConfig, hops: &[NaiveHop]) -> (Vec<Vec<f64>>, Vec<Vec<usize>>) {
+    let m = c.n_bins().unwrap();
+    let obs: Vec<(Vec<f64>, f64)> = hops
+        .iter()
+        .map(|h| {
+            let peak = h.sal.iter().cloned().fold(0.0, f64::max);
+            let o = h
+                .sal
+                .iter()
+                .map(|&x| {
+                    if peak > 0.0 {
+                        (h.v * (x / peak).powf(c.sharpness as f64)).max(1e-30).ln()
+                    } else {
+                        (1e-30f64).ln()
+                    }
+                })
+                .collect();
+            (o, (1.0 - h.v).max(1e-30).ln())
+        })
+        .collect();
     let j = c.max_jump_bins;
     let sw = c.switch_prob as f64;
     let jump = |d: usize| {
@@ -291,8 +317,8 @@ fn naive_viterbi(c: &ShsConfig, x: &[f32]) -> Vec<usize> {
             ((j + 1 - d) as f64 / (j + 1) as f64).ln()
         }
     };
-    let t_n = obs.len();
     let mut delta: Vec<f64> = obs[0].0.iter().cloned().chain([obs[0].1]).collect();
+    let mut deltas = vec![delta.clone()];
     let mut bps: Vec<Vec<usize>> = Vec::new();
     for (o, ou) in obs.iter().skip(1) {
         let mut next = vec![0.0; m + 1];
@@ -321,17 +347,32 @@ fn naive_viterbi(c: &ShsConfig, x: &[f32]) -> Vec<usize> {
         next[m] = best + ou;
         bp[m] = arg;
         delta = next;
+        deltas.push(delta.clone());
         bps.push(bp);
     }
-    let mut s = (0..=m).fold(0, |b, k| if delta[k] > delta[b] { k } else { b });
-    let mut path = vec![0; t_n];
-    for t in (0..t_n).rev() {
-        path[t] = s;
-        if t > 0 {
-            s = bps[t - 1][s];
+    (deltas, bps)
+}
+
+/// The best path over hops `0..=t` (the decoding as known at hop `t`): backtracked from
+/// the best score after hop `t`.
+fn naive_path_at(deltas: &[Vec<f64>], bps: &[Vec<usize>], t: usize) -> Vec<usize> {
+    let d = &deltas[t];
+    let mut s = (0..d.len()).fold(0, |b, k| if d[k] > d[b] { k } else { b });
+    let mut path = vec![0; t + 1];
+    for h in (0..=t).rev() {
+        path[h] = s;
+        if h > 0 {
+            s = bps[h - 1][s];
         }
     }
     path
+}
+
+/// Naive whole-track Viterbi: the decoded state per hop.
+fn naive_viterbi(c: &ShsConfig, x: &[f32]) -> Vec<usize> {
+    let hops = naive_hops(c, x);
+    let (deltas, bps) = naive_forward(c, &hops);
+    naive_path_at(&deltas, &bps, hops.len() - 1)
 }
 
 #[test]
@@ -409,7 +450,14 @@ fn tracks_a_bass_line_under_chord_tones() {
 
 #[test]
 fn stated_latency_matches_emission_and_a_step() {
-    let c = cfg();
+    let mut gated = cfg();
+    gated.contour_gate_db = 6.0;
+    for c in [cfg(), gated] {
+        latency_against_emission_and_a_step(c);
+    }
+}
+
+fn latency_against_emission_and_a_step(c: ShsConfig) {
     let (x, _) = bass_line(&[55.0, 110.0], 0.6, 1);
     let mut s = Shs::new(c.clone()).unwrap();
     let (hop, lat) = (s.hop(), s.latency_samples());
@@ -477,6 +525,9 @@ fn invalid_configs_are_rejected() {
         Box::new(|c| c.sharpness = f32::NAN),
         Box::new(|c| c.fundamental_ratio = 1.5),
         Box::new(|c| c.fundamental_ratio = f32::NAN),
+        Box::new(|c| c.contour_gate_db = -1.0),
+        Box::new(|c| c.contour_gate_db = f32::INFINITY),
+        Box::new(|c| c.contour_ref_s = 0.0),
     ];
     for (k, f) in bad.iter().enumerate() {
         let mut c = cfg();
@@ -488,7 +539,9 @@ fn invalid_configs_are_rejected() {
 #[test]
 fn no_allocation_after_construction() {
     let (x, _) = bass_line(&[55.0, 82.4], 0.5, 3);
-    let mut s = Shs::new(cfg()).unwrap();
+    let mut c = cfg();
+    c.contour_gate_db = 6.0;
+    let mut s = Shs::new(c).unwrap();
     let mut sink = 0usize;
     let n = count_allocs(|| {
         for ch in x.chunks(333) {
@@ -554,4 +607,207 @@ fn melody_defaults_track_a_lead_over_chords() {
     eprintln!("lead RPA: melody defaults {melody:.3}, bass defaults {bass:.3}");
     assert!(melody >= 0.95, "melody defaults: RPA {melody}");
     assert!(bass < melody - 0.2, "bass defaults: RPA {bass}");
+}
+
+/// The contour voicing of the module docs written out the slow, obvious way, from the
+/// oracle's salience and the naive Viterbi: hop `h` is decided on the path known at hop
+/// `h + lag` (the whole track's path when that is past the end); its contour is walked back
+/// over the decided states and forward over that path; the reference is the running mean
+/// of the decided voiced hops' levels. Returns the reported state per hop (`m` = unvoiced).
+#[allow(clippy::needless_range_loop)] // hop indices, as in the module docs
+fn naive_contour_gate(c: &ShsConfig, hops: &[NaiveHop]) -> Vec<usize> {
+    let m = c.n_bins().unwrap();
+    let (deltas, bps) = naive_forward(c, hops);
+    let last = hops.len() - 1;
+    let full = naive_path_at(&deltas, &bps, last);
+    let known = |h: usize| {
+        if h + c.lag_hops <= last {
+            naive_path_at(&deltas, &bps, h + c.lag_hops)
+        } else {
+            full.clone()
+        }
+    };
+    let decided: Vec<usize> = (0..hops.len()).map(|h| known(h)[h]).collect();
+    let voiced = |h: usize, s: usize| s < m && hops[h].peak > 1e-9;
+    let level = |h: usize, s: usize| {
+        let a = hops[h].sal[s] * hops[h].peak;
+        if a > 1e-12 {
+            20.0 * a.log10()
+        } else {
+            -240.0
+        }
+    };
+    let jump = c.contour_jump_bins;
+    let alpha = (c.hop as f64 / c.sample_rate as f64 / c.contour_ref_s as f64).min(1.0);
+    let (mut reference, mut n_ref) = (0.0f64, 0usize);
+    let mut out = vec![m; hops.len()];
+    for h in 0..hops.len() {
+        let s = decided[h];
+        if !voiced(h, s) {
+            continue;
+        }
+        let x = level(h, s);
+        n_ref += 1;
+        reference += (1.0 / n_ref as f64).max(alpha) * (x - reference);
+        let mut a = h;
+        while a > 0 && voiced(a - 1, decided[a - 1]) && decided[a - 1].abs_diff(decided[a]) <= jump
+        {
+            a -= 1;
+        }
+        let mut sum: f64 = (a..=h).map(|k| level(k, decided[k])).sum();
+        let mut n = h - a + 1;
+        let path = known(h);
+        let mut prev = s;
+        for k in h + 1..=(h + c.lag_hops).min(last) {
+            if !voiced(k, path[k]) || path[k].abs_diff(prev) > jump {
+                break;
+            }
+            sum += level(k, path[k]);
+            n += 1;
+            prev = path[k];
+        }
+        // 0 turns the gate off.
+        if c.contour_gate_db == 0.0 || sum / n as f64 >= reference - c.contour_gate_db as f64 {
+            out[h] = s;
+        }
+    }
+    out
+}
+
+/// Loud and quiet (−20 dB) bass notes, with a silent gap: the quiet notes' contours sit far
+/// below the running mean and are reported unvoiced. The stream (fixed lags shorter than a
+/// note, and longer than the track) matches the slow oracle hop for hop.
+#[test]
+fn contour_voicing_matches_a_slow_fixed_lag_oracle() {
+    let mut c = cfg();
+    c.frame = 256;
+    c.n_fft = 1024;
+    c.hop = 98; // 20 ms: few frames for the O(T·M²) oracle
+    c.contour_gate_db = 6.0;
+    c.contour_ref_s = 0.5;
+    let note_n = (0.3 * SR as f64) as usize;
+    let mut x = Vec::new();
+    for (k, &(f, g)) in [
+        (55.0, 1.0),
+        (82.4, 0.1),
+        (73.4, 1.0),
+        (0.0, 0.0),
+        (110.0, 0.1),
+        (61.7, 1.0),
+        (98.0, 0.05),
+        (55.0, 1.0),
+    ]
+    .iter()
+    .enumerate()
+    {
+        if f == 0.0 {
+            x.extend(std::iter::repeat_n(0.0f32, note_n));
+        } else {
+            let tone = harmonic(SR, f, note_n, &[1.0, 0.5, 0.3], 40 + k as u64);
+            x.extend(tone.iter().map(|v| v * g as f32));
+        }
+    }
+    let hops = naive_hops(&c, &x);
+    let m = c.n_bins().unwrap();
+    let mut gated_somewhere = false;
+    for lag in [3usize, 10, hops.len() + 1] {
+        c.lag_hops = lag;
+        let want = naive_contour_gate(&c, &hops);
+        let mut plain = c.clone();
+        plain.contour_gate_db = 0.0;
+        let ungated = naive_contour_gate(&plain, &hops);
+        let gated = want
+            .iter()
+            .zip(&ungated)
+            .filter(|(w, u)| **w == m && **u < m)
+            .count();
+        gated_somewhere |= gated >= 10;
+        let got = run(&mut Shs::new(c.clone()).unwrap(), &x, &[x.len()]);
+        assert_eq!(got.len(), want.len());
+        for (t, (e, &s)) in got.iter().zip(&want).enumerate() {
+            if s == m {
+                assert_eq!(e.f0_hz, 0.0, "lag {lag}, hop {t}: oracle unvoiced");
+            } else {
+                let d = cents(e.f0_hz as f64, c.bin_hz(s) as f64).abs();
+                assert!(
+                    e.f0_hz > 0.0 && d <= 100.0 / (2.0 * c.bins_per_semitone as f64) + 0.5,
+                    "lag {lag}, hop {t}: {} Hz vs bin {s} ({d} cents)",
+                    e.f0_hz
+                );
+            }
+        }
+        // Without the gate the stream is the plain decoding.
+        let got = run(&mut Shs::new(plain).unwrap(), &x, &[x.len()]);
+        for (t, (e, &s)) in got.iter().zip(&ungated).enumerate() {
+            assert_eq!(e.f0_hz > 0.0, s < m, "lag {lag}, hop {t}: gate off");
+        }
+    }
+    assert!(gated_somewhere, "the quiet notes must be gated");
+}
+
+/// A lead in phrases over chords that never stop (each chord tone 12 dB under the lead),
+/// with the melody defaults: the contour voicing (6 dB, as the engine sets it on a mix)
+/// reports the rests unvoiced and keeps the lead's pitch.
+#[test]
+fn contour_voicing_silences_the_chords_between_phrases() {
+    const MSR: u32 = 14_700;
+    let note_n = (0.3 * MSR as f64) as usize;
+    let amps: Vec<f64> = (1..=8).map(|h| 1.0 / h as f64).collect();
+    let phrase = [
+        293.7, 349.2, 440.0, 392.0, 0.0, 0.0, 0.0, 493.9, 440.0, 587.3, 523.3,
+    ];
+    let mut lead = Vec::new();
+    let mut truth = Vec::new();
+    for _ in 0..2 {
+        for (k, &f) in phrase.iter().enumerate() {
+            if f == 0.0 {
+                lead.extend(std::iter::repeat_n(0.0f32, note_n));
+            } else {
+                lead.extend(harmonic(MSR, f, note_n, &amps, 50 + k as u64));
+            }
+            truth.extend(std::iter::repeat_n(f, note_n));
+        }
+    }
+    let g = 10f64.powf(-12.0 / 20.0);
+    let chord = [130.8, 164.8, 196.0]
+        .iter()
+        .map(|&f| harmonic(MSR, f, lead.len(), &[g, g / 2.0, g / 4.0], 61))
+        .fold(vec![0.0; lead.len()], |acc, v| {
+            acc.iter().zip(&v).map(|(a, b)| a + b).collect()
+        });
+    let x: Vec<f32> = lead.iter().zip(&chord).map(|(a, b)| a + b).collect();
+    let score = |c: &ShsConfig| {
+        let est = run(&mut Shs::new(c.clone()).unwrap(), &x, &[4096]);
+        let (mut ok, mut n, mut fa, mut rests) = (0, 0, 0, 0);
+        for (i, e) in est.iter().enumerate() {
+            let at = i * c.hop;
+            let Some(&t) = truth.get(at) else { continue };
+            let span = at.saturating_sub(c.frame / 2)..(at + c.frame / 2).min(truth.len());
+            if span.clone().any(|k| truth[k] != t) {
+                continue;
+            }
+            if t == 0.0 {
+                rests += 1;
+                fa += usize::from(e.f0_hz > 0.0);
+            } else {
+                n += 1;
+                ok += usize::from(e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0);
+            }
+        }
+        (ok as f64 / n as f64, fa as f64 / rests as f64)
+    };
+    let mut c = ShsConfig::melody(MSR, 70.0, 1400.0);
+    let (rpa_off, fa_off) = score(&c);
+    c.contour_gate_db = 6.0;
+    let (rpa_on, fa_on) = score(&c);
+    eprintln!("gate off: RPA {rpa_off:.3} FA {fa_off:.3}; on: RPA {rpa_on:.3} FA {fa_on:.3}");
+    assert!(
+        fa_off > 0.5,
+        "the chords must fool the plain tracker: FA {fa_off}"
+    );
+    assert!(fa_on < 0.1, "gate on: FA {fa_on}");
+    assert!(
+        rpa_on >= 0.95 && rpa_on >= rpa_off - 0.02,
+        "gate on: RPA {rpa_on} (off {rpa_off})"
+    );
 }

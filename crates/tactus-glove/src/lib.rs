@@ -14,6 +14,7 @@
 //! | [`export`] | CSV (one row per bin, one column per dot) and Apple AHAP exports |
 //! | [`html`] | the browser preview page ([`html::render_page`]) |
 //! | [`atomic`] | [`write_atomic`]: every output file is replaced atomically |
+//! | [`tui`] | the terminal glove view: a frame and a status as lines of text, and back |
 //!
 //! ## Tutorial
 //!
@@ -71,6 +72,7 @@ pub mod plot;
 #[cfg(feature = "png")]
 pub mod png;
 pub mod protocol;
+pub mod tui;
 
 pub use atomic::{write_atomic, OutputError, OutputSet};
 pub use error::GloveError;

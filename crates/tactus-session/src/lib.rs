@@ -5,6 +5,7 @@
 //! | [`live::live`] | capture → engine → sink, as it plays; memory stays flat however long it runs |
 //! | [`play::play_song`] | a song rendered frame by frame as it plays (decoded once for the engine and the speakers) |
 //! | [`play::play_pattern`] | a pattern's frames, on its song's audio clock or the caller's clock |
+//! | [`view::with_view`] | any of them with the terminal glove view drawn live beside it |
 //!
 //! Each takes a source, an engine configuration (or frames), a sink
 //! ([`tactus_transport::SinkHandle`]) and a clock ([`tactus_transport::Clock`]), and returns
@@ -47,8 +48,11 @@
 pub mod device;
 pub mod live;
 pub mod play;
+pub mod view;
 
-pub use live::{live, LiveEngine, LiveInput, LiveOptions, LiveReport, LiveStatus};
+pub use live::{
+    live, BlockTimes, LiveEngine, LiveInput, LiveOptions, LiveReport, LiveStatus, MAX_BACKLOG,
+};
 pub use play::{pattern_song, play_pattern, play_song, Late, PlayOptions, PlayReport, SoundReport};
 
 /// Why a session stopped with an error. Each message is one line a user understands; the

@@ -96,6 +96,26 @@ pub struct SoundReport {
     pub feed_failed: bool,
 }
 
+/// `audio on DEVICE at RATE Hz: song …, audio clock … (drift …), output latency …,
+/// underruns …`, as `tactus play` prints it.
+impl std::fmt::Display for SoundReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "audio on {} at {} Hz: song {:.3} s, audio clock {:.3} s after {:.3} s of wall time (drift {:+.1} ms), output latency {:.1} ms, underruns {}{}",
+            self.device,
+            self.rate,
+            self.song_s,
+            self.clock_s,
+            self.wall_s,
+            (self.clock_s - self.wall_s) * 1e3,
+            self.latency_ms,
+            self.underruns,
+            if self.feed_failed { ", decoding failed part-way" } else { "" }
+        )
+    }
+}
+
 /// What a play session did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlayReport {

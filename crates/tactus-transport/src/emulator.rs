@@ -79,6 +79,28 @@ pub struct EmulatorReport {
     pub frames: Vec<ReceivedFrame>,
 }
 
+/// `N packets (… pin frames, … all-down, … keep-alive), … CRC errors, … final frame HEX`,
+/// as `tactus emulate` prints it.
+impl std::fmt::Display for EmulatorReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} packets ({} pin frames, {} all-down, {} keep-alive), {} CRC errors, {} malformed, \
+             {} sequence gaps, {} garbage bytes, {} pin changes; final frame {}",
+            self.packets,
+            self.frames.len(),
+            self.all_downs,
+            self.keep_alives,
+            self.crc_errors,
+            self.malformed,
+            self.sequence_gaps,
+            self.garbage_bytes,
+            self.actuations,
+            self.final_frame.to_hex()
+        )
+    }
+}
+
 impl EmulatorReport {
     /// The report as `tactus emulate` prints it on stdout; with `frames`, every received
     /// pin frame too.

@@ -77,6 +77,11 @@ pub struct SinkStats {
     pub last_error: Option<String>,
     /// The link's MTU in bytes, where it reports one (BLE).
     pub mtu: Option<u16>,
+    /// The pin state the last pins or all-down packet written to the link showed: what the
+    /// glove shows now (issue 13, the terminal view). All down before the first packet.
+    pub shown: Frame,
+    /// That packet's frame time, ms since stream start.
+    pub shown_time_ms: u32,
 }
 
 /// Tuning of a sink; [`Default`] gives the documented values.
@@ -389,8 +394,15 @@ fn run_sink(
                         let mut st = lock(&shared.stats);
                         st.sent += 1;
                         match packet.kind {
-                            tactus_glove::PacketType::Pins => st.frames_sent += 1,
-                            tactus_glove::PacketType::AllDown => st.all_down_sent += 1,
+                            tactus_glove::PacketType::Pins => {
+                                st.frames_sent += 1;
+                                st.shown = packet.frame;
+                                st.shown_time_ms = last_time_ms;
+                            }
+                            tactus_glove::PacketType::AllDown => {
+                                st.all_down_sent += 1;
+                                st.shown = Frame::DOWN;
+                            }
                             tactus_glove::PacketType::KeepAlive => {}
                         }
                     }

@@ -111,6 +111,29 @@ fn null_sink_counts() {
     assert!(!stats.link_up, "closed");
 }
 
+/// Issue 13 (the terminal view): the stats show the state the last packet written put on
+/// the glove, and its frame time.
+#[test]
+fn stats_show_what_the_last_packet_put_on_the_glove() {
+    let sink = open_sink(&SinkSpec::Null, &quiet()).unwrap();
+    assert_eq!(sink.stats().shown, Frame::DOWN);
+    let frames = pattern(5);
+    for (k, f) in frames.iter().enumerate() {
+        sink.send_frame(*f, 100 * k as u32 + 7);
+        let t0 = std::time::Instant::now();
+        while sink.stats().shown_time_ms != 100 * k as u32 + 7 {
+            assert!(
+                t0.elapsed() < Duration::from_secs(5),
+                "frame {k} never written"
+            );
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        assert_eq!(sink.stats().shown, *f);
+    }
+    let stats = sink.close();
+    assert_eq!(stats.shown, Frame::DOWN, "closing lowers every pin");
+}
+
 #[test]
 fn superseded_frames_are_dropped_not_queued() {
     // 1000 frames handed over back to back: the sink never queues more than one pending
