@@ -47,7 +47,7 @@ import numpy as np
 import soundfile as sf
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from generate import DRUM_BANDS, HOP_S, SR, TPB, f0_track, vibrato_bends, write_midi  # noqa: E402
+from generate import DRUM_BANDS, HOP_S, SR, TPB, f0_track, save_events, vibrato_bends, write_midi  # noqa: E402
 
 SF2_DIR = "/usr/share/sounds/sf2"
 SONICPI_DIR = "/usr/share/sonic-pi/samples"
@@ -470,13 +470,7 @@ def write_drum_midi(path, hits_s, bpm, kit):
         ev.append((tk, 5, mido.Message("note_on", channel=9, note=n, velocity=v)))
         ev.append((max(tk + 1, to_tick(off)), 4, mido.Message("note_off", channel=9, note=n, velocity=0)))
         exact.append((tk * 60.0 / bpm / TPB, n, v))
-    ev.sort(key=lambda x: (x[0], x[1]))
-    last = 0
-    for tk, _o, msg in ev:
-        tr.append(msg.copy(time=tk - last))
-        last = tk
-    tr.append(mido.MetaMessage("end_of_track", time=TPB))
-    mid.save(path)
+    save_events(mid, tr, ev, path)
     return exact
 
 
@@ -543,13 +537,15 @@ def sonicpi_kit(rng):
     return kit, levels, name
 
 
-def sonicpi_render(hits_s, kit, levels, n_samples):
+def _mix_hits(hits_s, levels, n_samples, sample_of):
+    """Mixes each hit (t, note, velocity) into a stereo buffer: `sample_of(note, velocity)`
+    gives its mono sample and pan; an open hat is choked at the next closed or pedal hat;
+    gain = level × (velocity / 127)², constant-power pan. Returns (y, exact hits)."""
     y = np.zeros((n_samples, 2))
     exact = []
     hats = sorted((t, n) for t, n, _v in hits_s if n in (42, 44, 46))
     for t, n, v in hits_s:
-        soft, hard, semis, pan = kit[n]
-        x = load_sample(soft if v < 70 else hard, semis)
+        x, pan = sample_of(n, v)
         pos = int(round(t * SR))
         if n == 46:  # choke the open hat at the next closed / pedal hat
             nxt = [u for u, m in hats if u > t + 1e-6 and m in (42, 44)]
@@ -567,6 +563,14 @@ def sonicpi_render(hits_s, kit, levels, n_samples):
         y[pos:pos + L, 1] += g * math.sin(a) * x[:L]
         exact.append((pos / SR, n, v))
     return y, exact
+
+
+def sonicpi_render(hits_s, kit, levels, n_samples):
+    def sample_of(n, v):
+        soft, hard, semis, pan = kit[n]
+        return load_sample(soft if v < 70 else hard, semis), pan
+
+    return _mix_hits(hits_s, levels, n_samples, sample_of)
 
 
 # ---------------------------------------------------------------------------------------
@@ -726,29 +730,11 @@ def synth_kit(rng):
 
 
 def synth_render(hits_s, kit, levels, n_samples):
-    y = np.zeros((n_samples, 2))
-    exact = []
-    hats = sorted((t, n) for t, n, _v in hits_s if n in (42, 44, 46))
-    for t, n, v in hits_s:
+    def sample_of(n, v):
         soft, hard, pan = kit[n]
-        x = soft if v < 70 else hard
-        pos = int(round(t * SR))
-        if n == 46:  # choke the open hat at the next closed / pedal hat
-            nxt = [u for u, m in hats if u > t + 1e-6 and m in (42, 44)]
-            if nxt:
-                L = max(1, int(round((nxt[0] - t) * SR)))
-                x = x[:L].copy()
-                f = min(len(x), int(0.01 * SR))
-                x[-f:] *= np.linspace(1, 0, f)
-        g = levels.get(n, 0.8) * (v / 127.0) ** 2
-        L = min(len(x), n_samples - pos)
-        if L <= 0:
-            continue
-        a = math.pi / 4 * (pan + 1)
-        y[pos:pos + L, 0] += g * math.cos(a) * x[:L]
-        y[pos:pos + L, 1] += g * math.sin(a) * x[:L]
-        exact.append((pos / SR, n, v))
-    return y, exact
+        return (soft if v < 70 else hard), pan
+
+    return _mix_hits(hits_s, levels, n_samples, sample_of)
 
 
 def simple_reverb(rng, y):

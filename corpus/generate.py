@@ -227,6 +227,13 @@ def write_midi(path, notes, bpm, channel, program, bends=None, drums=False):
         events.append((int(round(e * TPB)), 4, mido.Message("note_off", channel=channel, note=p, velocity=0)))
     for t, semis in bends or []:
         events.append((tick(t), 3, mido.Message("pitchwheel", channel=channel, pitch=bend_to_midi(semis))))
+    save_events(mid, tr, events, path)
+    return mid
+
+
+def save_events(mid, tr, events, path):
+    """Appends `events` ((tick, order, message), absolute ticks) to track `tr` in tick then
+    order, with delta times and an end of track one beat later, and saves `mid` to `path`."""
     events.sort(key=lambda x: (x[0], x[1]))
     last = 0
     for t, _o, msg in events:
@@ -234,7 +241,6 @@ def write_midi(path, notes, bpm, channel, program, bends=None, drums=False):
         last = t
     tr.append(mido.MetaMessage("end_of_track", time=TPB))
     mid.save(path)
-    return mid
 
 
 def render(sf2, mid_path, wav_path):

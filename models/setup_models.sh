@@ -5,18 +5,7 @@
 # Idempotent: an existing model is kept (delete it, or pass --force, to rebuild).
 set -eu
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
-VENV="$ROOT/models/.venv"
 OUT="$ROOT/models/spleeter-2stems.onnx"
-if [ -f "$OUT" ] && [ "${1:-}" != "--force" ]; then
-    echo "cached: $OUT"
-    exit 0
-fi
-"$ROOT/models/setup_onnxruntime.sh" >/dev/null
-if [ ! -x "$VENV/bin/python" ]; then
-    python3 -m venv "$VENV"
-fi
-# numpy + onnx build the graph; the onnxruntime wheel (already downloaded by
-# setup_onnxruntime.sh) runs the self-check against a numpy forward pass.
-"$VENV/bin/pip" install -q "numpy>=1.24" "onnx>=1.16,<2" \
-    "$(ls "$ROOT"/wheels/onnxruntime-1.31.1-*.whl | head -n 1)"
+# Cache check, ONNX Runtime wheel, venv with numpy + onnx + onnxruntime.
+. "$ROOT/models/convert_venv.sh"
 "$VENV/bin/python" "$ROOT/models/convert_spleeter.py" --out "$OUT" --wheel-dir "$ROOT/wheels"

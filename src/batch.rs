@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Result};
 use clap::ValueEnum;
 
-use crate::{plot, EngineArgs, ModeArg};
+use tactus_glove::png::{plot_bytes, PlotFormat};
+
+use crate::{EngineArgs, ModeArg};
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum PlotArg {
@@ -51,41 +53,6 @@ impl BatchArgs {
     }
 }
 
-fn name<T: ValueEnum>(v: &T) -> Option<String> {
-    v.to_possible_value().map(|p| p.get_name().to_string())
-}
-
-/// The CLI's engine arguments as the batch library's options.
-fn options(e: &EngineArgs, mode: ModeArg) -> tactus_batch::RenderOptions {
-    tactus_batch::RenderOptions {
-        separator: name(&e.separator),
-        model: e.model.clone(),
-        bin_ms: e.bin_ms,
-        levels: Some(e.levels),
-        map: e.map.as_ref().map(|p| p.display().to_string()),
-        pitch: e.pitch.as_ref().and_then(name),
-        drums: e.drums.as_ref().and_then(name),
-        drum_model: e.drum_model.clone(),
-        levels_rule: name(&e.levels_rule),
-        mode: name(&mode),
-        stems: Vec::new(),
-        threads: e.threads,
-    }
-}
-
-fn plot_bytes(
-    out: &tactus_engine::render::RenderOutput,
-    format: plot::PlotFormat,
-) -> std::result::Result<Vec<u8>, String> {
-    let svg = plot::render_svg(&out.pattern, &out.features);
-    match format {
-        plot::PlotFormat::Svg => Ok(svg.into_bytes()),
-        plot::PlotFormat::Png => plot::render_png(&svg)
-            .map(|p| p.bytes)
-            .map_err(|e| e.to_string()),
-    }
-}
-
 /// Runs the batch and prints a summary; an error if any input failed.
 pub fn run(
     inputs: &[PathBuf],
@@ -96,10 +63,16 @@ pub fn run(
     verbose: bool,
 ) -> Result<()> {
     let plan = tactus_batch::plan(inputs, Some(dir))?;
-    let plot_fn = |format| move |out: &_| plot_bytes(out, format);
-    let svg = plot_fn(plot::PlotFormat::Svg);
-    let png = plot_fn(plot::PlotFormat::Png);
-    let mut spec = tactus_batch::BatchSpec::new(dir.to_path_buf(), options(engine, mode));
+    let plot_fn = |format| {
+        move |out: &tactus_engine::render::RenderOutput| {
+            plot_bytes(&out.pattern, &out.features, format)
+                .map(|p| p.bytes)
+                .map_err(|e| e.to_string())
+        }
+    };
+    let svg = plot_fn(PlotFormat::Svg);
+    let png = plot_fn(PlotFormat::Png);
+    let mut spec = tactus_batch::BatchSpec::new(dir.to_path_buf(), engine.options(mode));
     spec.features = args.with_features;
     spec.jobs = args.jobs.map_or(0, |n| n as usize);
     spec.job_threads = args.job_threads.map_or(0, |n| n as usize);

@@ -9,16 +9,14 @@ use std::sync::Arc;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 
-use tactus_dsp::Stem;
+use tactus_batch::{Command, RenderOptions};
 use tactus_engine::render::{render, RenderRequest};
-use tactus_engine::{
-    DrumMethod, EngineConfig, LevelRule, Mode, PitchMethod, Profile, SeparatorChoice,
-};
-use tactus_glove::{write_atomic, GloveMap, OutputSet};
+use tactus_glove::export::ExportFormat;
+use tactus_glove::png::{plot_bytes, PlotFormat};
+use tactus_glove::{write_atomic, OutputSet};
 
 mod batch;
 mod play;
-mod plot;
 
 #[derive(Parser)]
 #[command(
@@ -156,6 +154,48 @@ impl EngineArgs {
         add(self.drum_model.is_some(), "--drum-model");
         add(self.profile.is_some(), "--profile");
         v
+    }
+
+    /// The engine configuration for `command` and the supplied stems: the options by
+    /// their CLI names, turned into a configuration by `tactus_batch` as for a library.
+    fn config(
+        &self,
+        command: Command,
+        mode: ModeArg,
+    ) -> Result<(
+        tactus_engine::EngineConfig,
+        Vec<(tactus_dsp::Stem, PathBuf)>,
+    )> {
+        let mut opts = self.options(mode);
+        for s in &self.stems {
+            let (name, path) = s
+                .split_once('=')
+                .ok_or_else(|| anyhow!("--stem {s:?}: expected NAME=PATH"))?;
+            opts.stems.push((name.to_string(), path.into()));
+        }
+        Ok(opts.config_for(command, true)?)
+    }
+
+    /// The options by their CLI names (stems left out).
+    fn options(&self, mode: ModeArg) -> RenderOptions {
+        fn name<T: ValueEnum>(v: &T) -> Option<String> {
+            v.to_possible_value().map(|p| p.get_name().to_string())
+        }
+        RenderOptions {
+            separator: name(&self.separator),
+            model: self.model.clone(),
+            bin_ms: self.bin_ms,
+            levels: Some(self.levels),
+            map: self.map.as_ref().map(|p| p.display().to_string()),
+            pitch: self.pitch.as_ref().and_then(name),
+            drums: self.drums.as_ref().and_then(name),
+            drum_model: self.drum_model.clone(),
+            levels_rule: name(&self.levels_rule),
+            mode: name(&mode),
+            stems: Vec::new(),
+            threads: self.threads,
+            profile: self.profile.as_ref().and_then(name),
+        }
     }
 }
 
@@ -358,159 +398,10 @@ fn main() -> ExitCode {
     }
 }
 
-fn parse_stem(s: &str) -> Result<(Stem, PathBuf)> {
-    let (name, path) = s
-        .split_once('=')
-        .ok_or_else(|| anyhow!("--stem {s:?}: expected NAME=PATH"))?;
-    let stem = Stem::from_name(name).ok_or_else(|| {
-        anyhow!("--stem {s:?}: unknown stem {name:?} (drums, bass, vocals, other)")
-    })?;
-    Ok((stem, PathBuf::from(path)))
-}
-
-fn check_writable(path: &Path) -> Result<()> {
-    if path == Path::new("-") {
-        return Ok(());
-    }
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        bail!(
-            "{}: the directory {} does not exist",
-            path.display(),
-            dir.display()
-        );
-    }
-    Ok(())
-}
-
-/// The engine configuration from the command line. With `live`, options not given default
-/// to what live capture has been validated with (README, "Known weaknesses"): drums by the
-/// band method (the per-instrument transcriber caught about half of the sampled kicks of
-/// `tests/live.rs` on captured audio) and pYIN for the bass (the harmonic-sum tracker's
-/// 204 ms look-ahead releases frames in bursts that the sink coalesces, losing one-bin
-/// drum pulses). `render` and `play` default to the per-instrument transcriber and the
-/// harmonic-sum bass tracker.
-fn engine_config(
-    e: &EngineArgs,
-    mode: Mode,
-    default_bin_ms: u32,
-    live: bool,
-) -> Result<(EngineConfig, Vec<(Stem, PathBuf)>)> {
-    let model = |name: &str| -> Result<PathBuf> {
-        e.model.clone().ok_or_else(|| {
-            anyhow!("--separator {name} needs --model PATH (see README, \"ONNX models\")")
-        })
-    };
-    let separator = match e.separator {
-        SepArg::Spectral => SeparatorChoice::Spectral,
-        SepArg::None => SeparatorChoice::None,
-        SepArg::Spleeter => SeparatorChoice::Spleeter(model("spleeter")?),
-        SepArg::Htdemucs => SeparatorChoice::HtDemucs(model("htdemucs")?),
-    };
-    let map = match &e.map {
-        Some(p) => GloveMap::from_name_or_path(p).context("--map")?,
-        None => GloveMap::default(),
-    };
-    if e.levels == 0 {
-        bail!("--levels must be at least 1");
-    }
-    let profile = match e.profile {
-        Some(ProfileArg::Live) => Profile::Live,
-        Some(ProfileArg::Full) => Profile::Full,
-        None if live => Profile::Live,
-        None => Profile::Full,
-    };
-    let bin_ms = e.bin_ms.unwrap_or(match profile {
-        Profile::Live => tactus_engine::profile::BIN_MS,
-        Profile::Full => default_bin_ms,
-    });
-    if bin_ms == 0 {
-        bail!("--bin-ms must be at least 1");
-    }
-    let stems = e
-        .stems
-        .iter()
-        .map(|s| parse_stem(s))
-        .collect::<Result<Vec<_>>>()?;
-    let cfg = EngineConfig {
-        bin_ms,
-        levels: e.levels,
-        mode,
-        pitch: match e.pitch.unwrap_or(if live && profile == Profile::Full {
-            PitchArg::Pyin
-        } else {
-            PitchArg::Auto
-        }) {
-            PitchArg::Yin => PitchMethod::Yin,
-            PitchArg::Pyin => PitchMethod::Pyin,
-            PitchArg::Shs => PitchMethod::Shs,
-            PitchArg::Auto => PitchMethod::Auto,
-        },
-        level_rule: match e.levels_rule {
-            LevelRuleArg::Follow => LevelRule::Follow,
-            LevelRuleArg::Paper => LevelRule::Paper,
-        },
-        map,
-        separator,
-        // Issue 13: live keeps the bands (rhythm p95 23-33 ms end to end);
-        // `--drums classes-live` is more faithful but measured p95 38.7-40.1 ms and missed
-        // the synthetic hits of tests/live.rs after 5 s.
-        drums: match e.drums.unwrap_or(if live {
-            DrumsArg::Bands
-        } else {
-            DrumsArg::Classes
-        }) {
-            DrumsArg::Classes => DrumMethod::Classes,
-            DrumsArg::ClassesLive => DrumMethod::ClassesLive,
-            DrumsArg::Bands => DrumMethod::Bands,
-            DrumsArg::Adtlib => DrumMethod::AdtLib(e.drum_model.clone().ok_or_else(|| {
-                anyhow!("--drums adtlib needs --drum-model PATH (see README, \"ONNX models\")")
-            })?),
-        },
-        threads: e.threads.map_or(0, |n| n as usize),
-        profile,
-        ..EngineConfig::default()
-    };
-    Ok((cfg, stems))
-}
-
-enum ExportKind {
-    Csv,
-    Ahap,
-}
-
-fn export_kind(p: &Path) -> Result<ExportKind> {
-    match p
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase())
-        .as_deref()
-    {
-        Some("csv") => Ok(ExportKind::Csv),
-        Some("ahap") => Ok(ExportKind::Ahap),
-        _ => bail!(
-            "--export {}: unknown format (use a .csv or .ahap file name)",
-            p.display()
-        ),
-    }
-}
-
-/// The `--html` page: the song file's own bytes (checked against the pattern's SHA-256, so
-/// the page plays what was rendered) embedded with the pattern and features.
-fn html_page(
-    input: &Path,
-    pattern: &tactus_glove::Pattern,
-    features: &tactus_glove::Features,
-) -> Result<Vec<u8>> {
-    let audio = std::fs::read(input).with_context(|| format!("reading {}", input.display()))?;
-    if tactus_glove::sha256_hex(&audio[..])? != pattern.source.sha256 {
-        bail!("{} changed while it was rendered", input.display());
-    }
-    let page =
-        tactus_glove::html::render_page(pattern, features, &audio, &input.display().to_string());
+/// The `--html` page, with a note of its size and a warning when browsers may not play
+/// the song.
+fn html_page(input: &Path, out: &tactus_engine::render::RenderOutput) -> Result<Vec<u8>> {
+    let page = tactus_glove::html::page_for_song(input, &out.pattern, &out.features)?;
     if let Some(why) = &page.audio.unplayable {
         eprintln!("tactus: warning: --html: browsers may not play this audio ({why}); the page's glove runs on the wall clock");
     }
@@ -595,7 +486,7 @@ fn run(cli: Cli) -> Result<()> {
             json,
         } => {
             if let Some(p) = &json {
-                check_writable(p)?;
+                tactus_glove::atomic::check_location("--json", p)?;
             }
             let (text, j) = match (glove_log, pattern, truth, features) {
                 (Some(log), Some(pattern), None, f) => {
@@ -664,14 +555,17 @@ fn run(cli: Cli) -> Result<()> {
                 );
             }
             let input = input.clone();
-            let mode = match mode {
-                ModeArg::Offline => Mode::Offline,
-                ModeArg::Streaming => Mode::Streaming,
-            };
-            let (config, stems) = engine_config(&engine, mode, 100, false)?;
+            let (config, stems) = engine.config(Command::Render, mode)?;
             let export_kinds = export
                 .iter()
-                .map(|p| export_kind(p))
+                .map(|p| {
+                    ExportFormat::of(p).ok_or_else(|| {
+                        anyhow!(
+                            "--export {}: unknown format (use a .csv or .ahap file name)",
+                            p.display()
+                        )
+                    })
+                })
                 .collect::<Result<Vec<_>>>()?;
             // Outputs are one transaction: checked and their temporary files created now,
             // renamed over their targets only when every one is complete.
@@ -690,7 +584,12 @@ fn run(cli: Cli) -> Result<()> {
             inputs.extend(engine.model.as_deref());
             inputs.extend(engine.map.as_deref());
             let mut out_set = OutputSet::prepare(&outputs, &inputs)?;
-            let plot_format = plot.as_deref().map(plot::format_of).transpose()?;
+            let plot_format = match plot.as_deref() {
+                Some(p) => Some(PlotFormat::of(p).ok_or_else(|| {
+                    anyhow!("--plot {}: the plot must end in .svg or .png", p.display())
+                })?),
+                None => None,
+            };
             // Ctrl-C: remove the temporary files and leave every existing file as it was.
             let _ = ctrlc::set_handler(|| {
                 tactus_glove::atomic::remove_pending_temporaries();
@@ -730,38 +629,28 @@ fn run(cli: Cli) -> Result<()> {
             // Everything is drawn before anything is written, so a failure leaves no output.
             let mut plot_bytes = match (&plot, plot_format) {
                 (Some(p), Some(format)) => {
-                    let svg = plot::render_svg(&out.pattern, &out.features);
-                    Some(match format {
-                        plot::PlotFormat::Svg => svg.into_bytes(),
-                        plot::PlotFormat::Png => {
-                            let png = plot::render_png(&svg)
-                                .with_context(|| format!("--plot {}", p.display()))?;
-                            if !png.fonts {
-                                eprintln!(
-                                    "tactus: warning: --plot {}: no system font found, so the PNG \
-                                     has no text (install e.g. fonts-dejavu-core, or use .svg)",
-                                    p.display()
-                                );
-                            }
-                            png.bytes
-                        }
-                    })
+                    let png = plot_bytes(&out.pattern, &out.features, format)
+                        .with_context(|| format!("--plot {}", p.display()))?;
+                    if !png.fonts {
+                        eprintln!(
+                            "tactus: warning: --plot {}: no system font found, so the PNG \
+                             has no text (install e.g. fonts-dejavu-core, or use .svg)",
+                            p.display()
+                        );
+                    }
+                    Some(png.bytes)
                 }
                 _ => None,
             };
             let mut html_bytes = match &html {
                 Some(p) => Some(
-                    html_page(&input, &out.pattern, &out.features)
-                        .with_context(|| format!("--html {}", p.display()))?,
+                    html_page(&input, &out).with_context(|| format!("--html {}", p.display()))?,
                 ),
                 None => None,
             };
-            let mut export_bytes = export_kinds.iter().map(|k| match k {
-                ExportKind::Csv => tactus_glove::export::to_csv(&out.pattern).into_bytes(),
-                ExportKind::Ahap => {
-                    tactus_glove::export::to_ahap(&out.pattern, &out.features).into_bytes()
-                }
-            });
+            let mut export_bytes = export_kinds
+                .iter()
+                .map(|k| k.bytes(&out.pattern, &out.features));
             let mut stdout_bytes = None;
             for (i, &(label, p)) in outputs.iter().enumerate() {
                 let bytes = match label {

@@ -8,14 +8,14 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 
+use tactus_batch::Command;
 use tactus_engine::render::RenderRequest;
-use tactus_engine::Mode;
 use tactus_glove::Pattern;
 use tactus_session::view::{with_view, ViewExtra};
 use tactus_session::{PlayOptions, PlayReport};
 use tactus_transport::{lead_ms, open_sink, SinkOptions, SinkSpec, WallClock};
 
-use crate::{engine_config, stop_flag, EngineArgs};
+use crate::{stop_flag, EngineArgs, ModeArg};
 
 /// What the sink's "dropped" counter means, printed next to it.
 const DROPPED: &str = "frames replaced by a newer one before the link could send them; \
@@ -54,7 +54,7 @@ pub fn run(
         }
         let pattern = Pattern::from_path(input)?;
         let song = if !no_audio && cfg!(feature = "audio") {
-            Some(pattern_song(input, &pattern, audio)?)
+            Some(tactus_session::pattern_song(input, &pattern, audio)?)
         } else {
             if !no_audio {
                 eprintln!("tactus: note: built without the `audio` feature: no sound; timing frames on the wall clock");
@@ -130,7 +130,7 @@ pub fn run(
     if audio.is_some() {
         bail!("--audio is for a pattern file's song; a song plays itself");
     }
-    let (config, stems) = engine_config(engine, Mode::Streaming, 25, false)?;
+    let (config, stems) = engine.config(Command::Play, ModeArg::Streaming)?;
     let req = RenderRequest {
         input: input.to_path_buf(),
         stems,
@@ -181,63 +181,9 @@ fn print_play(r: &PlayReport, spec: &SinkSpec, stats: &tactus_transport::SinkSta
         r.sent, r.skipped, stats.sent, stats.dropped, stats.reconnects
     );
     if let Some(s) = &r.sound {
-        eprintln!(
-            "tactus: audio on {} at {} Hz: song {:.3} s, audio clock {:.3} s after {:.3} s of wall time (drift {:+.1} ms), output latency {:.1} ms, underruns {}{}",
-            s.device,
-            s.rate,
-            s.song_s,
-            s.clock_s,
-            s.wall_s,
-            (s.clock_s - s.wall_s) * 1e3,
-            s.latency_ms,
-            s.underruns,
-            if s.feed_failed { ", decoding failed part-way" } else { "" }
-        );
+        eprintln!("tactus: {s}");
     }
 }
-
-/// The song of a pattern: `--audio FILE`, else the recorded path (as given, then relative
-/// to the pattern file's folder); its SHA-256 must be the pattern's.
-fn pattern_song(
-    pattern_path: &Path,
-    pattern: &Pattern,
-    audio: Option<&Path>,
-) -> Result<std::path::PathBuf> {
-    let recorded = Path::new(&pattern.source.path);
-    let song = match audio {
-        Some(a) => a.to_path_buf(),
-        None => {
-            let beside = pattern_path
-                .parent()
-                .map(|d| d.join(recorded))
-                .filter(|_| recorded.is_relative());
-            match std::iter::once(recorded.to_path_buf())
-                .chain(beside)
-                .find(|p| p.is_file())
-            {
-                Some(p) => p,
-                None => bail!(
-                    "the pattern's song {} was not found (nor beside the pattern): pass --audio FILE, or --no-audio to play without sound",
-                    recorded.display()
-                ),
-            }
-        }
-    };
-    let sha =
-        tactus_glove::sha256_file(&song).with_context(|| format!("reading {}", song.display()))?;
-    if sha != pattern.source.sha256 {
-        bail!(
-            "{}: SHA-256 {sha} does not match the pattern's {} (a different file?): pass the song it was rendered from with --audio FILE, or --no-audio",
-            song.display(),
-            pattern.source.sha256
-        );
-    }
-    Ok(song)
-}
-
-/// Capture period the live profile asks for (issue 13): 256 frames, 5.8 ms at 44.1 kHz.
-#[cfg(feature = "audio")]
-const LIVE_PERIOD_FRAMES: u32 = 256;
 
 /// `tactus live`: capture → engine → glove, until Ctrl-C or `seconds` of captured audio.
 #[cfg(feature = "audio")]
@@ -248,38 +194,21 @@ pub fn live(
     tui: bool,
     engine: &EngineArgs,
 ) -> Result<()> {
-    use tactus_session::{LiveEngine, LiveInput, LiveOptions};
+    use tactus_session::{device::LiveDevice, LiveOptions};
     let spec: SinkSpec = glove.parse().with_context(|| format!("--glove {glove}"))?;
-    let (config, stems) = engine_config(engine, Mode::Streaming, 25, true)?;
+    let (config, stems) = engine.config(Command::Live, ModeArg::Streaming)?;
     if !stems.is_empty() {
         bail!("--stem cannot be used with live: there is only the captured mix");
     }
-    let bin_ms = config.bin_ms;
-    let profile = config.profile;
-    let live_profile = profile == tactus_engine::Profile::Live;
-    // Built before the device opens, so a bad configuration fails at once.
-    let pipeline = LiveEngine::new(config)?;
+    let (bin_ms, profile) = (config.bin_ms, config.profile);
     let stop = stop_flag();
-    // Issue 13: real-time scheduling for this (engine) thread, asked for before the capture
-    // and sink threads exist so that they inherit it. On a loaded machine a normal thread
-    // waited up to 300 ms for the CPU (benches/live_latency.py at load 10-16). Refused
-    // without the privilege (RLIMIT_RTPRIO, CAP_SYS_NICE): then a note, and live goes on.
-    let realtime = audio_thread_priority::promote_current_thread_to_real_time(
-        LIVE_PERIOD_FRAMES,
-        tactus_engine::ENGINE_RATE,
-    )
-    .map_err(|e| e.to_string());
-    // Issue 13: the live profile asks the device for the engine's rate (no resampler) and
-    // a short period.
-    let request = tactus_audio::device::CaptureRequest {
-        rate: live_profile.then_some(tactus_engine::ENGINE_RATE),
-        period_frames: live_profile.then_some(LIVE_PERIOD_FRAMES),
-    };
-    let mut cap = tactus_audio::device::Capture::open_with(input, &request)?;
-    let (rate, channels, device) = (cap.rate(), cap.channels(), cap.device().to_string());
+    let mut dev = LiveDevice::open(input, config)?;
+    let rate = dev.rate();
     let sink = open_sink(&spec, &SinkOptions::default())?;
     eprintln!(
-        "tactus: live from {device} ({rate} Hz, {channels} ch) to {spec}, {bin_ms} ms bins{}",
+        "tactus: live from {} ({rate} Hz, {} ch) to {spec}, {bin_ms} ms bins{}",
+        dev.name(),
+        dev.channels(),
         if seconds.is_some() {
             ""
         } else {
@@ -294,14 +223,9 @@ pub fn live(
         ..LiveOptions::default()
     };
     let mut view = tui_out(tui);
-    let live_input = LiveInput {
-        reader: cap.reader(),
-        rate,
-        name: device,
-    };
     let drawing = view.is_some();
     let (result, stats) = with_view(sink, "live", as_view(&mut view), |sink, feed| {
-        pipeline.run(live_input, sink, &opts, &stop, &mut |s| {
+        dev.run(sink, &opts, &stop, &mut |s| {
             if !drawing {
                 return;
             }
@@ -323,63 +247,30 @@ pub fn live(
     let r = result?;
     // Issue 13: the capture device's own buffering on its own line, then one budget per
     // finger group (stages in samples at the engine rate and in ms).
-    let period = cap.reader().first_callback().map_or(0, |(_, n)| n);
+    let period = dev.period_frames();
     eprintln!(
         "tactus: capture: {} at {rate} Hz, period {period} frames ({:.1} ms), input delay {:.1} ms reported by the device; threads {}",
-        cap.device(),
+        dev.name(),
         period as f64 * 1e3 / f64::from(rate),
         r.input_delay_ms,
-        match &realtime {
-            Ok(_) => "real-time".to_string(),
+        match dev.realtime() {
+            Ok(()) => "real-time".to_string(),
             Err(e) => format!("at normal priority (real-time refused: {e})"),
         }
     );
-    let ms = |n: usize| n as f64 * 1e3 / f64::from(tactus_engine::ENGINE_RATE);
-    let link = (lead_ms(&spec, 0) - i64::from(tactus_glove::PIN_RISE_MS)) as f64;
-    for (group, stages) in &r.paths {
+    for line in r.budget_text(profile.name()).lines() {
         eprintln!(
-            "tactus: latency budget, {group} fingers ({} profile; after the capture period):",
-            profile.name()
-        );
-        let mut sum = 0.0;
-        for (name, n) in stages {
-            sum += ms(*n);
-            eprintln!("    {name:<44} {n:>6} samples {:>7.1} ms", ms(*n));
-        }
-        eprintln!("    {:<44} {:>14} {link:>7.1} ms", "link", "");
-        eprintln!(
-            "    {:<44} {:>14} {:>7.1} ms",
-            "total to the glove",
-            "",
-            sum + link
-        );
-        eprintln!(
-            "    {:<44} {:>14} {:>7.1} ms",
-            "(then the pin rise)",
-            "",
-            f64::from(tactus_glove::PIN_RISE_MS)
+            "{}{line}",
+            if line.starts_with(' ') {
+                ""
+            } else {
+                "tactus: "
+            }
         );
     }
-    if let Some((median, p95, max)) = r.measured_ms {
-        eprintln!(
-            "tactus: measured bin end (captured) -> frame sent: median {median:.1} ms, p95 {p95:.1} ms, max {max:.1} ms"
-        );
+    for line in r.timing_text(rate).lines() {
+        eprintln!("tactus: {line}");
     }
-    // Issue 13: real-time hygiene. Time per 256-sample block of the read -> process -> send
-    // loop (wall clock: preemption included), the backlog, what was dropped to catch up.
-    eprintln!(
-        "tactus: processing per 256-sample block ({} reads): {}",
-        r.block_times.count(),
-        r.block_times
-    );
-    let (b50, b99, bmax, blast) = r.backlog_ms;
-    eprintln!(
-        "tactus: backlog (audio waiting in the ring, and in the device beyond its usual delay): median {b50:.1} ms, p99 {b99:.1} ms, max {bmax:.1} ms, last {blast:.1} ms; caught up {} times, dropping {:.3} s of audio (backlog over {} ms); xruns {}",
-        r.caught_up.0,
-        r.caught_up.1 as f64 / f64::from(rate),
-        tactus_session::MAX_BACKLOG.as_millis(),
-        r.xruns
-    );
     eprintln!(
         "tactus: captured {:.3} s ({} callbacks, overruns {} samples; capture clock {:+.1} ms vs wall since the first callback), {} frames to {spec}; sink sent {}, dropped {} ({DROPPED}), reconnects {}",
         r.captured_s,
@@ -437,21 +328,7 @@ pub fn emulate(
     if tty {
         eprintln!();
     }
-    eprintln!(
-        "tactus: emulated glove: {} packets ({} pin frames, {} all-down, {} keep-alive), \
-         {} CRC errors, {} malformed, {} sequence gaps, {} garbage bytes, {} pin changes; \
-         final frame {}",
-        r.packets,
-        r.frames.len(),
-        r.all_downs,
-        r.keep_alives,
-        r.crc_errors,
-        r.malformed,
-        r.sequence_gaps,
-        r.garbage_bytes,
-        r.actuations,
-        r.final_frame.to_hex()
-    );
+    eprintln!("tactus: emulated glove: {r}");
     let report = r.to_json(json_frames);
     println!("{report}");
     Ok(())

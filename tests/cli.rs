@@ -371,7 +371,7 @@ fn png_plot_shows_every_raised_dot_and_warns_without_fonts() {
     );
     assert_eq!(title_ink(&px, width), 0, "text drawn without a font?");
 
-    // Size from the layout in src/plot.rs: 60 + 166 per pitch panel + 34 per band raster
+    // Size from the layout in tactus_glove::plot: 60 + 166 per pitch panel + 34 per band raster
     // + 26 + 320 (the roll) + 50.
     let n_pitch = feat["pitch_hz"].as_object().unwrap().len() as u32;
     let n_bands = feat["beats"].as_object().unwrap().len() as u32;

@@ -18,7 +18,7 @@ use pyo3::types::{PyBytes, PyDict};
 use tactus_batch::{BatchSpec, Job, Record, RenderOptions};
 use tactus_engine::render::{render as render_file, RenderOutput, RenderRequest};
 use tactus_engine::resample::StreamResampler;
-use tactus_engine::{Engine, EngineError, ENGINE_RATE};
+use tactus_engine::{Engine, ENGINE_RATE};
 use tactus_glove::SourceInfo;
 
 create_exception!(
@@ -123,25 +123,17 @@ fn render_samples(
     channels: usize,
     rate: u32,
     opts: &RenderOptions,
-) -> Result<RenderOutput, EngineError> {
+) -> Result<RenderOutput, Box<dyn std::error::Error + Send + Sync>> {
     let t_all = Instant::now();
-    let (mut config, stems) = opts
-        .to_config(true)
-        .map_err(|e| EngineError::Config(e.to_string()))?;
+    let (mut config, stems) = opts.to_config(true)?;
     if !stems.is_empty() {
-        return Err(EngineError::Config(
-            "stems are not supported by render_array (use render with a file)".into(),
-        ));
+        return Err("stems are not supported by render_array (use render with a file)".into());
     }
     if channels == 0 || channels > 64 {
-        return Err(EngineError::Config(format!(
-            "{channels} channels: expected 1..=64"
-        )));
+        return Err(format!("{channels} channels: expected 1..=64").into());
     }
     if rate == 0 {
-        return Err(EngineError::Config(
-            "sample rate must be at least 1 Hz".into(),
-        ));
+        return Err("sample rate must be at least 1 Hz".into());
     }
     config.pipeline = true;
     let mut engine = Engine::new(config)?;
@@ -193,12 +185,12 @@ fn render_samples(
         out[0].clear();
         out[1].clear();
         if let Some(e) = engine.take_separator_error() {
-            return Err(e);
+            return Err(e.into());
         }
     }
     engine.finish();
     if let Some(e) = engine.take_separator_error() {
-        return Err(e);
+        return Err(e.into());
     }
     let mut warnings = Vec::new();
     if non_finite > 0 {
@@ -210,8 +202,7 @@ fn render_samples(
     let duration_s = engine.samples_in() as f64 / ENGINE_RATE as f64;
     let source = SourceInfo {
         path: "<array>".into(),
-        sha256: tactus_glove::sha256_hex(&bytes[..])
-            .map_err(|e| EngineError::Config(e.to_string()))?,
+        sha256: tactus_glove::sha256_hex(&bytes[..])?,
         duration_s,
         sample_rate: rate,
     };

@@ -43,7 +43,7 @@ use std::time::Instant;
 
 pub use discover::{plan, Job, Plan};
 pub use manifest::{Record, Status, MANIFEST};
-pub use options::RenderOptions;
+pub use options::{Command, RenderOptions};
 use tactus_engine::render::{render, RenderOutput, RenderRequest};
 use tactus_engine::EngineConfig;
 use tactus_glove::OutputSet;
@@ -55,6 +55,9 @@ pub enum BatchError {
     /// An option is invalid (the CLI's one-line message).
     #[error("{0}")]
     Options(String),
+    /// The glove map (`--map`) could not be read.
+    #[error("--map: {0}")]
+    Map(#[source] tactus_glove::GloveError),
     /// An input could not be expanded.
     #[error("{path}: {why}", path = .path.display())]
     Input {

@@ -1,12 +1,18 @@
 //! The render options as the user spells them (the CLI's flags, the Python package's
 //! keyword arguments), their engine configuration, and the key a batch compares to decide
 //! whether an output is up to date.
+//!
+//! This is the one place where options become an [`EngineConfig`]: `tactus render` (one
+//! song or a library), `tactus play SONG`, `tactus live` and the Python package all go
+//! through [`RenderOptions::config_for`]; only the defaults differ by [`Command`].
 
 use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 use tactus_dsp::Stem;
-use tactus_engine::{DrumMethod, EngineConfig, LevelRule, Mode, PitchMethod, SeparatorChoice};
+use tactus_engine::{
+    DrumMethod, EngineConfig, LevelRule, Mode, PitchMethod, Profile, SeparatorChoice,
+};
 use tactus_glove::GloveMap;
 
 use crate::BatchError;
@@ -28,7 +34,7 @@ pub struct RenderOptions {
     pub map: Option<String>,
     /// `auto` (default), `yin`, `pyin` or `shs`.
     pub pitch: Option<String>,
-    /// `classes` (default), `bands` or `adtlib`.
+    /// `classes` (default), `classes-live`, `bands` or `adtlib`.
     pub drums: Option<String>,
     /// ONNX model for `drums = "adtlib"`.
     pub drum_model: Option<PathBuf>,
@@ -43,6 +49,22 @@ pub struct RenderOptions {
     /// ONNX Runtime intra-op threads (0 or `None`: the available cores). Does not change
     /// the result.
     pub threads: Option<u32>,
+    /// Latency profile: `full` (default; `live` for [`Command::Live`]) or `live`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub profile: Option<String>,
+}
+
+/// The command the options are for: `live` and `play` have other defaults than `render`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Command {
+    /// `tactus render` and the Python package: 100 ms bins, the full profile.
+    #[default]
+    Render,
+    /// `tactus play SONG`: 25 ms bins.
+    Play,
+    /// `tactus live`: the live profile (10 ms bins, drums by bands); with `profile =
+    /// "full"`, 25 ms bins and pYIN.
+    Live,
 }
 
 fn choice<'a>(
@@ -63,6 +85,22 @@ fn choice<'a>(
     }
 }
 
+/// [`choice`] for options whose values map to plain values: the value `table` pairs with
+/// the name given (or `default`).
+fn pick<T: Copy>(
+    flag: &str,
+    given: Option<&str>,
+    default: &str,
+    table: &[(&str, T)],
+) -> Result<T, BatchError> {
+    let names: Vec<&str> = table.iter().map(|(n, _)| *n).collect();
+    let name = choice(flag, given, default, &names)?;
+    Ok(table
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map_or(table[0].1, |(_, v)| *v))
+}
+
 impl RenderOptions {
     /// The engine configuration, with the CLI's defaults and its one-line messages.
     /// `parallel`: whether the engine may start threads of its own
@@ -71,6 +109,17 @@ impl RenderOptions {
         &self,
         parallel: bool,
     ) -> Result<(EngineConfig, Vec<(Stem, PathBuf)>), BatchError> {
+        self.config_for(Command::Render, parallel)
+    }
+
+    /// The engine configuration for `command`, with that command's defaults (see
+    /// [`Command`]) and the CLI's one-line messages.
+    pub fn config_for(
+        &self,
+        command: Command,
+        parallel: bool,
+    ) -> Result<(EngineConfig, Vec<(Stem, PathBuf)>), BatchError> {
+        let live = command == Command::Live;
         let err = |s: String| BatchError::Options(s);
         let model = |name: &str| -> Result<PathBuf, BatchError> {
             self.model.clone().ok_or_else(|| {
@@ -91,7 +140,7 @@ impl RenderOptions {
             _ => SeparatorChoice::HtDemucs(model("htdemucs")?),
         };
         let map = match &self.map {
-            Some(p) => GloveMap::from_name_or_path(p).map_err(|e| err(format!("--map: {e}")))?,
+            Some(p) => GloveMap::from_name_or_path(p).map_err(BatchError::Map)?,
             None => GloveMap::default(),
         };
         let levels = self.levels.unwrap_or(8);
@@ -100,53 +149,69 @@ impl RenderOptions {
                 "invalid value '{levels}' for '--levels <LEVELS>': {levels} is not in 1..=8"
             )));
         }
-        let bin_ms = self.bin_ms.unwrap_or(100);
+        let profile = pick(
+            "profile",
+            self.profile.as_deref(),
+            if live { "live" } else { "full" },
+            &[("full", Profile::Full), ("live", Profile::Live)],
+        )?;
+        let bin_ms = self.bin_ms.unwrap_or(match (profile, command) {
+            (Profile::Live, _) => tactus_engine::profile::BIN_MS,
+            (Profile::Full, Command::Render) => 100,
+            (Profile::Full, _) => 25,
+        });
         if !(1..=10_000).contains(&bin_ms) {
             return Err(err(format!(
                 "invalid value '{bin_ms}' for '--bin-ms <BIN_MS>': {bin_ms} is not in 1..=10000"
             )));
         }
-        let pitch = match choice(
+        let pitch = pick(
             "pitch",
             self.pitch.as_deref(),
-            "auto",
-            &["auto", "yin", "pyin", "shs"],
-        )? {
-            "yin" => PitchMethod::Yin,
-            "pyin" => PitchMethod::Pyin,
-            "shs" => PitchMethod::Shs,
-            _ => PitchMethod::Auto,
-        };
-        let level_rule = match choice(
+            if live && profile == Profile::Full {
+                "pyin"
+            } else {
+                "auto"
+            },
+            &[
+                ("auto", PitchMethod::Auto),
+                ("yin", PitchMethod::Yin),
+                ("pyin", PitchMethod::Pyin),
+                ("shs", PitchMethod::Shs),
+            ],
+        )?;
+        let level_rule = pick(
             "levels-rule",
             self.levels_rule.as_deref(),
             "follow",
-            &["follow", "paper"],
-        )? {
-            "paper" => LevelRule::Paper,
-            _ => LevelRule::Follow,
-        };
+            &[("follow", LevelRule::Follow), ("paper", LevelRule::Paper)],
+        )?;
         let drums = match choice(
             "drums",
             self.drums.as_deref(),
-            "classes",
-            &["classes", "bands", "adtlib"],
+            // Issue 13: live keeps the bands (rhythm p95 23-33 ms end to end);
+            // `classes-live` is more faithful but measured p95 38.7-40.1 ms and missed the
+            // synthetic hits of tests/live.rs after 5 s.
+            if live { "bands" } else { "classes" },
+            &["classes", "classes-live", "bands", "adtlib"],
         )? {
             "bands" => DrumMethod::Bands,
+            "classes-live" => DrumMethod::ClassesLive,
             "adtlib" => DrumMethod::AdtLib(self.drum_model.clone().ok_or_else(|| {
                 err("--drums adtlib needs --drum-model PATH (see README, \"ONNX models\")".into())
             })?),
             _ => DrumMethod::Classes,
         };
-        let mode = match choice(
+        let mode = pick(
             "mode",
             self.mode.as_deref(),
-            "offline",
-            &["offline", "streaming"],
-        )? {
-            "streaming" => Mode::Streaming,
-            _ => Mode::Offline,
-        };
+            if command == Command::Render {
+                "offline"
+            } else {
+                "streaming"
+            },
+            &[("offline", Mode::Offline), ("streaming", Mode::Streaming)],
+        )?;
         let stems = self
             .stems
             .iter()
@@ -172,6 +237,7 @@ impl RenderOptions {
             drums,
             threads: self.threads.map_or(0, |n| n as usize),
             parallel,
+            profile,
             ..EngineConfig::default()
         };
         Ok((cfg, stems))
@@ -185,7 +251,7 @@ impl RenderOptions {
         let (cfg, _) = self.to_config(false)?;
         let map_sha = tactus_glove::sha256_hex(cfg.map.to_toml_string().as_bytes())
             .map_err(|e| BatchError::Options(e.to_string()))?;
-        Ok(serde_json::json!({
+        let mut key = serde_json::json!({
             "tactus": env!("CARGO_PKG_VERSION"),
             "separator": self.separator.as_deref().unwrap_or("spectral"),
             "model": self.model.as_ref().map(|p| p.display().to_string()),
@@ -197,6 +263,12 @@ impl RenderOptions {
             "drum_model": self.drum_model.as_ref().map(|p| p.display().to_string()),
             "levels_rule": self.levels_rule.as_deref().unwrap_or("follow"),
             "mode": self.mode.as_deref().unwrap_or("offline"),
-        }))
+        });
+        // Named only when it is not the default, so that manifests written before the
+        // profile was an option stay up to date.
+        if cfg.profile != Profile::Full {
+            key["profile"] = cfg.profile.name().into();
+        }
+        Ok(key)
     }
 }

@@ -109,9 +109,12 @@ impl BinClock {
 }
 
 /// Accumulates one bin's hops; both binners differ only here.
-trait BinAcc {
+pub trait BinAcc {
+    /// A hop's value.
     type In: Copy;
+    /// A bin's value.
     type Out: Copy;
+    /// Adds one hop.
     fn add(&mut self, v: Self::In);
     /// The bin's value given its total hop count; then clears.
     fn take(&mut self, total_hops: usize) -> Self::Out;
@@ -157,11 +160,23 @@ fn finish_bins<A: BinAcc>(clock: &mut BinClock, acc: &mut A, emit: &mut dyn FnMu
     }
 }
 
+/// A bin's pitch levels: the lower median of its voiced hops when most hops are voiced,
+/// else 0.
 #[derive(Debug, Clone)]
-struct LevelAcc {
+pub struct LevelAcc {
     hist: [u32; 256],
     voiced: usize,
     max_level: u8,
+}
+
+impl Default for LevelAcc {
+    fn default() -> Self {
+        LevelAcc {
+            hist: [0; 256],
+            voiced: 0,
+            max_level: 0,
+        }
+    }
 }
 
 impl BinAcc for LevelAcc {
@@ -198,8 +213,9 @@ impl BinAcc for LevelAcc {
     }
 }
 
+/// A bin's beat: whether any of its hops is an onset.
 #[derive(Debug, Clone, Default)]
-struct BeatAcc {
+pub struct BeatAcc {
     any: bool,
 }
 
@@ -217,63 +233,28 @@ impl BinAcc for BeatAcc {
     }
 }
 
+/// Values per hop into values per bin, on hop indices (see the module docs); `A` says how
+/// one bin's hops become its value: [`LevelBinner`] and [`BeatBinner`].
+#[derive(Debug, Clone)]
+pub struct Binner<A> {
+    clock: BinClock,
+    acc: A,
+}
+
 /// Pitch levels per hop into levels per bin (median of voiced hops, majority voicing).
 /// See the module docs.
-#[derive(Debug, Clone)]
-pub struct LevelBinner {
-    clock: BinClock,
-    acc: LevelAcc,
-}
-
-impl LevelBinner {
-    /// Hops of `hop_samples`, bins of `bin_samples`. Errors when either is 0.
-    pub fn new(hop_samples: usize, bin_samples: usize) -> Result<Self, ConfigError> {
-        Ok(LevelBinner {
-            clock: BinClock::new(hop_samples, bin_samples)?,
-            acc: LevelAcc {
-                hist: [0; 256],
-                voiced: 0,
-                max_level: 0,
-            },
-        })
-    }
-
-    /// The bin hop `hop_index` belongs to.
-    pub fn bin_of(&self, hop_index: usize) -> usize {
-        self.clock.bin_of(hop_index)
-    }
-
-    /// Feeds hop `hop_index` with `level` (0 = unvoiced); emits every bin it completes.
-    pub fn push(&mut self, hop_index: usize, level: u8, emit: &mut dyn FnMut(usize, u8)) {
-        push_hop(&mut self.clock, &mut self.acc, hop_index, level, emit);
-    }
-
-    /// Emits the last, partial bin (if any hop of it arrived).
-    pub fn finish(&mut self, emit: &mut dyn FnMut(usize, u8)) {
-        finish_bins(&mut self.clock, &mut self.acc, emit);
-    }
-
-    /// Back to the just-constructed state.
-    pub fn reset(&mut self) {
-        self.clock.reset();
-        self.acc.take(0);
-    }
-}
+pub type LevelBinner = Binner<LevelAcc>;
 
 /// Onset flags per hop into beats per bin (a bin is a beat if any hop is an onset).
 /// See the module docs.
-#[derive(Debug, Clone)]
-pub struct BeatBinner {
-    clock: BinClock,
-    acc: BeatAcc,
-}
+pub type BeatBinner = Binner<BeatAcc>;
 
-impl BeatBinner {
+impl<A: BinAcc + Default> Binner<A> {
     /// Hops of `hop_samples`, bins of `bin_samples`. Errors when either is 0.
     pub fn new(hop_samples: usize, bin_samples: usize) -> Result<Self, ConfigError> {
-        Ok(BeatBinner {
+        Ok(Binner {
             clock: BinClock::new(hop_samples, bin_samples)?,
-            acc: BeatAcc::default(),
+            acc: A::default(),
         })
     }
 
@@ -282,13 +263,14 @@ impl BeatBinner {
         self.clock.bin_of(hop_index)
     }
 
-    /// Feeds hop `hop_index` with its onset flag; emits every bin it completes.
-    pub fn push(&mut self, hop_index: usize, onset: bool, emit: &mut dyn FnMut(usize, bool)) {
-        push_hop(&mut self.clock, &mut self.acc, hop_index, onset, emit);
+    /// Feeds hop `hop_index` with its value (a level, 0 = unvoiced; an onset flag); emits
+    /// every bin it completes.
+    pub fn push(&mut self, hop_index: usize, v: A::In, emit: &mut dyn FnMut(usize, A::Out)) {
+        push_hop(&mut self.clock, &mut self.acc, hop_index, v, emit);
     }
 
     /// Emits the last, partial bin (if any hop of it arrived).
-    pub fn finish(&mut self, emit: &mut dyn FnMut(usize, bool)) {
+    pub fn finish(&mut self, emit: &mut dyn FnMut(usize, A::Out)) {
         finish_bins(&mut self.clock, &mut self.acc, emit);
     }
 

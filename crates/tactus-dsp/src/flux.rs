@@ -73,12 +73,7 @@
 //! logarithms per hop; a few tens of additions for the threshold. No allocation after
 //! [`OnsetDetector::new`].
 
-use std::sync::Arc;
-
-use realfft::num_complex::Complex;
-use realfft::{RealFftPlanner, RealToComplex};
-
-use crate::framer::{hann_unit_power, Framer};
+use crate::framer::{Framer, WindowedFft};
 use crate::{ConfigError, HopStage};
 
 /// What the detector emits for every hop.
@@ -234,12 +229,8 @@ pub struct OnsetDetector {
 
 /// Everything but the framer, so that the framer's callback can borrow it mutably.
 struct Core {
-    fft: Arc<dyn RealToComplex<f32>>,
-    /// Periodic Hann window times `1 / sqrt(Σ w²)`.
-    window: Vec<f32>,
-    fft_in: Vec<f32>,
-    spectrum: Vec<Complex<f32>>,
-    scratch: Vec<Complex<f32>>,
+    /// Periodic Hann window times `1 / sqrt(Σ w²)`, then the real FFT.
+    fft: WindowedFft,
     /// Compressed magnitudes of the previous frame.
     prev: Vec<f32>,
     cur: Vec<f32>,
@@ -273,8 +264,6 @@ impl OnsetDetector {
         cfg.validate()?;
         let framer = Framer::new(cfg.frame, cfg.hop)?;
         let n = cfg.frame;
-        let fft = RealFftPlanner::<f32>::new().plan_fft_forward(n);
-        let window = hann_unit_power(n);
         let (lo, hi) = cfg.bin_range();
         let bins = hi - lo;
         // The flux peak of an impulse comes about frame/4 samples before it (steepest part
@@ -289,11 +278,7 @@ impl OnsetDetector {
         let shift = ((ahead / cfg.hop as f64).round() as usize).min((framer_lat - 1) / cfg.hop);
         let ring_len = cfg.mean_before_hops + 2 * cfg.lookahead_hops + shift + 4;
         let core = Core {
-            window,
-            fft_in: fft.make_input_vec(),
-            spectrum: fft.make_output_vec(),
-            scratch: fft.make_scratch_vec(),
-            fft,
+            fft: WindowedFft::new(n),
             prev: vec![0.0; bins],
             cur: vec![0.0; bins],
             lo,
@@ -344,14 +329,8 @@ impl Core {
 
     /// Normalised, half-wave-rectified flux between `frame` and the previous frame.
     fn frame_flux(&mut self, frame: &[f32]) -> f32 {
-        for ((d, &x), &w) in self.fft_in.iter_mut().zip(frame).zip(&self.window) {
-            *d = x * w;
-        }
-        // Cannot fail: every buffer came from the plan's own make_*_vec.
-        let _ =
-            self.fft
-                .process_with_scratch(&mut self.fft_in, &mut self.spectrum, &mut self.scratch);
-        for (m, c) in self.cur.iter_mut().zip(&self.spectrum[self.lo..self.hi]) {
+        let spectrum = self.fft.transform(frame);
+        for (m, c) in self.cur.iter_mut().zip(&spectrum[self.lo..self.hi]) {
             // `min` also maps NaN (inf - inf inside the FFT of huge input) to the cap.
             *m = (c.re * c.re + c.im * c.im).sqrt().min(MAG_CAP);
         }

@@ -20,6 +20,42 @@ pub fn hann_unit_power(n: usize) -> Vec<f32> {
     hann.iter().map(|w| (w * norm) as f32).collect()
 }
 
+/// A real FFT of one frame weighted by [`hann_unit_power`], with its buffers allocated
+/// once (the spectral front ends' shared first step: [`crate::flux`], [`crate::melbank`]).
+pub struct WindowedFft {
+    fft: std::sync::Arc<dyn realfft::RealToComplex<f32>>,
+    window: Vec<f32>,
+    input: Vec<f32>,
+    spectrum: Vec<realfft::num_complex::Complex<f32>>,
+    scratch: Vec<realfft::num_complex::Complex<f32>>,
+}
+
+impl WindowedFft {
+    /// A transform of `n`-sample frames.
+    pub fn new(n: usize) -> Self {
+        let fft = realfft::RealFftPlanner::<f32>::new().plan_fft_forward(n);
+        WindowedFft {
+            window: hann_unit_power(n),
+            input: fft.make_input_vec(),
+            spectrum: fft.make_output_vec(),
+            scratch: fft.make_scratch_vec(),
+            fft,
+        }
+    }
+
+    /// The spectrum (`n / 2 + 1` bins) of `frame` (`n` samples) times the window.
+    pub fn transform(&mut self, frame: &[f32]) -> &[realfft::num_complex::Complex<f32>] {
+        for ((d, &x), &w) in self.input.iter_mut().zip(frame).zip(&self.window) {
+            *d = x * w;
+        }
+        // Cannot fail: every buffer came from the plan's own make_*_vec.
+        let _ =
+            self.fft
+                .process_with_scratch(&mut self.input, &mut self.spectrum, &mut self.scratch);
+        &self.spectrum
+    }
+}
+
 /// Cuts a sample stream into centred, overlapping frames. See the module docs.
 #[derive(Debug, Clone)]
 pub struct Framer {

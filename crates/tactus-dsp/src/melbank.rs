@@ -41,12 +41,7 @@
 //! One real FFT of `frame` points and `frame/2 + 1` squared magnitudes per hop, plus about
 //! `2 · frame/2` multiply-adds for the filters. No allocation after [`MelBank::new`].
 
-use std::sync::Arc;
-
-use realfft::num_complex::Complex;
-use realfft::{RealFftPlanner, RealToComplex};
-
-use crate::framer::{hann_unit_power, Framer};
+use crate::framer::{Framer, WindowedFft};
 use crate::{ConfigError, HopStage};
 
 /// The floor inside the logarithm.
@@ -195,11 +190,7 @@ pub struct MelBank {
 }
 
 struct Core {
-    fft: Arc<dyn RealToComplex<f32>>,
-    window: Vec<f32>,
-    fft_in: Vec<f32>,
-    spectrum: Vec<Complex<f32>>,
-    scratch: Vec<Complex<f32>>,
+    fft: WindowedFft,
     power: Vec<f32>,
     filters: Vec<Tri>,
     /// The last frame computed wholly from real input (held at the end of the stream).
@@ -209,14 +200,7 @@ struct Core {
 
 impl Core {
     fn compute(&mut self, frame: &[f32]) {
-        for ((d, &x), &w) in self.fft_in.iter_mut().zip(frame).zip(&self.window) {
-            *d = x * w;
-        }
-        // Lengths match by construction, so this cannot fail.
-        let _ =
-            self.fft
-                .process_with_scratch(&mut self.fft_in, &mut self.spectrum, &mut self.scratch);
-        for (p, c) in self.power.iter_mut().zip(&self.spectrum) {
+        for (p, c) in self.power.iter_mut().zip(self.fft.transform(frame)) {
             *p = (c.re * c.re + c.im * c.im).min(1e30);
         }
         for (o, t) in self.out.iter_mut().zip(&self.filters) {
@@ -235,13 +219,8 @@ impl MelBank {
     pub fn new(cfg: MelConfig) -> Result<Self, ConfigError> {
         cfg.validate()?;
         let n = cfg.frame;
-        let fft = RealFftPlanner::<f32>::new().plan_fft_forward(n);
         let core = Core {
-            window: hann_unit_power(n),
-            fft_in: fft.make_input_vec(),
-            spectrum: fft.make_output_vec(),
-            scratch: fft.make_scratch_vec(),
-            fft,
+            fft: WindowedFft::new(n),
             power: vec![0.0; n / 2 + 1],
             filters: build_filters(&cfg),
             last_real: vec![LOG_FLOOR.ln(); cfg.bands],

@@ -156,16 +156,22 @@ pub struct ShsConfig {
     pub contour_ref_s: f32,
 }
 
+/// The power of two nearest `target` samples (rounding down when the next one up is more
+/// than 1.5 times it): the analysis frame of the presets.
+fn pow2_frame(target: f64) -> usize {
+    let up = (target as usize).next_power_of_two();
+    if (up as f64) / target > 1.5 {
+        up / 2
+    } else {
+        up
+    }
+}
+
 impl ShsConfig {
     /// The defaults of the module docs for a search range at `sample_rate`.
     pub fn new(sample_rate: u32, fmin_hz: f32, fmax_hz: f32) -> Self {
         let target = (sample_rate as f64 * 0.2).max(8.0);
-        let up = (target as usize).next_power_of_two();
-        let frame = if (up as f64) / target > 1.5 {
-            up / 2
-        } else {
-            up
-        };
+        let frame = pow2_frame(target);
         ShsConfig {
             sample_rate,
             frame,
@@ -195,12 +201,7 @@ impl ShsConfig {
     /// The melody defaults of the module docs (a lead voice or instrument, e.g. 70–1400 Hz).
     pub fn melody(sample_rate: u32, fmin_hz: f32, fmax_hz: f32) -> Self {
         let target = (sample_rate as f64 * 0.07).max(8.0);
-        let up = (target as usize).next_power_of_two();
-        let frame = if (up as f64) / target > 1.5 {
-            up / 2
-        } else {
-            up
-        };
+        let frame = pow2_frame(target);
         ShsConfig {
             frame,
             n_fft: 2 * frame,

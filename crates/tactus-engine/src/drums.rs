@@ -221,8 +221,7 @@ impl ClassTrack {
             Mode::Streaming => AdtLibConfig::streaming(),
             Mode::Offline => AdtLibConfig::offline(),
         };
-        let adt = AdtLib::new(&cfg, geo.sample_rate, layout)
-            .map_err(|e| crate::EngineError::Config(format!("ADTLib: {e}")))?;
+        let adt = AdtLib::new(&cfg, geo.sample_rate, layout).map_err(crate::EngineError::AdtLib)?;
         let hop = MelConfig::drums(geo.sample_rate).hop;
         let det = Detector::AdtLib(Box::new(AdtTrack {
             adt,

@@ -355,7 +355,7 @@ impl StemChain {
     }
 }
 
-#[cfg(feature = "onnx")]
+/// An ONNX separator (htdemucs or spleeter), or the error of a build without ONNX.
 fn onnx_separator(
     demucs: bool,
     model: &std::path::Path,
@@ -363,36 +363,33 @@ fn onnx_separator(
     stems: StemSet,
     threads: usize,
 ) -> Result<Box<dyn Separator>, EngineError> {
-    use tactus_separate::onnx::{
-        htdemucs::HtDemucsSeparator, spleeter::SpleeterSeparator, OnnxConfig,
-    };
-    let cfg = OnnxConfig {
-        threads: if threads == 0 {
-            std::thread::available_parallelism().map_or(1, |n| n.get())
+    #[cfg(feature = "onnx")]
+    {
+        use tactus_separate::onnx::{
+            htdemucs::HtDemucsSeparator, spleeter::SpleeterSeparator, OnnxConfig,
+        };
+        let cfg = OnnxConfig {
+            threads: if threads == 0 {
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            } else {
+                threads
+            },
+            ..OnnxConfig::new(model)
+        };
+        let err = EngineError::Onnx;
+        Ok(if demucs {
+            Box::new(HtDemucsSeparator::new(rate, stems, &cfg).map_err(err)?)
         } else {
-            threads
-        },
-        ..OnnxConfig::new(model)
-    };
-    let err = |e: tactus_separate::onnx::OnnxError| EngineError::Config(e.to_string());
-    Ok(if demucs {
-        Box::new(HtDemucsSeparator::new(rate, stems, &cfg).map_err(err)?)
-    } else {
-        Box::new(SpleeterSeparator::new(rate, stems, &cfg).map_err(err)?)
-    })
-}
-
-#[cfg(not(feature = "onnx"))]
-fn onnx_separator(
-    _demucs: bool,
-    _model: &std::path::Path,
-    _rate: u32,
-    _stems: StemSet,
-    _threads: usize,
-) -> Result<Box<dyn Separator>, EngineError> {
-    Err(EngineError::Config(
-        "this tactus was built without ONNX support: rebuild with `--features onnx` (see README, \"ONNX models\")".into(),
-    ))
+            Box::new(SpleeterSeparator::new(rate, stems, &cfg).map_err(err)?)
+        })
+    }
+    #[cfg(not(feature = "onnx"))]
+    {
+        let _ = (demucs, model, rate, stems, threads);
+        Err(EngineError::Config(
+            "this tactus was built without ONNX support: rebuild with `--features onnx` (see README, \"ONNX models\")".into(),
+        ))
+    }
 }
 
 /// Feeds one block to every chain: supplied stems where given, separated ones otherwise.
@@ -539,7 +536,7 @@ impl Engine {
                             Profile::Live => profile::separator(),
                         },
                     )
-                    .map_err(|e| EngineError::Config(e.to_string()))?,
+                    .map_err(EngineError::SeparatorSetup)?,
                 ),
                 SeparatorChoice::Spleeter(model) => {
                     onnx_separator(false, model, cfg.sample_rate, separated, cfg.threads)?
@@ -549,7 +546,7 @@ impl Engine {
                 }
                 SeparatorChoice::None => Box::new(
                     NoneSeparator::new(cfg.sample_rate, separated)
-                        .map_err(|e| EngineError::Config(e.to_string()))?,
+                        .map_err(EngineError::SeparatorSetup)?,
                 ),
             })
         };

@@ -64,9 +64,26 @@ pub enum EngineError {
     /// Resampler construction failed.
     #[error(transparent)]
     Resample(#[from] resample::ResampleError),
-    /// A stage was configured with impossible parameters (the message says which).
+    /// A configuration the engine refuses (the message says which and why; no cause).
     #[error("{0}")]
     Config(String),
+    /// A DSP stage was configured with impossible parameters.
+    #[error(transparent)]
+    Dsp(#[from] tactus_dsp::ConfigError),
+    /// The separator could not be built.
+    #[error("{0}")]
+    SeparatorSetup(#[source] tactus_separate::SeparateError),
+    /// An ONNX separator (htdemucs, spleeter) could not be built.
+    #[cfg(feature = "onnx")]
+    #[error("{0}")]
+    Onnx(#[source] tactus_separate::onnx::OnnxError),
+    /// The ADTLib drum transcriber could not be built.
+    #[cfg(feature = "onnx")]
+    #[error("ADTLib: {0}")]
+    AdtLib(#[source] tactus_separate::onnx::adtlib::AdtLibError),
+    /// A worker thread of the engine's panicked (a bug: please report it).
+    #[error("the {0} thread panicked")]
+    Panicked(&'static str),
     /// The separator failed while running (an ONNX Runtime error, a model output of the
     /// wrong shape): the stems it produced cannot be trusted.
     #[error(transparent)]
@@ -76,14 +93,8 @@ pub enum EngineError {
     Drums(String),
     /// Reading a file failed.
     #[error("{path}: {source}", path = .0.display(), source = .1)]
-    Io(PathBuf, std::io::Error),
+    Io(PathBuf, #[source] std::io::Error),
     /// The caller's frame callback asked to stop ([`render::render_with`]).
     #[error("rendering was stopped")]
     Cancelled,
-}
-
-impl From<tactus_dsp::ConfigError> for EngineError {
-    fn from(e: tactus_dsp::ConfigError) -> Self {
-        EngineError::Config(e.to_string())
-    }
 }

@@ -140,15 +140,7 @@ impl NoteTrack {
     pub fn onset_times(&self) -> Vec<f64> {
         match self {
             NoteTrack::Flux(f) => f.onset_times(),
-            NoteTrack::Pitch(p) => {
-                let hop_s = p.hop as f64 / p.geo.sample_rate as f64;
-                p.onsets
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, &o)| o)
-                    .map(|(i, _)| i as f64 * hop_s)
-                    .collect()
-            }
+            NoteTrack::Pitch(p) => crate::track::onset_times(&p.onsets, p.hop, p.geo.sample_rate),
         }
     }
 

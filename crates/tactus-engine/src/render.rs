@@ -397,7 +397,7 @@ pub fn render_tapped(
             drop(block_rx);
             let joined = reader
                 .join()
-                .map_err(|_| EngineError::Config("the decoding thread panicked".into()))?;
+                .map_err(|_| EngineError::Panicked("decoding"))?;
             result.map(|()| joined)
         })?
     } else {

@@ -623,13 +623,7 @@ impl OnsetTrack {
 
     /// Onset times in seconds (after the gate).
     pub fn onset_times(&self) -> Vec<f64> {
-        let hop_s = self.hop as f64 / self.geo.sample_rate as f64;
-        self.onsets
-            .iter()
-            .enumerate()
-            .filter(|(_, &o)| o)
-            .map(|(i, _)| i as f64 * hop_s)
-            .collect()
+        onset_times(&self.onsets, self.hop, self.geo.sample_rate)
     }
 
     /// Per-hop and per-bin values held.
@@ -663,3 +657,14 @@ pub const RISE_HOPS: usize = 4;
 /// Level rise (dB) over the quietest of the last [`RISE_HOPS`] hops that the live
 /// profile's onsets need.
 pub const RISE_DB: f32 = 3.0;
+
+/// The times, in seconds, of the hops flagged in `onsets` (hops of `hop` samples at `rate`).
+pub(crate) fn onset_times(onsets: &[bool], hop: usize, rate: u32) -> Vec<f64> {
+    let hop_s = hop as f64 / rate as f64;
+    onsets
+        .iter()
+        .enumerate()
+        .filter(|(_, &o)| o)
+        .map(|(i, _)| i as f64 * hop_s)
+        .collect()
+}

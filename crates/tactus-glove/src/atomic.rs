@@ -207,6 +207,37 @@ fn file_id(path: &Path) -> io::Result<FileId> {
     }
 }
 
+/// Whether `path` (output `label`) can be written: a file name, in a directory that exists,
+/// not a directory itself. `-` (standard output) always can.
+pub fn check_location(label: &str, path: &Path) -> Result<(), OutputError> {
+    if path.as_os_str() == "-" {
+        return Ok(());
+    }
+    let bad = |why: String| OutputError::BadLocation {
+        output: label.to_string(),
+        path: path.to_path_buf(),
+        why,
+    };
+    if path.file_name().is_none() {
+        return Err(bad("not a file name".into()));
+    }
+    let dir = parent_dir(path);
+    match fs::metadata(dir) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => return Err(bad(format!("{} is not a directory", dir.display()))),
+        Err(_) => {
+            return Err(bad(format!(
+                "the directory {} does not exist",
+                dir.display()
+            )))
+        }
+    }
+    if path.is_dir() {
+        return Err(bad("is a directory".into()));
+    }
+    Ok(())
+}
+
 fn parent_dir(path: &Path) -> &Path {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -263,28 +294,12 @@ impl OutputSet {
             if path.as_os_str() == "-" {
                 continue;
             }
+            check_location(label, path)?;
             let bad = |why: String| OutputError::BadLocation {
                 output: label.to_string(),
                 path: path.to_path_buf(),
                 why,
             };
-            if path.file_name().is_none() {
-                return Err(bad("not a file name".into()));
-            }
-            let dir = parent_dir(path);
-            match fs::metadata(dir) {
-                Ok(m) if m.is_dir() => {}
-                Ok(_) => return Err(bad(format!("{} is not a directory", dir.display()))),
-                Err(_) => {
-                    return Err(bad(format!(
-                        "the directory {} does not exist",
-                        dir.display()
-                    )))
-                }
-            }
-            if path.is_dir() {
-                return Err(bad("is a directory".into()));
-            }
             let id = file_id(path).map_err(|e| bad(e.to_string()))?;
             if let Some((_, input)) = input_ids.iter().find(|(i, _)| *i == id) {
                 return Err(OutputError::IsInput {
@@ -388,4 +403,14 @@ impl Drop for OutputSet {
             }
         }
     }
+}
+
+/// The value `table` pairs with `path`'s extension, compared without case (`None` for a
+/// path without one, or one not in the table): how an output's kind follows its name.
+pub fn by_extension<T: Copy>(path: &Path, table: &[(&str, T)]) -> Option<T> {
+    let ext = path.extension()?.to_str()?;
+    table
+        .iter()
+        .find(|(e, _)| e.eq_ignore_ascii_case(ext))
+        .map(|&(_, v)| v)
 }

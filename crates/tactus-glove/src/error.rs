@@ -21,6 +21,9 @@ pub enum GloveError {
         #[source]
         source: Box<GloveError>,
     },
+    /// A song is no longer the file its pattern was rendered from.
+    #[error("{} changed while it was rendered", .0.display())]
+    SongChanged(PathBuf),
     /// The input is empty (or only whitespace).
     #[error("empty input: expected a {what} JSON document")]
     Empty {

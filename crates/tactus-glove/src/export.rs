@@ -22,6 +22,33 @@ use crate::glove::{Dot, Finger, Frame, CELLS_PER_FINGER};
 use crate::map::CellSource;
 use crate::{Band, Features, GloveError, Pattern, Stem};
 
+/// An export format, chosen by the file's extension (`render --export`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ExportFormat {
+    /// [`to_csv`].
+    Csv,
+    /// [`to_ahap`].
+    Ahap,
+}
+
+impl ExportFormat {
+    /// `.csv` or `.ahap` (any case); `None` for anything else.
+    pub fn of(path: &std::path::Path) -> Option<ExportFormat> {
+        crate::atomic::by_extension(
+            path,
+            &[("csv", ExportFormat::Csv), ("ahap", ExportFormat::Ahap)],
+        )
+    }
+
+    /// The export's bytes.
+    pub fn bytes(self, pattern: &Pattern, features: &Features) -> Vec<u8> {
+        match self {
+            ExportFormat::Csv => to_csv(pattern).into_bytes(),
+            ExportFormat::Ahap => to_ahap(pattern, features).into_bytes(),
+        }
+    }
+}
+
 /// Longest `HapticContinuous` event Core Haptics plays, in seconds.
 pub const AHAP_MAX_CONTINUOUS_S: f64 = 30.0;
 

@@ -21,12 +21,9 @@
 //! files without them; readers ignore unknown keys.
 
 use std::collections::BTreeMap;
-use std::io::Write;
-use std::path::Path;
 
 use serde::Serialize;
 
-use crate::atomic::write_atomic;
 use crate::json::{check_header, invalid, optional, parse_object, required};
 use crate::{Band, GloveError, Stem};
 
@@ -146,20 +143,6 @@ impl Features {
             serde_json::to_string(&out).map_err(|e| GloveError::Io(std::io::Error::other(e)))?;
         s.push('\n');
         Ok(s)
-    }
-
-    /// Writes the JSON to `w`.
-    pub fn write_to(&self, w: &mut dyn Write) -> Result<(), GloveError> {
-        w.write_all(self.to_json_string()?.as_bytes())?;
-        Ok(())
-    }
-
-    /// Writes the JSON to `path` atomically (`-` = stdout).
-    pub fn write_to_path(&self, path: impl AsRef<Path>) -> Result<(), GloveError> {
-        let path = path.as_ref();
-        let text = self.to_json_string()?;
-        write_atomic(path, |w| w.write_all(text.as_bytes()))
-            .map_err(|e| GloveError::from(e).in_file(path))
     }
 
     /// Parses features from JSON bytes and validates them.

@@ -53,6 +53,32 @@ pub struct HtmlPage {
     pub audio: AudioKind,
 }
 
+/// The page for a song file: its own bytes embedded (checked against the pattern's SHA-256,
+/// so the page plays what was rendered) with the pattern and features, titled with its path.
+///
+/// Errors: the file cannot be read ([`GloveError::InFile`]), or it is not the file the
+/// pattern was rendered from ([`GloveError::SongChanged`]).
+pub fn page_for_song(
+    song: &std::path::Path,
+    pattern: &Pattern,
+    features: &Features,
+) -> Result<HtmlPage, crate::GloveError> {
+    let in_file = |e: crate::GloveError| crate::GloveError::InFile {
+        path: song.to_path_buf(),
+        source: Box::new(e),
+    };
+    let audio = std::fs::read(song).map_err(|e| in_file(e.into()))?;
+    if crate::sha256_hex(&audio[..]).map_err(|e| in_file(e.into()))? != pattern.source.sha256 {
+        return Err(crate::GloveError::SongChanged(song.to_path_buf()));
+    }
+    Ok(render_page(
+        pattern,
+        features,
+        &audio,
+        &song.display().to_string(),
+    ))
+}
+
 /// What an audio file's first bytes say, and whether browsers play it.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct AudioKind {
@@ -208,6 +234,21 @@ fn escape_html(s: &str) -> String {
 }
 
 /// The feature a cell shows, as the name its mute checkbox uses (a stem or a drum class).
+/// A cell's group (`off` when it shows nothing), its colour and its description (escaped).
+fn cell_look(
+    pattern: &Pattern,
+    finger: Finger,
+    cell: usize,
+) -> (&'static str, &'static str, String) {
+    let source = pattern.map.get(finger, cell);
+    let group = group_of(source).unwrap_or("off");
+    (
+        group,
+        colour(group),
+        escape_html(&describe_cell(source, pattern.levels)),
+    )
+}
+
 fn group_of(source: CellSource) -> Option<&'static str> {
     match source {
         CellSource::Off => None,
@@ -328,6 +369,7 @@ fn data_json(pattern: &Pattern, features: &Features, title: &str) -> String {
 pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: &str) -> HtmlPage {
     let kind = audio_kind(audio);
     let mut glove = String::new();
+    let mut legend = String::new();
     for finger in Finger::ALL {
         let _ = write!(
             glove,
@@ -335,14 +377,16 @@ pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: 
             finger.name()
         );
         for cell in 0..CELLS_PER_FINGER {
-            let source = pattern.map.get(finger, cell);
-            let group = group_of(source).unwrap_or("off");
+            let (group, colour, what) = cell_look(pattern, finger, cell);
+            let name = finger.name();
             let _ = write!(
                 glove,
-                "<div class=\"cell\" data-group=\"{group}\" style=\"--c:{}\" title=\"{} cell {cell}: {}\">",
-                colour(group),
-                finger.name(),
-                escape_html(&describe_cell(source, pattern.levels))
+                "<div class=\"cell\" data-group=\"{group}\" style=\"--c:{colour}\" title=\"{name} cell {cell}: {what}\">",
+            );
+            // The legend lists the cells in the same order.
+            let _ = write!(
+                legend,
+                "<tr><td>{name}</td><td>{cell}</td><td><i style=\"background:{colour}\"></i>{what}</td></tr>",
             );
             for row in 0..4 {
                 for col in 0..2 {
@@ -361,20 +405,6 @@ pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: 
         glove.push_str("</div>");
     }
 
-    let mut legend = String::new();
-    for finger in Finger::ALL {
-        for cell in 0..CELLS_PER_FINGER {
-            let source = pattern.map.get(finger, cell);
-            let group = group_of(source).unwrap_or("off");
-            let _ = write!(
-                legend,
-                "<tr><td>{}</td><td>{cell}</td><td><i style=\"background:{}\"></i>{}</td></tr>",
-                finger.name(),
-                colour(group),
-                escape_html(&describe_cell(source, pattern.levels))
-            );
-        }
-    }
     let mut groups: Vec<&str> = Vec::new();
     for source in pattern.map.cells.iter().flatten() {
         if let Some(g) = group_of(*source) {

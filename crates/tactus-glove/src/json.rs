@@ -9,8 +9,10 @@ use crate::GloveError;
 
 pub(crate) type Object = Map<String, Value>;
 
-/// The readers every versioned JSON file kind shares, written once: `from_json_str`,
-/// `read_from` and `from_path` (errors name the file), all through the kind's `from_slice`.
+/// The readers and writers every versioned JSON file kind shares, written once:
+/// `from_json_str`, `read_from` and `from_path` (errors name the file), all through the
+/// kind's `from_slice`; `write_to` and `write_to_path` (atomic), through its
+/// `to_json_string`.
 macro_rules! json_file_readers {
     ($t:ident) => {
         impl $t {
@@ -33,6 +35,23 @@ macro_rules! json_file_readers {
                     .map_err(GloveError::from)
                     .and_then(|b| $t::from_slice(&b))
                     .map_err(|e| e.in_file(path))
+            }
+
+            /// Writes the JSON to `w`.
+            pub fn write_to(&self, w: &mut dyn std::io::Write) -> Result<(), GloveError> {
+                w.write_all(self.to_json_string()?.as_bytes())?;
+                Ok(())
+            }
+
+            /// Writes the JSON to `path` atomically (`-` = stdout).
+            pub fn write_to_path(
+                &self,
+                path: impl AsRef<std::path::Path>,
+            ) -> Result<(), GloveError> {
+                let path = path.as_ref();
+                let text = self.to_json_string()?;
+                crate::atomic::write_atomic(path, |w| w.write_all(text.as_bytes()))
+                    .map_err(|e| GloveError::from(e).in_file(path))
             }
         }
     };

@@ -69,6 +69,8 @@ mod json;
 pub mod map;
 pub mod pattern;
 pub mod plot;
+#[cfg(feature = "png")]
+pub mod png;
 pub mod protocol;
 pub mod tui;
 

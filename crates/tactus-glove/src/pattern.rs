@@ -13,13 +13,12 @@
 //! names the offending key or frame index; unknown keys are ignored so later minor additions
 //! stay readable. Writing is pretty-printed, one frame per line, so patterns diff well.
 
-use std::io::{Read, Write};
+use std::io::Read;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::atomic::write_atomic;
 use crate::glove::Frame;
 use crate::json::{check_header, invalid, parse_object, required, typed};
 use crate::{GloveError, GloveMap};
@@ -108,20 +107,6 @@ impl Pattern {
             .map_err(|e| GloveError::Io(std::io::Error::other(e)))?;
         s.push('\n');
         Ok(s)
-    }
-
-    /// Writes the JSON to `w`.
-    pub fn write_to(&self, w: &mut dyn Write) -> Result<(), GloveError> {
-        w.write_all(self.to_json_string()?.as_bytes())?;
-        Ok(())
-    }
-
-    /// Writes the JSON to `path` atomically (`-` = stdout).
-    pub fn write_to_path(&self, path: impl AsRef<Path>) -> Result<(), GloveError> {
-        let path = path.as_ref();
-        let text = self.to_json_string()?;
-        write_atomic(path, |w| w.write_all(text.as_bytes()))
-            .map_err(|e| GloveError::from(e).in_file(path))
     }
 
     /// Parses a pattern from JSON bytes.

@@ -27,6 +27,21 @@ const BAND_H: f64 = 28.0;
 const DOT_H: f64 = 4.0;
 const GAP: f64 = 26.0;
 
+/// A panel's frame (`h` high at `y`, the plot's width) and its label at the left margin,
+/// `label_dy` below the top in `font_size`.
+fn panel(s: &mut String, y: f64, plot_w: f64, h: f64, label: &str, label_dy: f64, font_size: u32) {
+    let _ = writeln!(
+        s,
+        r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{h}" fill="#fafafa" stroke="#ccc"/>"##
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="8" y="{}" font-size="{font_size}">{}</text>"#,
+        y + label_dy,
+        esc(label)
+    );
+}
+
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
@@ -77,16 +92,7 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
             (lo.floor() - 1.0, hi.ceil() + 1.0)
         };
         let y_of = |st: f64| y + PITCH_H - PITCH_H * (st - lo) / (hi - lo).max(1.0);
-        let _ = writeln!(
-            s,
-            r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{PITCH_H}" fill="#fafafa" stroke="#ccc"/>"##
-        );
-        let _ = writeln!(
-            s,
-            r#"<text x="8" y="{}" font-size="13">{}</text>"#,
-            y + 16.0,
-            esc(stem)
-        );
+        panel(&mut s, y, plot_w, PITCH_H, stem, 16.0, 13);
         let _ = writeln!(
             s,
             r##"<text x="8" y="{}" fill="#1f77b4">pitch (st)</text>"##,
@@ -158,16 +164,7 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
 
     // Band rasters.
     for (band, beats) in &f.beats {
-        let _ = writeln!(
-            s,
-            r##"<rect x="{LEFT}" y="{y}" width="{plot_w}" height="{BAND_H}" fill="#fafafa" stroke="#ccc"/>"##
-        );
-        let _ = writeln!(
-            s,
-            r#"<text x="8" y="{}" font-size="12">{}</text>"#,
-            y + 18.0,
-            esc(band)
-        );
+        panel(&mut s, y, plot_w, BAND_H, band, 18.0, 12);
         let mut d = String::new();
         for (k, &b) in beats.iter().enumerate() {
             if b != 0 {

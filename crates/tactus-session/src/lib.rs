@@ -44,6 +44,8 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+#[cfg(feature = "device")]
+pub mod device;
 pub mod live;
 pub mod play;
 pub mod view;
@@ -51,7 +53,7 @@ pub mod view;
 pub use live::{
     live, BlockTimes, LiveEngine, LiveInput, LiveOptions, LiveReport, LiveStatus, MAX_BACKLOG,
 };
-pub use play::{play_pattern, play_song, Late, PlayOptions, PlayReport, SoundReport};
+pub use play::{pattern_song, play_pattern, play_song, Late, PlayOptions, PlayReport, SoundReport};
 
 /// Why a session stopped with an error. Each message is one line a user understands; the
 /// cause stays reachable through [`std::error::Error::source`].
@@ -92,6 +94,37 @@ pub enum SessionError {
     ClockStalled {
         /// How long it stood still.
         seconds: f64,
+    },
+    /// A pattern's song is neither where the pattern says nor beside the pattern.
+    #[error(
+        "the pattern's song {} was not found (nor beside the pattern): pass --audio FILE, or --no-audio to play without sound",
+        .0.display()
+    )]
+    SongNotFound(std::path::PathBuf),
+    /// A pattern's song is another file than the one it was rendered from.
+    #[error(
+        "{}: SHA-256 {sha256} does not match the pattern's {want} (a different file?): pass the song it was rendered from with --audio FILE, or --no-audio",
+        .path.display()
+    )]
+    SongMismatch {
+        /// The file found.
+        path: std::path::PathBuf,
+        /// Its SHA-256.
+        sha256: String,
+        /// The pattern's.
+        want: String,
+    },
+    /// A file could not be read.
+    #[error("reading {}", .0.display())]
+    Io(std::path::PathBuf, #[source] std::io::Error),
+    /// A thread of the session could not be started.
+    #[error("starting the {what}: {source}")]
+    Spawn {
+        /// Which thread (`audio feeder`, ...).
+        what: &'static str,
+        /// The system's error.
+        #[source]
+        source: std::io::Error,
     },
     /// The rendering or feeding thread could not run.
     #[error("{0}")]

@@ -151,6 +151,75 @@ pub struct LiveReport {
     pub retained_values: usize,
 }
 
+impl LiveReport {
+    /// The measured latency (when any frame was sent), the processing time per block and
+    /// the backlog, one line each, as `tactus live` prints them; `rate` is the capture's.
+    pub fn timing_text(&self, rate: u32) -> String {
+        use std::fmt::Write;
+        let mut t = String::new();
+        if let Some((median, p95, max)) = self.measured_ms {
+            let _ = writeln!(
+                t,
+                "measured bin end (captured) -> frame sent: median {median:.1} ms, p95 {p95:.1} ms, max {max:.1} ms"
+            );
+        }
+        // Issue 13: real-time hygiene. Time per 256-sample block of the read -> process ->
+        // send loop (wall clock: preemption included), the backlog, what was dropped to
+        // catch up.
+        let _ = writeln!(
+            t,
+            "processing per 256-sample block ({} reads): {}",
+            self.block_times.count(),
+            self.block_times
+        );
+        let (b50, b99, bmax, blast) = self.backlog_ms;
+        let _ = writeln!(
+            t,
+            "backlog (audio waiting in the ring, and in the device beyond its usual delay): median {b50:.1} ms, p99 {b99:.1} ms, max {bmax:.1} ms, last {blast:.1} ms; caught up {} times, dropping {:.3} s of audio (backlog over {} ms); xruns {}",
+            self.caught_up.0,
+            self.caught_up.1 as f64 / f64::from(rate),
+            MAX_BACKLOG.as_millis(),
+            self.xruns
+        );
+        t
+    }
+
+    /// The latency budget per finger group as a table, one group after the other: each
+    /// stage in samples at the engine rate and in ms, then the link, the total to the glove
+    /// and the pin rise. `profile` names the latency profile in each heading.
+    pub fn budget_text(&self, profile: &str) -> String {
+        use std::fmt::Write;
+        let ms = |n: usize| n as f64 * 1e3 / f64::from(ENGINE_RATE);
+        let find = |name: &str| {
+            self.budget
+                .iter()
+                .find(|(n, _)| n == name)
+                .map_or(0.0, |(_, v)| *v)
+        };
+        let (link, rise) = (find("link"), find("pin rise"));
+        let mut t = String::new();
+        for (group, stages) in &self.paths {
+            let _ = writeln!(
+                t,
+                "latency budget, {group} fingers ({profile} profile; after the capture period):"
+            );
+            let mut sum = 0.0;
+            for (name, n) in stages {
+                sum += ms(*n);
+                let _ = writeln!(t, "    {name:<44} {n:>6} samples {:>7.1} ms", ms(*n));
+            }
+            for (name, v) in [
+                ("link", link),
+                ("total to the glove", sum + link),
+                ("(then the pin rise)", rise),
+            ] {
+                let _ = writeln!(t, "    {name:<44} {:>14} {v:>7.1} ms", "");
+            }
+        }
+        t
+    }
+}
+
 /// The device's usual `callback − capture` delay: the smallest seen over the last one to
 /// two buckets of [`DelayFloor::READS`] reads (about 2 s each at one read per 4 ms
 /// capture period; counted in reads, not time, so that a stall does not age the floor

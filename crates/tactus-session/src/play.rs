@@ -96,6 +96,26 @@ pub struct SoundReport {
     pub feed_failed: bool,
 }
 
+/// `audio on DEVICE at RATE Hz: song …, audio clock … (drift …), output latency …,
+/// underruns …`, as `tactus play` prints it.
+impl std::fmt::Display for SoundReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "audio on {} at {} Hz: song {:.3} s, audio clock {:.3} s after {:.3} s of wall time (drift {:+.1} ms), output latency {:.1} ms, underruns {}{}",
+            self.device,
+            self.rate,
+            self.song_s,
+            self.clock_s,
+            self.wall_s,
+            (self.clock_s - self.wall_s) * 1e3,
+            self.latency_ms,
+            self.underruns,
+            if self.feed_failed { ", decoding failed part-way" } else { "" }
+        )
+    }
+}
+
 /// What a play session did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlayReport {
@@ -250,7 +270,10 @@ pub fn play_song(
                     }
                     feed.finish();
                 })
-                .map_err(|e| SessionError::Renderer(format!("starting the audio feeder: {e}")))?;
+                .map_err(|source| SessionError::Spawn {
+                    what: "audio feeder",
+                    source,
+                })?;
             (Some(playback), Some(tx), Some(h))
         }
         None => (None, None, None),
@@ -396,7 +419,10 @@ pub fn play_pattern(
                         }
                     }
                 })
-                .map_err(|e| SessionError::Renderer(format!("starting the audio feeder: {e}")))?;
+                .map_err(|source| SessionError::Spawn {
+                    what: "audio feeder",
+                    source,
+                })?;
             // The whole pattern is the queue: nothing to render.
             let shared: SharedQueue = Arc::new((
                 Mutex::new(Queue {
@@ -540,4 +566,40 @@ fn schedule(
     }
     sink.all_down();
     Ok((sent, skipped))
+}
+
+/// The song of a pattern: `audio` if given, else the recorded path (as given, then relative
+/// to the pattern file's folder); its SHA-256 must be the pattern's.
+///
+/// Errors: no song found ([`SessionError::SongNotFound`]), unreadable
+/// ([`SessionError::Io`]), or another file than the one rendered
+/// ([`SessionError::SongMismatch`]).
+pub fn pattern_song(
+    pattern_path: &Path,
+    pattern: &tactus_glove::Pattern,
+    audio: Option<&Path>,
+) -> Result<std::path::PathBuf, SessionError> {
+    let recorded = Path::new(&pattern.source.path);
+    let song = match audio {
+        Some(a) => a.to_path_buf(),
+        None => {
+            let beside = pattern_path
+                .parent()
+                .map(|d| d.join(recorded))
+                .filter(|_| recorded.is_relative());
+            std::iter::once(recorded.to_path_buf())
+                .chain(beside)
+                .find(|p| p.is_file())
+                .ok_or_else(|| SessionError::SongNotFound(recorded.to_path_buf()))?
+        }
+    };
+    let sha = tactus_glove::sha256_file(&song).map_err(|e| SessionError::Io(song.clone(), e))?;
+    if sha != pattern.source.sha256 {
+        return Err(SessionError::SongMismatch {
+            path: song,
+            sha256: sha,
+            want: pattern.source.sha256.clone(),
+        });
+    }
+    Ok(song)
 }

@@ -33,7 +33,7 @@ use uuid::Uuid;
 use crate::devices::BleDevice;
 use crate::link::Link;
 use crate::spec::BleTarget;
-use crate::TransportError;
+use crate::{LinkError, TransportError};
 
 /// GATT service of the JDY-33 module.
 pub(crate) const SERVICE: Uuid = uuid_from_u16(0xFFE0);
@@ -46,20 +46,27 @@ fn runtime() -> Result<Runtime, TransportError> {
     tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
-        .map_err(|e| TransportError::Ble(format!("cannot start the async runtime: {e}")))
+        .map_err(|e| {
+            TransportError::Ble(LinkError::Ble(format!(
+                "cannot start the async runtime: {e}"
+            )))
+        })
 }
 
-async fn first_adapter() -> Result<Adapter, String> {
+async fn first_adapter() -> Result<Adapter, LinkError> {
     let manager = Manager::new()
         .await
-        .map_err(|e| format!("no BlueZ on the system D-Bus ({e})"))?;
+        .map_err(|e| LinkError::Ble(format!("no BlueZ on the system D-Bus ({e})")))?;
     manager
         .adapters()
         .await
-        .map_err(|e| format!("cannot list adapters: {e}"))?
+        .map_err(|source| LinkError::Btle {
+            what: "cannot list adapters",
+            source,
+        })?
         .into_iter()
         .next()
-        .ok_or_else(|| "no Bluetooth adapter".to_string())
+        .ok_or_else(|| LinkError::Ble("no Bluetooth adapter".into()))
 }
 
 async fn describe(p: &Peripheral) -> Option<BleDevice> {
@@ -83,17 +90,27 @@ async fn find(
     adapter: &Adapter,
     target: &BleTarget,
     timeout: Duration,
-) -> Result<Peripheral, String> {
+) -> Result<Peripheral, LinkError> {
     adapter
         .start_scan(ScanFilter::default())
         .await
-        .map_err(|e| format!("cannot scan: {e}"))?;
+        .map_err(|source| LinkError::Btle {
+            what: "cannot scan",
+            source,
+        })?;
     let deadline = tokio::time::Instant::now() + timeout;
     let mut seen = Vec::new();
     let found = loop {
         seen.clear();
         let mut hit = None;
-        for p in adapter.peripherals().await.map_err(|e| e.to_string())? {
+        let peripherals = adapter
+            .peripherals()
+            .await
+            .map_err(|source| LinkError::Btle {
+                what: "cannot list devices",
+                source,
+            })?;
+        for p in peripherals {
             if let Some(d) = describe(&p).await {
                 if matches(target, &d) {
                     hit = Some(p);
@@ -114,7 +131,7 @@ async fn find(
             BleTarget::Name(n) => format!("no device named {n:?}"),
             BleTarget::Address(a) => format!("no device at {a}"),
         };
-        format!(
+        LinkError::Ble(format!(
             "{what} found within {:.1} s (seen: {})",
             timeout.as_secs_f64(),
             if seen.is_empty() {
@@ -122,27 +139,35 @@ async fn find(
             } else {
                 seen.join(", ")
             }
-        )
+        ))
     })
 }
 
 async fn connect(
     target: &BleTarget,
     timeout: Duration,
-) -> Result<(Peripheral, Characteristic), String> {
+) -> Result<(Peripheral, Characteristic), LinkError> {
     let adapter = first_adapter().await?;
     let p = find(&adapter, target, timeout).await?;
     if !p.is_connected().await.unwrap_or(false) {
-        p.connect().await.map_err(|e| format!("connect: {e}"))?;
+        p.connect().await.map_err(|source| LinkError::Btle {
+            what: "connect",
+            source,
+        })?;
     }
     p.discover_services()
         .await
-        .map_err(|e| format!("service discovery: {e}"))?;
+        .map_err(|source| LinkError::Btle {
+            what: "service discovery",
+            source,
+        })?;
     let ch = p
         .characteristics()
         .into_iter()
         .find(|c| c.uuid == CHARACTERISTIC && c.service_uuid == SERVICE)
-        .ok_or_else(|| "device has no characteristic 0xFFE1 in service 0xFFE0".to_string())?;
+        .ok_or_else(|| {
+            LinkError::Ble("device has no characteristic 0xFFE1 in service 0xFFE0".into())
+        })?;
     Ok((p, ch))
 }
 
@@ -170,7 +195,7 @@ impl BleLink {
 }
 
 impl Link for BleLink {
-    fn connect(&mut self) -> Result<(), String> {
+    fn connect(&mut self) -> Result<(), LinkError> {
         let timeout = if self.connected_once {
             RESCAN_TIMEOUT.min(self.scan_timeout)
         } else {
@@ -182,8 +207,11 @@ impl Link for BleLink {
         Ok(())
     }
 
-    fn write(&mut self, _: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), String> {
-        let (p, ch) = self.conn.as_ref().ok_or("not connected")?;
+    fn write(&mut self, _: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), LinkError> {
+        let (p, ch) = self
+            .conn
+            .as_ref()
+            .ok_or(LinkError::NotOpen("BLE connection"))?;
         self.rt
             .block_on(async {
                 tokio::time::timeout(
@@ -192,8 +220,11 @@ impl Link for BleLink {
                 )
                 .await
             })
-            .map_err(|_| "BLE write timed out".to_string())?
-            .map_err(|e| format!("BLE write: {e}"))
+            .map_err(|_| LinkError::Ble("BLE write timed out".into()))?
+            .map_err(|source| LinkError::Btle {
+                what: "BLE write",
+                source,
+            })
     }
 
     fn disconnect(&mut self) {
@@ -216,14 +247,20 @@ pub(crate) fn scan(timeout: Duration) -> Result<Vec<BleDevice>, TransportError> 
         adapter
             .start_scan(ScanFilter::default())
             .await
-            .map_err(|e| TransportError::Ble(format!("cannot scan: {e}")))?;
+            .map_err(|source| {
+                TransportError::Ble(LinkError::Btle {
+                    what: "cannot scan",
+                    source,
+                })
+            })?;
         tokio::time::sleep(timeout).await;
         let mut out = Vec::new();
-        for p in adapter
-            .peripherals()
-            .await
-            .map_err(|e| TransportError::Ble(e.to_string()))?
-        {
+        for p in adapter.peripherals().await.map_err(|source| {
+            TransportError::Ble(LinkError::Btle {
+                what: "cannot list devices",
+                source,
+            })
+        })? {
             if let Some(d) = describe(&p).await {
                 out.push(d);
             }

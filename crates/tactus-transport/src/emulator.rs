@@ -79,6 +79,28 @@ pub struct EmulatorReport {
     pub frames: Vec<ReceivedFrame>,
 }
 
+/// `N packets (… pin frames, … all-down, … keep-alive), … CRC errors, … final frame HEX`,
+/// as `tactus emulate` prints it.
+impl std::fmt::Display for EmulatorReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} packets ({} pin frames, {} all-down, {} keep-alive), {} CRC errors, {} malformed, \
+             {} sequence gaps, {} garbage bytes, {} pin changes; final frame {}",
+            self.packets,
+            self.frames.len(),
+            self.all_downs,
+            self.keep_alives,
+            self.crc_errors,
+            self.malformed,
+            self.sequence_gaps,
+            self.garbage_bytes,
+            self.actuations,
+            self.final_frame.to_hex()
+        )
+    }
+}
+
 impl EmulatorReport {
     /// The report as `tactus emulate` prints it on stdout; with `frames`, every received
     /// pin frame too.
@@ -314,10 +336,10 @@ pub fn packet_type_name(kind: PacketType) -> &'static str {
 pub(crate) struct EmulatorLink(pub(crate) Arc<Mutex<VirtualGlove>>);
 
 impl Link for EmulatorLink {
-    fn connect(&mut self) -> Result<(), String> {
+    fn connect(&mut self) -> Result<(), crate::LinkError> {
         Ok(())
     }
-    fn write(&mut self, _: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), String> {
+    fn write(&mut self, _: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), crate::LinkError> {
         self.0
             .lock()
             .unwrap_or_else(|e| e.into_inner())
@@ -399,7 +421,7 @@ pub fn run_emulator_on_port_with(
     let mut port = Some(
         open_port(&name, opts.poll).map_err(|e| TransportError::Serial {
             path: name.clone(),
-            reason: e.to_string(),
+            source: e.into(),
         })?,
     );
     let started = Instant::now();

@@ -47,16 +47,19 @@ pub fn open_sink(spec: &SinkSpec, opts: &SinkOptions) -> Result<SinkHandle, Tran
     }
 }
 /// The error for a failed first connection of `spec`.
-fn connect_error(spec: &SinkSpec, reason: String) -> TransportError {
-    match spec {
-        SinkSpec::Serial { path, .. } => TransportError::Serial {
+fn connect_error(spec: &SinkSpec, reason: crate::LinkError) -> TransportError {
+    match (spec, reason) {
+        (SinkSpec::Serial { path, .. }, source) => TransportError::Serial {
             path: path.clone(),
-            reason,
+            source,
         },
-        SinkSpec::File(path) | SinkSpec::Emulator(Some(path)) => TransportError::File {
+        (SinkSpec::File(path) | SinkSpec::Emulator(Some(path)), reason) => TransportError::File {
             path: path.clone(),
-            source: std::io::Error::other(reason),
+            source: match reason {
+                crate::LinkError::Io(e) => e,
+                other => std::io::Error::other(other),
+            },
         },
-        _ => TransportError::Ble(reason),
+        (_, reason) => TransportError::Ble(reason),
     }
 }

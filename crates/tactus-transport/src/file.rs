@@ -23,6 +23,7 @@ use tactus_glove::protocol::PACKET_LEN;
 use tactus_glove::Packet;
 
 use crate::link::Link;
+use crate::LinkError;
 
 pub(crate) struct FileLink {
     path: PathBuf,
@@ -47,14 +48,13 @@ fn hex(bytes: &[u8]) -> String {
 }
 
 impl Link for FileLink {
-    fn connect(&mut self) -> Result<(), String> {
+    fn connect(&mut self) -> Result<(), LinkError> {
         // Truncate on the first open only; a re-open (after a write error) appends.
         let f = if self.opened {
             std::fs::OpenOptions::new().append(true).open(&self.path)
         } else {
             File::create(&self.path)
-        }
-        .map_err(|e| e.to_string())?;
+        }?;
         if !self.opened {
             self.start = Instant::now();
             self.opened = true;
@@ -63,8 +63,8 @@ impl Link for FileLink {
         Ok(())
     }
 
-    fn write(&mut self, packet: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), String> {
-        let out = self.out.as_mut().ok_or("recorder not open")?;
+    fn write(&mut self, packet: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), LinkError> {
+        let out = self.out.as_mut().ok_or(LinkError::NotOpen("recorder"))?;
         let mono_ms = self.start.elapsed().as_secs_f64() * 1e3;
         let wall_ms = SystemTime::now()
             .duration_since(UNIX_EPOCH)
@@ -81,7 +81,10 @@ impl Link for FileLink {
         });
         writeln!(out, "{line}")
             .and_then(|()| out.flush())
-            .map_err(|e| format!("{}: {e}", self.path.display()))
+            .map_err(|source| LinkError::Write {
+                path: self.path.display().to_string(),
+                source,
+            })
     }
 
     fn disconnect(&mut self) {

@@ -59,7 +59,7 @@ pub mod spec;
 
 pub use devices::{devices_report, list_ble_devices, BleDevice};
 pub use emulator::{run_emulator_on_port, EmulatorOptions, EmulatorReport, VirtualGlove};
-pub use error::TransportError;
+pub use error::{LinkError, TransportError};
 pub use factory::open_sink;
 pub use player::{lead_ms, play_frames, Clock, PlayReport, PlayStatus, WallClock};
 pub use serial::{list_serial_ports, SerialPortEntry};

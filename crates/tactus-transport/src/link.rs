@@ -4,12 +4,14 @@
 use tactus_glove::protocol::PACKET_LEN;
 use tactus_glove::Packet;
 
+use crate::LinkError;
+
 /// One link as the sink thread sees it. Implementations block; the thread serialises calls.
 pub(crate) trait Link: Send {
     /// Opens (or re-opens) the link.
-    fn connect(&mut self) -> Result<(), String>;
+    fn connect(&mut self) -> Result<(), LinkError>;
     /// Writes one packet (`bytes` is `packet.encode()`).
-    fn write(&mut self, packet: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), String>;
+    fn write(&mut self, packet: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), LinkError>;
     /// Closes the link; the next call is `connect`.
     fn disconnect(&mut self);
     /// The MTU, where the link knows one.

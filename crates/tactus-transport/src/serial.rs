@@ -19,6 +19,7 @@ use tactus_glove::protocol::PACKET_LEN;
 use tactus_glove::Packet;
 
 use crate::link::Link;
+use crate::LinkError;
 use crate::TransportError;
 
 /// How long one packet write may take before the link counts as stuck.
@@ -41,22 +42,23 @@ impl SerialLink {
 }
 
 impl Link for SerialLink {
-    fn connect(&mut self) -> Result<(), String> {
+    fn connect(&mut self) -> Result<(), LinkError> {
         let port = serialport::new(&self.path, self.baud)
             .timeout(WRITE_TIMEOUT)
-            .open()
-            .map_err(|e| e.to_string())?;
+            .open()?;
         self.port = Some(port);
         Ok(())
     }
 
-    fn write(&mut self, _: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), String> {
-        let port = self.port.as_mut().ok_or("port not open")?;
+    fn write(&mut self, _: &Packet, bytes: &[u8; PACKET_LEN]) -> Result<(), LinkError> {
+        let port = self.port.as_mut().ok_or(LinkError::NotOpen("port"))?;
         // No flush(): on a tty it is tcdrain(), which waits for the far end (on a pty, for
         // socat to be scheduled) and would stall the sink; write() hands the 16 bytes to the
         // kernel, which is all latest-state sending needs.
-        port.write_all(bytes)
-            .map_err(|e| format!("{}: {e}", self.path))
+        port.write_all(bytes).map_err(|source| LinkError::Write {
+            path: self.path.clone(),
+            source,
+        })
     }
 
     fn disconnect(&mut self) {
@@ -83,7 +85,7 @@ pub fn list_serial_ports() -> Result<Vec<SerialPortEntry>, TransportError> {
     }
     let ports = serialport::available_ports().map_err(|e| TransportError::Serial {
         path: "(enumeration)".into(),
-        reason: e.to_string(),
+        source: e.into(),
     })?;
     Ok(ports
         .into_iter()

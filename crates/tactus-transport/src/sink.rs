@@ -234,7 +234,7 @@ pub(crate) fn start(
     glove: Option<Arc<Mutex<VirtualGlove>>>,
     spec: &SinkSpec,
     opts: &SinkOptions,
-) -> Result<Result<SinkHandle, String>, TransportError> {
+) -> Result<Result<SinkHandle, crate::LinkError>, TransportError> {
     let shared = Arc::new(Shared {
         mailbox: Mutex::new(Mailbox::default()),
         wake: Condvar::new(),
@@ -272,7 +272,7 @@ fn run_sink(
     mut link: Box<dyn Link>,
     shared: Arc<Shared>,
     opts: SinkOptions,
-    ready: mpsc::Sender<Result<(), String>>,
+    ready: mpsc::Sender<Result<(), crate::LinkError>>,
 ) {
     if let Err(e) = link.connect() {
         let _ = ready.send(Err(e));
@@ -362,7 +362,7 @@ fn run_sink(
                     backoff = (backoff * 2).min(opts.backoff_max);
                     let mut st = lock(&shared.stats);
                     st.errors += 1;
-                    st.last_error = Some(e);
+                    st.last_error = Some(e.to_string());
                 }
             }
         }
@@ -414,7 +414,7 @@ fn run_sink(
                         let mut st = lock(&shared.stats);
                         st.errors += 1;
                         st.link_up = false;
-                        st.last_error = Some(e);
+                        st.last_error = Some(e.to_string());
                     }
                 }
             }
