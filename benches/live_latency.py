@@ -210,31 +210,45 @@ def need(prog):
         sys.exit(3)
 
 
+def start_pulse(d, rate=RATE, options=()):
+    """A private PulseAudio server (runtime directory `d`/rt) with a null sink `vsink` whose
+    monitor is the default source; returns the environment that talks to it."""
+    rt = os.path.join(d, "rt")
+    os.mkdir(rt, 0o700)
+    env = dict(os.environ, XDG_RUNTIME_DIR=rt)
+    subprocess.run(["pulseaudio", "-D", "-n", "--exit-idle-time=-1", *options,
+                    "-L", "module-native-protocol-unix",
+                    "-L", f"module-null-sink sink_name=vsink rate={rate}",
+                    "-L", "module-always-sink"],
+                   env=env, check=True, stderr=subprocess.DEVNULL)
+    subprocess.run(["pactl", "set-default-source", "vsink.monitor"], env=env, check=True)
+    return env
+
+
+def pty_pair(d):
+    """A socat pty pair in `d`: (process, the end tactus writes, the end this script reads)."""
+    a, b = os.path.join(d, "ttyA"), os.path.join(d, "ttyB")
+    socat = subprocess.Popen(["socat", f"pty,raw,echo=0,link={a}",
+                              f"pty,raw,echo=0,link={b}"], stderr=subprocess.DEVNULL)
+    t = time.monotonic()
+    while not (os.path.exists(a) and os.path.exists(b)):
+        if time.monotonic() - t > 10:
+            socat.kill()
+            raise RuntimeError("socat made no pty pair in 10 s")
+        time.sleep(0.01)
+    return socat, a, b
+
+
 def run_once(args, extra):
     for p in ("pulseaudio", "pactl", "pacat", "socat"):
         need(p)
     d = tempfile.mkdtemp(prefix="tactus-latency-")
-    rt = os.path.join(d, "rt")
-    os.mkdir(rt, 0o700)
-    env = dict(os.environ, XDG_RUNTIME_DIR=rt)
+    env = dict(os.environ, XDG_RUNTIME_DIR=os.path.join(d, "rt"))
     procs = []
     try:
-        subprocess.run(["pulseaudio", "-D", "-n", "--exit-idle-time=-1",
-                        "-L", "module-native-protocol-unix",
-                        "-L", "module-null-sink sink_name=vsink rate=48000",
-                        "-L", "module-always-sink"],
-                       env=env, check=True, stderr=subprocess.DEVNULL)
-        subprocess.run(["pactl", "set-default-source", "vsink.monitor"], env=env, check=True)
-        a, b = os.path.join(d, "ttyA"), os.path.join(d, "ttyB")
-        socat = subprocess.Popen(["socat", f"pty,raw,echo=0,link={a}",
-                                  f"pty,raw,echo=0,link={b}"],
-                                 stderr=subprocess.DEVNULL)
+        env = start_pulse(d)
+        socat, a, b = pty_pair(d)
         procs.append(socat)
-        t = time.monotonic()
-        while not (os.path.exists(a) and os.path.exists(b)):
-            if time.monotonic() - t > 10:
-                raise RuntimeError("socat made no pty pair in 10 s")
-            time.sleep(0.01)
         reader = Reader(b)
         reader.start()
 

@@ -44,7 +44,7 @@ import threading
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from live_latency import Reader, pct  # noqa: E402  (same directory)
+from live_latency import Reader, pct, pty_pair, start_pulse  # noqa: E402  (same directory)
 
 RATE = 48_000
 WINDOW_S = 0.5  # excerpt correlated with the recording
@@ -131,30 +131,16 @@ def run(args, extra, np):
     for p in ("pulseaudio", "pactl", "parec", "socat", "ffmpeg"):
         need(p)
     d = tempfile.mkdtemp(prefix="tactus-sync-")
-    rt = os.path.join(d, "rt")
-    os.mkdir(rt, 0o700)
-    env = dict(os.environ, XDG_RUNTIME_DIR=rt)
+    env = dict(os.environ, XDG_RUNTIME_DIR=os.path.join(d, "rt"))
     procs = []
     try:
         # Real-time, as a desktop's PulseAudio runs (rtkit): on a loaded machine a
         # normal-priority server drops out for hundreds of ms, and those gaps are the
         # sound server's, not the player's.
-        subprocess.run(["pulseaudio", "-D", "-n", "--exit-idle-time=-1",
-                        "--realtime=yes", "--high-priority=yes",
-                        "-L", "module-native-protocol-unix",
-                        "-L", f"module-null-sink sink_name=vsink rate={RATE}",
-                        "-L", "module-always-sink"],
-                       env=env, check=True, stderr=subprocess.DEVNULL)
+        env = start_pulse(d, RATE, ("--realtime=yes", "--high-priority=yes"))
         subprocess.run(["pactl", "set-default-sink", "vsink"], env=env, check=True)
-        a, b = os.path.join(d, "ttyA"), os.path.join(d, "ttyB")
-        socat = subprocess.Popen(["socat", f"pty,raw,echo=0,link={a}",
-                                  f"pty,raw,echo=0,link={b}"], stderr=subprocess.DEVNULL)
+        socat, a, b = pty_pair(d)
         procs.append(socat)
-        t = time.monotonic()
-        while not (os.path.exists(a) and os.path.exists(b)):
-            if time.monotonic() - t > 10:
-                raise RuntimeError("socat made no pty pair in 10 s")
-            time.sleep(0.01)
         reader = Reader(b)
         reader.start()
         parec = subprocess.Popen(["parec", "-d", "vsink.monitor", "--raw", "--format=s16le",
@@ -171,6 +157,8 @@ def run(args, extra, np):
         if play.returncode != 0:
             # Still analysed: where the sound and the frames stopped is the finding.
             print(f"play_sync: tactus play failed ({play.returncode}): {err}", file=sys.stderr)
+        if "tactus: audio on " not in err:
+            raise RuntimeError("tactus played no audio (build it with --features audio): " + err)
         time.sleep(0.5)
         reader.stop = True
         parec.terminate()

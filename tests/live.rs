@@ -24,75 +24,9 @@ fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_tactus")
 }
 
-/// A private PulseAudio server in its own runtime directory; killed on drop.
-struct Pulse {
-    dir: tempfile::TempDir,
-}
-
-impl Pulse {
-    /// Starts the server, or `None` (after printing why) when pulseaudio is not installed.
-    fn start(test: &str) -> Option<Pulse> {
-        if Command::new("pulseaudio")
-            .arg("--version")
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .status()
-            .is_err()
-        {
-            common::skip(&format!(
-                "{test}: pulseaudio is not installed (apt-get install pulseaudio pulseaudio-utils libasound2-plugins; CI does)"
-            ));
-            return None;
-        }
-        let dir = tempfile::tempdir().unwrap();
-        let mut perms = std::fs::metadata(dir.path()).unwrap().permissions();
-        std::os::unix::fs::PermissionsExt::set_mode(&mut perms, 0o700);
-        std::fs::set_permissions(dir.path(), perms).unwrap();
-        let p = Pulse { dir };
-        let st = p
-            .cmd("pulseaudio")
-            .args([
-                "-D",
-                "-n",
-                "--exit-idle-time=-1",
-                "-L",
-                "module-native-protocol-unix",
-                "-L",
-                "module-null-sink sink_name=vsink rate=48000",
-                "-L",
-                "module-always-sink",
-            ])
-            .stderr(Stdio::null())
-            .status()
-            .unwrap();
-        assert!(st.success(), "pulseaudio did not start");
-        let st = p
-            .cmd("pactl")
-            .args(["set-default-source", "vsink.monitor"])
-            .status()
-            .unwrap();
-        assert!(st.success(), "pactl set-default-source failed");
-        Some(p)
-    }
-
-    /// A command that talks to this server.
-    fn cmd(&self, program: &str) -> Command {
-        let mut c = Command::new(program);
-        c.env("XDG_RUNTIME_DIR", self.dir.path());
-        c
-    }
-}
-
-impl Drop for Pulse {
-    fn drop(&mut self) {
-        // `-k` stops the server of this runtime directory only.
-        let _ = self
-            .cmd("pulseaudio")
-            .arg("-k")
-            .stderr(Stdio::null())
-            .status();
-    }
-}
+#[path = "common/pulse.rs"]
+mod pulse;
+use pulse::Pulse;
 
 /// One drum hit: a 70 Hz thump (40 ms decay) plus a noise burst (8 ms decay), 300 ms long so
 /// that it has decayed to silence (below −60 dB) before it ends.
@@ -165,7 +99,10 @@ fn index_up(frame_hex: &str) -> bool {
 
 #[test]
 fn live_follows_a_drum_pattern() {
-    let Some(pulse) = Pulse::start("live_follows_a_drum_pattern") else {
+    let Some(pulse) = Pulse::start(
+        "live_follows_a_drum_pattern",
+        &["pulseaudio", "pactl", "paplay"],
+    ) else {
         return;
     };
     let d = tempfile::tempdir().unwrap();
@@ -230,40 +167,17 @@ fn live_follows_a_drum_pattern() {
     );
 }
 
-#[test]
-fn play_times_frames_on_the_audio_output() {
-    let Some(pulse) = Pulse::start("play_times_frames_on_the_audio_output") else {
-        return;
-    };
-    let d = tempfile::tempdir().unwrap();
-    let song = d.path().join("song.wav");
-    write_hits(&song, 44_100, 4.0, 0.1, 0.5);
-    let duration_s = 4.0;
-
-    // The frames a streaming render produces: what play must deliver, all of them.
-    let pattern = d.path().join("song.json");
-    let o = Command::new(bin())
-        .args(["render", "--mode", "streaming", "--bin-ms", "25", "-o"])
-        .arg(&pattern)
-        .arg(&song)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let pat: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&pattern).unwrap()).unwrap();
-    let expected: Vec<String> = pat["frames"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|f| f.as_str().unwrap().to_string())
-        .collect();
-
-    let log = d.path().join("play.jsonl");
+/// Plays `target` (a song or a pattern file) with `extra` arguments through the server
+/// into a file glove in `d`; asserts that it succeeded on the audio clock and returns the
+/// process's wall time and the frames the glove logged.
+fn play_on_audio(pulse: &Pulse, target: &Path, extra: &[&str], d: &Path) -> (f64, Vec<String>) {
+    let log = d.join("play.jsonl");
     let t = Instant::now();
     let out = pulse
         .cmd(bin())
         .arg("play")
-        .arg(&song)
+        .arg(target)
+        .args(extra)
         .arg("--glove")
         .arg(format!("file:{}", log.display()))
         .output()
@@ -277,12 +191,13 @@ fn play_times_frames_on_the_audio_output() {
         "play fell back to the wall clock: {err}"
     );
     assert!(err.contains("tactus: audio on "), "{err}");
+    (wall, pins(&log).into_iter().map(|x| x.2).collect())
+}
 
-    let p = pins(&log);
-    // PulseAudio's ALSA plugin swallows the first 170-300 ms of writes at once, so the
-    // frames-written clock leaps at start and the sink coalesces the first few frames
-    // (latest state). From 300 ms (frame 12) on, every frame must arrive, in order, equal.
-    let got: Vec<String> = p.iter().map(|x| x.2.clone()).collect();
+/// PulseAudio's ALSA plugin swallows the first 170-300 ms of writes at once, so the
+/// frames-written clock leaps at start and the sink coalesces the first few frames (latest
+/// state). From 300 ms (frame 12) on, every frame must arrive, in order, equal.
+fn assert_every_frame_from_300_ms(got: &[String], expected: &[String]) {
     let tail = &expected[12..];
     assert!(
         got.len() >= tail.len() && got[got.len() - tail.len()..] == *tail,
@@ -290,11 +205,26 @@ fn play_times_frames_on_the_audio_output() {
         got.len(),
         expected.len()
     );
+}
+
+#[test]
+fn play_times_frames_on_the_audio_output() {
+    let Some(pulse) = Pulse::start(
+        "play_times_frames_on_the_audio_output",
+        &["pulseaudio", "pactl"],
+    ) else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    // The frames a streaming render produces: what play must deliver, all of them.
+    let (song, _pattern, expected) = song_and_pattern(d.path());
+    let (wall, got) = play_on_audio(&pulse, &song, &[], d.path());
+    assert_every_frame_from_300_ms(&got, &expected);
     // The audio clock cannot run faster than the sound: the song takes its duration at
     // least. Upper bound: PulseAudio's ~1.5 s start plus render start-up, far below 8 s.
     assert!(
-        wall >= duration_s && wall < duration_s + 8.0,
-        "play took {wall:.3} s for a {duration_s} s song"
+        (4.0..12.0).contains(&wall),
+        "play took {wall:.3} s for a 4 s song"
     );
 }
 
@@ -324,40 +254,14 @@ fn song_and_pattern(d: &Path) -> (std::path::PathBuf, std::path::PathBuf, Vec<St
 
 #[test]
 fn play_pattern_plays_its_song_on_the_audio_clock() {
-    let Some(pulse) = Pulse::start("play_pattern_plays_its_song_on_the_audio_clock") else {
+    let test = "play_pattern_plays_its_song_on_the_audio_clock";
+    let Some(pulse) = Pulse::start(test, &["pulseaudio", "pactl"]) else {
         return;
     };
     let d = tempfile::tempdir().unwrap();
     let (_song, pattern, expected) = song_and_pattern(d.path());
-    let log = d.path().join("play.jsonl");
-    let t = Instant::now();
-    let out = pulse
-        .cmd(bin())
-        .arg("play")
-        .arg(&pattern)
-        .arg("--glove")
-        .arg(format!("file:{}", log.display()))
-        .output()
-        .unwrap();
-    let wall = t.elapsed().as_secs_f64();
-    let err = String::from_utf8_lossy(&out.stderr);
-    eprintln!("{err}  (process wall time {wall:.3} s)");
-    assert!(out.status.success(), "tactus play PATTERN failed: {err}");
-    assert!(
-        !err.contains("warning"),
-        "fell back to the wall clock: {err}"
-    );
-    assert!(err.contains("tactus: audio on "), "{err}");
-    // As for a song (see play_times_frames_on_the_audio_output): from 300 ms on, every
-    // frame of the pattern arrives, in order.
-    let got: Vec<String> = pins(&log).into_iter().map(|x| x.2).collect();
-    let tail = &expected[12..];
-    assert!(
-        got.len() >= tail.len() && got[got.len() - tail.len()..] == *tail,
-        "frames sent differ from the pattern: got {}, want {}",
-        got.len(),
-        expected.len()
-    );
+    let (wall, got) = play_on_audio(&pulse, &pattern, &[], d.path());
+    assert_every_frame_from_300_ms(&got, &expected);
     // The audio clock cannot run faster than the sound.
     assert!(
         (4.0..12.0).contains(&wall),
@@ -371,34 +275,14 @@ fn play_pattern_plays_its_song_on_the_audio_clock() {
 /// a clock that waited for the device stopped there and play failed after 10 s).
 #[test]
 fn frames_due_after_the_song_s_end_still_go_out() {
-    let Some(pulse) = Pulse::start("frames_due_after_the_song_s_end_still_go_out") else {
+    let test = "frames_due_after_the_song_s_end_still_go_out";
+    let Some(pulse) = Pulse::start(test, &["pulseaudio", "pactl"]) else {
         return;
     };
     let d = tempfile::tempdir().unwrap();
     let (_song, pattern, expected) = song_and_pattern(d.path());
-    let log = d.path().join("play.jsonl");
-    let out = pulse
-        .cmd(bin())
-        .arg("play")
-        .arg(&pattern)
-        .args(["--offset-ms", "-300", "--glove"])
-        .arg(format!("file:{}", log.display()))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "tactus play PATTERN failed: {err}");
-    assert!(
-        !err.contains("warning"),
-        "fell back to the wall clock: {err}"
-    );
-    let got: Vec<String> = pins(&log).into_iter().map(|x| x.2).collect();
-    let tail = &expected[12..];
-    assert!(
-        got.len() >= tail.len() && got[got.len() - tail.len()..] == *tail,
-        "frames sent differ from the pattern: got {}, want {}",
-        got.len(),
-        expected.len()
-    );
+    let (_, got) = play_on_audio(&pulse, &pattern, &["--offset-ms", "-300"], d.path());
+    assert_every_frame_from_300_ms(&got, &expected);
 }
 
 #[test]

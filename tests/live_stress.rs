@@ -39,74 +39,9 @@ use std::time::{Duration, Instant};
 
 mod common;
 
-/// A private PulseAudio server in its own runtime directory; killed on drop.
-struct Pulse {
-    dir: tempfile::TempDir,
-}
-
-impl Pulse {
-    fn start() -> Option<Pulse> {
-        for p in ["pulseaudio", "pactl", "paplay"] {
-            let found = Command::new("sh")
-                .args(["-c", &format!("command -v {p}")])
-                .stdout(Stdio::null())
-                .status()
-                .is_ok_and(|s| s.success());
-            if !found {
-                common::skip(&format!(
-                    "live_keeps_up_under_cpu_load_and_catches_up_after_a_stall: {p} is not installed \
-                     (apt-get install pulseaudio pulseaudio-utils libasound2-plugins; CI does)"
-                ));
-                return None;
-            }
-        }
-        let dir = tempfile::tempdir().unwrap();
-        let mut perms = std::fs::metadata(dir.path()).unwrap().permissions();
-        std::os::unix::fs::PermissionsExt::set_mode(&mut perms, 0o700);
-        std::fs::set_permissions(dir.path(), perms).unwrap();
-        let p = Pulse { dir };
-        let st = p
-            .cmd("pulseaudio")
-            .args([
-                "-D",
-                "-n",
-                "--exit-idle-time=-1",
-                "-L",
-                "module-native-protocol-unix",
-                "-L",
-                "module-null-sink sink_name=vsink rate=48000",
-                "-L",
-                "module-always-sink",
-            ])
-            .stderr(Stdio::null())
-            .status()
-            .unwrap();
-        assert!(st.success(), "pulseaudio did not start");
-        let st = p
-            .cmd("pactl")
-            .args(["set-default-source", "vsink.monitor"])
-            .status()
-            .unwrap();
-        assert!(st.success(), "pactl set-default-source failed");
-        Some(p)
-    }
-
-    fn cmd(&self, program: &str) -> Command {
-        let mut c = Command::new(program);
-        c.env("XDG_RUNTIME_DIR", self.dir.path());
-        c
-    }
-}
-
-impl Drop for Pulse {
-    fn drop(&mut self) {
-        let _ = self
-            .cmd("pulseaudio")
-            .arg("-k")
-            .stderr(Stdio::null())
-            .status();
-    }
-}
+#[path = "common/pulse.rs"]
+mod pulse;
+use pulse::Pulse;
 
 /// Child processes killed (by their own pid) and reaped on drop.
 struct Children(Vec<Child>);
@@ -204,7 +139,10 @@ fn number_after(text: &str, key: &str) -> f64 {
 
 #[test]
 fn live_keeps_up_under_cpu_load_and_catches_up_after_a_stall() {
-    let Some(pulse) = Pulse::start() else {
+    let Some(pulse) = Pulse::start(
+        "live_keeps_up_under_cpu_load_and_catches_up_after_a_stall",
+        &["pulseaudio", "pactl", "paplay"],
+    ) else {
         return;
     };
     let load_s: f64 = std::env::var("TACTUS_STRESS_LOAD_S")

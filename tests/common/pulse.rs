@@ -1,0 +1,79 @@
+//! A private PulseAudio server with a null sink `vsink` (48 kHz) whose monitor is the
+//! default source, in its own runtime directory, stopped on drop: the stand-in for a sound
+//! card in the live and play tests (`#[path = "common/pulse.rs"] mod pulse;`).
+
+use std::process::{Command, Stdio};
+
+use super::common;
+
+pub struct Pulse {
+    dir: tempfile::TempDir,
+}
+
+impl Pulse {
+    /// Starts the server, or `None` (after `common::skip` says why) when one of `programs`
+    /// (pulseaudio and whatever else the test runs) is not installed.
+    pub fn start(test: &str, programs: &[&str]) -> Option<Pulse> {
+        for p in programs {
+            let found = Command::new("sh")
+                .args(["-c", &format!("command -v {p}")])
+                .stdout(Stdio::null())
+                .status()
+                .is_ok_and(|s| s.success());
+            if !found {
+                common::skip(&format!(
+                    "{test}: {p} is not installed \
+                     (apt-get install pulseaudio pulseaudio-utils libasound2-plugins; CI does)"
+                ));
+                return None;
+            }
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let mut perms = std::fs::metadata(dir.path()).unwrap().permissions();
+        std::os::unix::fs::PermissionsExt::set_mode(&mut perms, 0o700);
+        std::fs::set_permissions(dir.path(), perms).unwrap();
+        let p = Pulse { dir };
+        let st = p
+            .cmd("pulseaudio")
+            .args([
+                "-D",
+                "-n",
+                "--exit-idle-time=-1",
+                "-L",
+                "module-native-protocol-unix",
+                "-L",
+                "module-null-sink sink_name=vsink rate=48000",
+                "-L",
+                "module-always-sink",
+            ])
+            .stderr(Stdio::null())
+            .status()
+            .unwrap();
+        assert!(st.success(), "pulseaudio did not start");
+        let st = p
+            .cmd("pactl")
+            .args(["set-default-source", "vsink.monitor"])
+            .status()
+            .unwrap();
+        assert!(st.success(), "pactl set-default-source failed");
+        Some(p)
+    }
+
+    /// A command that talks to this server.
+    pub fn cmd(&self, program: &str) -> Command {
+        let mut c = Command::new(program);
+        c.env("XDG_RUNTIME_DIR", self.dir.path());
+        c
+    }
+}
+
+impl Drop for Pulse {
+    fn drop(&mut self) {
+        // `-k` stops the server of this runtime directory only.
+        let _ = self
+            .cmd("pulseaudio")
+            .arg("-k")
+            .stderr(Stdio::null())
+            .status();
+    }
+}
