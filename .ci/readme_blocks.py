@@ -5,8 +5,9 @@ A shell block is run when the line before its opening fence is
 `<!-- ci: NAME [expect=PATH,...] -->`. Each block runs from the repository root in its own
 `bash -e` (a failing line fails the block), with the user's environment; background jobs
 and a PulseAudio daemon the block started are stopped afterwards. After the block, every
-`expect` path must exist and be non-empty. Nothing is substituted: a block that only works
-with edits does not pass.
+`expect` path must exist and be non-empty. Nothing is substituted (except that `apt-get`
+goes through sudo when the runner is not root): a block that only works with edits does
+not pass.
 
     .ci/readme_blocks.py [--list] [NAME...]     (no names: every marked block, in order)
 """
@@ -21,8 +22,13 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 MARK = re.compile(r"^\s*<!--\s*ci:\s*(\S+)((?:\s+\S+=\S+)*)\s*-->\s*$")
 FENCE = re.compile(r"^(\s*)```(\w*)\s*$")
 
-# Runs after the block in the same shell: stops what the block left running.
+# Runs with the block in the same shell: stops what the block left running, and lets a
+# block's `apt-get` go through sudo when this is not root (as a user would type it; a
+# README cannot know whether its reader is root).
 CLEANUP = """
+if [ "$(id -u)" != 0 ] && command -v sudo >/dev/null; then
+  apt-get() { sudo apt-get "$@"; }
+fi
 __tactus_ci_cleanup() {
   jobs -p | xargs -r kill 2>/dev/null || true
   if [ -n "${XDG_RUNTIME_DIR:-}" ]; then pulseaudio --kill 2>/dev/null || true; fi
