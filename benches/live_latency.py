@@ -239,6 +239,19 @@ def pty_pair(d):
     return socat, a, b
 
 
+def tear_down(procs, env, d):
+    """Kills `procs` (newest first), stops the server of `env` and removes `d`."""
+    for p in reversed(procs):
+        if p.poll() is None:
+            p.kill()
+        try:
+            p.wait(timeout=5)
+        except Exception:
+            pass
+    subprocess.run(["pulseaudio", "-k"], env=env, stderr=subprocess.DEVNULL)
+    shutil.rmtree(d, ignore_errors=True)
+
+
 def run_once(args, extra):
     for p in ("pulseaudio", "pactl", "pacat", "socat"):
         need(p)
@@ -320,15 +333,7 @@ def run_once(args, extra):
         time.sleep(0.2)
         reader.stop = True
     finally:
-        for p in reversed(procs):
-            if p.poll() is None:
-                p.kill()
-            try:
-                p.wait(timeout=5)
-            except Exception:
-                pass
-        subprocess.run(["pulseaudio", "-k"], env=env, stderr=subprocess.DEVNULL)
-        shutil.rmtree(d, ignore_errors=True)
+        tear_down(procs, env, d)
     res = analyse(stim, writes, reader, err, args)
     res["pipe_backlog_ms"] = {"median": pct(backlog, 0.5) * 1e3, "max": max(backlog) * 1e3}
     return res

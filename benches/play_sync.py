@@ -44,7 +44,7 @@ import threading
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from live_latency import Reader, pct, pty_pair, start_pulse  # noqa: E402  (same directory)
+from live_latency import Reader, pct, pty_pair, start_pulse, tear_down  # noqa: E402  (same directory)
 
 RATE = 48_000
 WINDOW_S = 0.5  # excerpt correlated with the recording
@@ -164,15 +164,7 @@ def run(args, extra, np):
         parec.terminate()
         rec.join(timeout=5)
     finally:
-        for p in reversed(procs):
-            if p.poll() is None:
-                p.kill()
-            try:
-                p.wait(timeout=5)
-            except Exception:
-                pass
-        subprocess.run(["pulseaudio", "-k"], env=env, stderr=subprocess.DEVNULL)
-        shutil.rmtree(d, ignore_errors=True)
+        tear_down(procs, env, d)
     y = np.frombuffer(bytes(rec.data[:len(rec.data) // 2 * 2]), dtype="<i2") / 32768.0
     if os.environ.get("PLAY_SYNC_DEBUG"):
         np.save("/tmp/play_sync_rec.npy", y)

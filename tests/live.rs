@@ -60,18 +60,7 @@ fn write_hits(path: &Path, rate: u32, seconds: f32, first: f32, period: f32) -> 
         times.push(t);
         t += period;
     }
-    let spec = hound::WavSpec {
-        channels: 1,
-        sample_rate: rate,
-        bits_per_sample: 16,
-        sample_format: hound::SampleFormat::Int,
-    };
-    let mut w = hound::WavWriter::create(path, spec).unwrap();
-    for v in x {
-        w.write_sample((v.clamp(-1.0, 1.0) * 32_000.0) as i16)
-            .unwrap();
-    }
-    w.finalize().unwrap();
+    pulse::write_wav(path, rate, &x);
     times
 }
 

@@ -2,6 +2,7 @@
 //! default source, in its own runtime directory, stopped on drop: the stand-in for a sound
 //! card in the live and play tests (`#[path = "common/pulse.rs"] mod pulse;`).
 
+use std::path::Path;
 use std::process::{Command, Stdio};
 
 use super::common;
@@ -76,4 +77,20 @@ impl Drop for Pulse {
             .stderr(Stdio::null())
             .status();
     }
+}
+
+/// Writes `x` as a mono 16-bit WAV (scaled by 32,000, clamped to ±1) for the server to play.
+pub fn write_wav(path: &Path, rate: u32, x: &[f32]) {
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: rate,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let mut w = hound::WavWriter::create(path, spec).unwrap();
+    for &v in x {
+        w.write_sample((v.clamp(-1.0, 1.0) * 32_000.0) as i16)
+            .unwrap();
+    }
+    w.finalize().unwrap();
 }
