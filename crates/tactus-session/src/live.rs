@@ -22,7 +22,12 @@
 //! only audio younger than a quarter of the bound, and goes on from there: frames resume
 //! on time at once. The device's part counts only when a burst arrives with it (more than
 //! an eighth of the bound, 25 ms, in the ring at once): a device delay that rises and stays up is
-//! latency that no reading speed wins back, and dropping would only lose audio. Dropped
+//! latency that no reading speed wins back, and dropping would only lose audio. Some sound
+//! servers hand a stalled process's queue over in many small reads and do not count it in
+//! the device delay (seen on CI's machine: 11 frames up to 1.6 s late after a 3 s stop), so
+//! the capture clock is watched as well ([`ClockLag`]: wall time against audio received):
+//! from a jump past the bound, and for as long as that lag keeps falling, every read is
+//! dropped. Dropped
 //! audio is counted ([`LiveReport::caught_up`]); frame times include it, so a frame's
 //! `time_ms` stays the time of its audio. The engine sees a splice; a pin may rise there.
 //! Frames the ring could not take (overruns) and device-side xruns are counted too.
@@ -264,6 +269,67 @@ impl DelayFloor {
     }
 }
 
+/// How much later than usual the newest captured sample reaches this loop, by the capture
+/// clock: wall time since the first callback minus the audio received since then, over its
+/// floor ([`DelayFloor`], which also follows a slow drift between the two clocks). Unlike
+/// the device's delay report, it sees audio that the sound server held back (PulseAudio's
+/// ALSA plugin does not always count it), and so it catches a stalled process's burst on any
+/// sound server.
+///
+/// A late sample is worth dropping only while the loop can win the lag back: while audio
+/// arrives faster than real time and the lag falls. So [`ClockLag::update`] says "catch up"
+/// from the read where the lag jumps past the bound (a stall: half the bound in one read)
+/// and for as long as it keeps falling (by [`ClockLag::STEP_MS`], three capture periods, at
+/// least once every [`ClockLag::HOLD_MS`]). A lag that crept up and stays (a starved sound
+/// server handing audio over late at the pace it makes it, or samples lost in an overrun)
+/// is never dropped for: the floor takes it in after two buckets of reads.
+#[derive(Debug, Default)]
+struct ClockLag {
+    floor: DelayFloor,
+    /// The previous read's excess, ms.
+    previous: f64,
+    /// While over the bound: the lowest excess seen and when (wall ms), and whether a
+    /// jump started it.
+    low: Option<(f64, f64)>,
+}
+
+impl ClockLag {
+    /// A fall that counts as winning the lag back, ms.
+    const STEP_MS: f64 = 12.0;
+    /// How long catching up goes on without such a fall, ms.
+    const HOLD_MS: f64 = 200.0;
+
+    /// One read: `wall_ms` since the first callback, `audio_ms` of audio received since
+    /// then up to the newest sample, the bound `max_ms`. Returns the excess lag (ms) and
+    /// whether to drop what this read brought.
+    fn update(&mut self, wall_ms: f64, audio_ms: f64, max_ms: f64) -> (f64, bool) {
+        let e = self.floor.excess(wall_ms - audio_ms);
+        let previous = std::mem::replace(&mut self.previous, e);
+        if e <= max_ms {
+            self.low = None;
+            return (e, false);
+        }
+        match &mut self.low {
+            None => {
+                // Past the bound: a jump catches up at once, a creep waits for a fall.
+                let since = if e - previous > max_ms / 2.0 {
+                    wall_ms
+                } else {
+                    wall_ms - Self::HOLD_MS - 1.0
+                };
+                self.low = Some((e, since));
+            }
+            Some((low, since)) => {
+                if e < *low - Self::STEP_MS {
+                    (*low, *since) = (e, wall_ms);
+                }
+            }
+        }
+        let (_, since) = self.low.expect("set above");
+        (e, wall_ms - since <= Self::HOLD_MS)
+    }
+}
+
 /// A histogram of durations on log-spaced buckets (10 per decade from 1 µs to 10 s), kept
 /// in a fixed array: recording never allocates. Quantiles are read as a bucket's upper
 /// edge, so they overstate by at most one bucket (26 %).
@@ -427,6 +493,7 @@ impl LiveEngine {
         let mut last_backlog_ms = 0.0;
         let mut last_latency: Option<f64> = None;
         let mut delay_floor = DelayFloor::default();
+        let mut clock_lag = ClockLag::default();
         let max_backlog = opts
             .max_backlog
             .map(|d| ((d.as_secs_f64() * f64::from(rate)) as usize).max(1));
@@ -464,16 +531,33 @@ impl LiveEngine {
                 // The backlog: what waited in the ring (`read` drains it all) plus what
                 // waited in the device beyond its usual delay (its buffer fills while this
                 // process is stopped, then arrives in a burst).
-                let excess_ms = delay_floor.excess(reader.input_delay_ms());
+                let mut excess_ms = delay_floor.excess(reader.input_delay_ms());
                 let ring_ms = left.len() as f64 * 1e3 / f64::from(rate);
+                // The capture clock's view of the same lag (see ClockLag).
+                let mut clock_catch_up = false;
+                if let (Some((t0, n0)), Some(max)) = (reader.first_callback(), max_backlog) {
+                    let newest = (captured + left.len() as u64).saturating_sub(n0);
+                    let (lag, catch_up) = clock_lag.update(
+                        t0.elapsed().as_secs_f64() * 1e3,
+                        newest as f64 * 1e3 / f64::from(rate),
+                        max as f64 * 1e3 / f64::from(rate),
+                    );
+                    if catch_up {
+                        excess_ms = excess_ms.max(lag);
+                        clock_catch_up = true;
+                    }
+                }
                 last_backlog_ms = ring_ms + excess_ms;
                 backlogs.record(last_backlog_ms * 1e3);
                 if let Some(max) = max_backlog {
                     let max_ms = max as f64 * 1e3 / f64::from(rate);
                     // The device's excess delay counts only with a burst in the ring (more
-                    // than a quarter of the bound arrived at once): a steady rise of the
+                    // than an eighth of the bound arrived at once): a steady rise of the
                     // device's delay is latency that reading faster cannot win back.
-                    if ring_ms > max_ms || (ring_ms > max_ms / 8.0 && last_backlog_ms > max_ms) {
+                    if ring_ms > max_ms
+                        || clock_catch_up
+                        || (ring_ms > max_ms / 8.0 && last_backlog_ms > max_ms)
+                    {
                         // Fallen behind: keep only audio younger than a quarter of the
                         // bound (the newest sample is `excess_ms` older than usual).
                         let keep_ms = (max_ms / 4.0 - excess_ms).max(0.0);
@@ -693,5 +777,61 @@ mod tests {
         assert!(n <= 2 * DelayFloor::READS as usize, "{n}");
         assert_eq!(f.excess(250.0), 0.0);
         assert_eq!(f.excess(f64::NAN), 0.0);
+    }
+
+    /// Reads every 4 ms of 4 ms of audio, the clock lag at 5 ms; then a 3 s stall whose
+    /// audio arrives in a burst at `speed` times real time; then a lag that creeps up by
+    /// 300 ms over 3 s and stays. Returns, per read, (excess, catch up).
+    fn clock_lag_run(speed: f64) -> (Vec<(f64, bool)>, Vec<(f64, bool)>) {
+        let mut c = ClockLag::default();
+        let (mut wall, mut audio) = (5.0, 0.0);
+        for _ in 0..200 {
+            (wall, audio) = (wall + 4.0, audio + 4.0);
+            assert_eq!(c.update(wall, audio, 200.0), (0.0, false));
+        }
+        // The stall, then the burst: each read brings 4 * speed ms until caught up.
+        wall += 3000.0;
+        let mut burst = Vec::new();
+        while wall - audio > 5.0 + 1e-9 {
+            (wall, audio) = (wall + 4.0, (audio + 4.0 * speed).min(wall + 4.0 - 5.0));
+            burst.push(c.update(wall, audio, 200.0));
+        }
+        let mut creep = Vec::new();
+        for i in 0..1500 {
+            let extra = if i < 750 { 0.4 } else { 0.0 };
+            (wall, audio) = (wall + 4.0, audio + 4.0 - extra);
+            creep.push(c.update(wall, audio, 200.0));
+        }
+        (burst, creep)
+    }
+
+    #[test]
+    fn the_clock_lag_catches_up_a_burst_at_any_speed_but_not_a_creep() {
+        for speed in [1.5, 2.0, 5.0, 50.0] {
+            let (burst, creep) = clock_lag_run(speed);
+            // Every read of the burst whose audio is more than the bound late is dropped,
+            // the first (the read right after the stall) included.
+            for (i, &(e, drop)) in burst.iter().enumerate() {
+                assert_eq!(drop, e > 200.0, "speed {speed}, read {i}: excess {e}");
+            }
+            assert!((burst[0].0 - (3004.0 - 4.0 * speed)).abs() < 1e-6 && burst[0].1);
+            // The creep (0.4 ms per read up to 300 ms, then flat) is never dropped for,
+            // though it passes the bound: reading faster cannot win it back.
+            assert!(creep.iter().any(|x| x.0 > 250.0), "speed {speed}");
+            assert!(creep.iter().all(|x| !x.1), "speed {speed}");
+        }
+        // Jitter of one capture period around a lag over the bound is no fall.
+        let mut c = ClockLag::default();
+        let mut wall = 0.0;
+        for i in 0..300 {
+            wall += 4.0;
+            c.update(wall, wall - 5.0 - f64::from(i.min(60)) * 5.0, 200.0);
+        }
+        for i in 0..400 {
+            wall += 4.0;
+            let jitter = if i % 2 == 0 { 3.9 } else { 0.0 };
+            let (_, drop) = c.update(wall, wall - 305.0 + jitter, 200.0);
+            assert!(!drop, "read {i}");
+        }
     }
 }
