@@ -779,10 +779,13 @@ mod tests {
         assert_eq!(f.excess(f64::NAN), 0.0);
     }
 
+    /// Per read: (excess, catch up).
+    type Reads = Vec<(f64, bool)>;
+
     /// Reads every 4 ms of 4 ms of audio, the clock lag at 5 ms; then a 3 s stall whose
     /// audio arrives in a burst at `speed` times real time; then a lag that creeps up by
     /// 300 ms over 3 s and stays. Returns, per read, (excess, catch up).
-    fn clock_lag_run(speed: f64) -> (Vec<(f64, bool)>, Vec<(f64, bool)>) {
+    fn clock_lag_run(speed: f64) -> (Reads, Reads) {
         let mut c = ClockLag::default();
         let (mut wall, mut audio) = (5.0, 0.0);
         for _ in 0..200 {
