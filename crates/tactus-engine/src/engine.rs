@@ -514,9 +514,18 @@ impl Engine {
                     cfg.separator,
                     SeparatorChoice::Spectral | SeparatorChoice::None
                 );
-            chains.push(StemChain::new(
-                stem, geo, pitch, notes, &bands, &cfg.drums, mixture,
-            )?);
+            let mut chain = StemChain::new(stem, geo, pitch, notes, &bands, &cfg.drums, mixture)?;
+            if let Some(p) = chain.pitch.as_mut() {
+                // The spectral separator's stems lag their stated latency (track.rs).
+                if cfg.profile != Profile::Live
+                    && matches!(stem, Stem::Bass | Stem::Vocals)
+                    && !cfg.supplied.contains(stem)
+                    && cfg.separator == SeparatorChoice::Spectral
+                {
+                    p.set_advance_hops(crate::track::SPECTRAL_PITCH_ADVANCE_HOPS);
+                }
+            }
+            chains.push(chain);
             let on_mix =
                 stem == Stem::Drums && cfg.profile == Profile::Live && profile::DRUMS_ON_MIX;
             if !cfg.supplied.contains(stem) && !on_mix {
