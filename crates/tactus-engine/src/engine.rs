@@ -945,8 +945,12 @@ impl Engine {
                 }
             }
             v.push(("denoise (high-pass + 3-median)".into(), denoise(c)));
+            let lag = match c.pitch.as_ref().map_or(0, |p| p.advance_hops()) {
+                0 => "",
+                _ => " + the separator's note lag",
+            };
             v.push((
-                format!("{} pitch (frame/2 + Viterbi lag)", c.stem.name()),
+                format!("{} pitch (frame/2 + Viterbi lag{lag})", c.stem.name()),
                 c.pitch.as_ref().map_or(0, |p| p.latency_samples()),
             ));
             out.push(("pitch".to_string(), v));

@@ -389,6 +389,11 @@ impl PitchTrack {
         self.advance = hops;
     }
 
+    /// Hops the track is moved earlier ([`PitchTrack::set_advance_hops`]).
+    pub fn advance_hops(&self) -> usize {
+        self.advance
+    }
+
     /// Samples between hops.
     pub fn hop(&self) -> usize {
         self.hop
