@@ -116,7 +116,7 @@ fn an_advanced_track_decides_nothing_before_its_stated_latency() {
         let n = t.f0.len();
         if n > 0 {
             assert!(
-                (n - 1) * hop + lat <= fed + dec - 1,
+                (n - 1) * hop + lat < fed + dec,
                 "hop {} decided at {fed} (latency {lat})",
                 n - 1
             );
