@@ -3,7 +3,6 @@
 //! capture callback does not allocate; `play` of a song and of a pattern on a fake clock
 //! sends every frame at its time.
 
-use std::cell::Cell;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -15,24 +14,12 @@ use tactus_engine::render::RenderRequest;
 use tactus_engine::{Engine, ENGINE_RATE};
 use tactus_session::{live, play_pattern, play_song, Late, LiveInput, LiveOptions, PlayOptions};
 use tactus_testkit::{allocations, Counting};
-use tactus_transport::{open_sink, Clock, SinkOptions, SinkSpec};
+use tactus_transport::{open_sink, Clock, FakeClock, SinkOptions, SinkSpec};
 
 mod common;
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
-
-/// A clock that moves only when slept on: a session runs as fast as the machine allows.
-struct FakeClock(Cell<f64>);
-
-impl Clock for FakeClock {
-    fn now_ms(&self) -> f64 {
-        self.0.get()
-    }
-    fn sleep_ms(&self, ms: f64) {
-        self.0.set(self.0.get() + ms.max(0.01));
-    }
-}
 
 fn demo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/demo.ogg")
@@ -155,7 +142,7 @@ fn play_song_on_a_fake_clock_sends_every_frame() {
     // The frames a streaming render makes, for comparison.
     let rendered = tactus_engine::render::render(&req, &mut |_| {}).unwrap();
     let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
-    let clock = FakeClock(Cell::new(0.0));
+    let clock = FakeClock::new(0.0);
     let stop = Arc::new(AtomicBool::new(false));
     // Nothing is late on a fake clock: frames are waited for, not skipped.
     let opts = PlayOptions {
@@ -182,7 +169,7 @@ fn play_pattern_on_a_fake_clock_sends_every_frame() {
         .map(|i| tactus_glove::Frame([i, 0, 0, 0, 0, 0, 0, 0, 0, i]))
         .collect();
     let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
-    let clock = FakeClock(Cell::new(0.0));
+    let clock = FakeClock::new(0.0);
     let stop = Arc::new(AtomicBool::new(false));
     let (report, r) = play_pattern(
         &frames,
