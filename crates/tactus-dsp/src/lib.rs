@@ -104,6 +104,16 @@ impl ConfigError {
             reason: reason.into(),
         }
     }
+
+    /// `Ok(())` when `ok`, else [`ConfigError::Invalid`] for `name`: one line per check in a
+    /// config's validation.
+    pub fn require(ok: bool, name: &'static str, reason: &str) -> Result<(), Self> {
+        if ok {
+            Ok(())
+        } else {
+            Err(ConfigError::invalid(name, reason))
+        }
+    }
 }
 
 /// Converts a frequency in Hz to (fractional) MIDI semitones: A4 = 440 Hz = 69.
