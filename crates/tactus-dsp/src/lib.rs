@@ -78,6 +78,7 @@ pub mod sdr;
 pub mod shs;
 pub mod sos;
 pub mod tukey;
+pub mod twoframe;
 mod viterbi;
 pub mod yin;
 

@@ -937,7 +937,7 @@ impl Engine {
             }
             v.push(("denoise (high-pass + 3-median)".into(), denoise(c)));
             v.push((
-                format!("{} pitch (frame/2 + Viterbi lag)", c.stem.name()),
+                format!("{} pitch (YIN frame/2, + Viterbi lag)", c.stem.name()),
                 c.pitch.as_ref().map_or(0, |p| p.latency_samples()),
             ));
             out.push(("pitch".to_string(), v));

@@ -19,12 +19,13 @@
 //! | drum onsets (`--drums bands`, the live default) | Butterworth bands, spectral flux with 1024-point frames every 5 ms, causal rising-edge picking, the gate's level over two hops | 220 (5.0 ms) |
 //! | drum onsets (`--drums classes`) | the per-instrument transcriber on the mix (its embedded 4-hop model) | 2,276 (51.6 ms) |
 //! | separator (melodic stems) | spectral, [`separator`]: 512-point frames, hop 128, harmonic median over 5 frames, no look-ahead | 511 (11.6 ms) |
-//! | pitch | YIN (`--pitch auto`) with a frame of two periods of the stem's lowest note ([`pitch_frame`]); bass from 41 Hz (E1); `--pitch pyin` gets a Viterbi lag of [`PITCH_LAG_HOPS`] hops | bass 1,089 (24.7 ms), vocals 633, other 882 |
+//! | pitch | YIN (`--pitch auto`) on two frames ([`tactus_dsp::twoframe`]): two periods of `2·fmin` ([`pitch_frame`]) answer for every note but the lowest octave, whose notes come from a frame of two periods of `fmin`, two hops later; bass from 41 Hz (E1); `--pitch pyin` gets one frame of two periods of `fmin` and a Viterbi lag of [`PITCH_LAG_HOPS`] hops | bass 549 (12.4 ms; lowest octave 1,431), vocals 318, other 444 |
 //! | bins | [`BIN_MS`] = 10 ms | 441 |
 //! | pins | a beat holds its pins up for [`PULSE_MS`] = 50 ms, so a 50 ms pin rise completes | 0 |
 //!
 //! The rhythm path sums to 1 + 220 + 441 = 662 samples (15 ms), the slowest pitch path
-//! (bass) to 511 + 1 + 1,089 + 441 = 2,042 samples (46.3 ms); `tests/profile.rs` feeds a
+//! (bass) to 511 + 1 + 549 + 441 = 1,502 samples (34.1 ms; 2,384 = 54.1 ms for a bass note
+//! below 82 Hz, which only the long frame hears); `tests/profile.rs` feeds a
 //! drum hit and tone steps in 64-sample blocks and checks that the frame showing them
 //! exists within that (plus one detector hop and one block). Measured from outside,
 //! sound to frame at the glove: README, "Live: sound to pin".

@@ -21,6 +21,7 @@ use tactus_dsp::rms::{gate_offline, Rms, StreamingGate, GATE_BELOW_DB};
 use tactus_dsp::shs::{Shs, ShsConfig};
 use tactus_dsp::sos::{Response, SosFilter};
 use tactus_dsp::tukey::{reject_outliers_offline_min_iqr, SlidingTukey, TUKEY_K};
+use tactus_dsp::twoframe::TwoFrameYin;
 use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
 use tactus_dsp::{ConfigError, HopStage, SampleStage};
 
@@ -311,8 +312,13 @@ impl PitchTrack {
         // The tracker and the RMS run at the decimated rate; the binner and the time
         // stamps use engine-rate samples (`hop = yc.hop * factor`).
         let hop = yc.hop * factor;
-        let frame = yc.frame;
+        // Live YIN over more than an octave: a short frame for all but the lowest octave
+        // (`tactus_dsp::twoframe`); its frame also sets the level's window below.
+        let two_frame = live && method == PitchMethod::Yin && 2.0 * fmin_hz < fmax_hz;
+        let short_frame = crate::profile::pitch_frame(rate, 2.0 * fmin_hz);
+        let frame = if two_frame { short_frame } else { yc.frame };
         let tracker: Box<dyn HopStage<Out = PitchEstimate>> = match method {
+            PitchMethod::Yin if two_frame => Box::new(TwoFrameYin::new(yc.clone(), short_frame)?),
             PitchMethod::Yin => Box::new(Yin::new(yc.clone())?),
             PitchMethod::Pyin | PitchMethod::Auto => {
                 let mut pc = PyinConfig::new(rate, fmin_hz, fmax_hz);
