@@ -281,6 +281,26 @@ impl<A: BinAcc + Default> Binner<A> {
     }
 }
 
+/// The binners in the hop-filter shape: a bin out when its last hop arrives.
+impl<A: BinAcc + Default> crate::HopFilter for Binner<A> {
+    type In = A::In;
+    type Out = A::Out;
+    fn push(&mut self, hop_index: usize, v: A::In, emit: &mut dyn FnMut(usize, A::Out)) {
+        Binner::push(self, hop_index, v, emit)
+    }
+    fn finish(&mut self, emit: &mut dyn FnMut(usize, A::Out)) {
+        Binner::finish(self, emit)
+    }
+    fn reset(&mut self) {
+        Binner::reset(self)
+    }
+    /// The first hop of the longest bin waits for the others: `(⌈bin / hop⌉ − 1) · hop`.
+    fn latency_samples(&self) -> usize {
+        let (hop, bin) = (self.clock.hop, self.clock.bin);
+        ((bin.div_ceil(hop) - 1) * hop) as usize
+    }
+}
+
 impl<A: BinAcc + Default> Binner<A> {
     /// Offline: values per hop (hop `i` at `i·hop_samples`) into values per bin, with a
     /// fresh binner. Empty when `hops` is empty or a size is 0.

@@ -77,10 +77,13 @@ pub mod sanitize;
 pub mod sdr;
 pub mod shs;
 pub mod sos;
+pub mod stage;
 pub mod tukey;
 pub mod twoframe;
 mod viterbi;
 pub mod yin;
+
+pub use stage::HopFilter;
 
 /// Errors raised when a stage is constructed with impossible parameters.
 /// Processing itself never fails.

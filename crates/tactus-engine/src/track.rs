@@ -23,7 +23,7 @@ use tactus_dsp::sos::{Response, SosFilter};
 use tactus_dsp::tukey::{reject_outliers_offline_min_iqr, SlidingTukey, TUKEY_K};
 use tactus_dsp::twoframe::TwoFrameYin;
 use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
-use tactus_dsp::{ConfigError, HopStage, SampleStage};
+use tactus_dsp::{ConfigError, HopFilter, HopStage, SampleStage};
 
 /// Statistics mode (docs/design.md "One engine, two drivers").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -257,6 +257,72 @@ impl Decimator {
     }
 }
 
+/// The streaming post-processing of a pitch track: per hop, its RMS and raw pitch through
+/// the gate, the Tukey fences, the range (the paper's running range or the prior-padded
+/// one, by the level rule) and the discretizer to a level, and the levels through the
+/// binner to bins. Every stage is a [`HopFilter`]: one reset, latencies that add up.
+struct LevelChain {
+    gate: StreamingGate,
+    tukey: SlidingTukey,
+    range: RunningRange,
+    prior_range: PriorRange,
+    rule: LevelRule,
+    disc: Discretizer,
+    binner: LevelBinner,
+}
+
+impl LevelChain {
+    /// Hop `i`: returns its pitch after gate and fences and its level; completed bins go to
+    /// `bins`.
+    fn push(&mut self, i: usize, rms_db: f32, raw_f0: f32, bins: &mut Vec<u8>) -> (f32, u8) {
+        let open = self.gate.process(rms_db);
+        let f0 = self.tukey.process(if open { raw_f0 } else { 0.0 });
+        let range = match self.rule {
+            LevelRule::Paper => self.range.update(f0),
+            LevelRule::Follow => self.prior_range.update(f0),
+        };
+        let level = range.map_or(0, |r| self.disc.level(f0, r));
+        self.binner.push(i, level, &mut |_, l| bins.push(l));
+        (f0, level)
+    }
+
+    fn reset(&mut self) {
+        let stages: [&mut dyn Reset; 6] = [
+            &mut self.gate,
+            &mut self.tukey,
+            &mut self.range,
+            &mut self.prior_range,
+            &mut self.disc,
+            &mut self.binner,
+        ];
+        stages.into_iter().for_each(|s| s.reset());
+    }
+
+    /// The sum of the latencies of the stages a hop goes through.
+    fn latency_samples(&self) -> usize {
+        let range = match self.rule {
+            LevelRule::Paper => self.range.latency_samples(),
+            LevelRule::Follow => self.prior_range.latency_samples(),
+        };
+        self.gate.latency_samples()
+            + self.tukey.latency_samples()
+            + range
+            + self.disc.latency_samples()
+            + self.binner.latency_samples()
+    }
+}
+
+/// [`HopFilter::reset`] for a chain whose stages have different value types.
+trait Reset {
+    fn reset(&mut self);
+}
+
+impl<F: HopFilter> Reset for F {
+    fn reset(&mut self) {
+        HopFilter::reset(self)
+    }
+}
+
 /// Pitch feature track of one melodic stem.
 pub struct PitchTrack {
     decimator: Decimator,
@@ -269,15 +335,10 @@ pub struct PitchTrack {
     pub raw_f0: Vec<f32>,
     /// RMS per hop in dBFS (kept like `raw_f0`).
     pub raw_rms: Vec<f32>,
-    // streaming post-processing
+    /// Streaming: the next hop for the chain.
     next: usize,
-    gate: StreamingGate,
-    tukey: SlidingTukey,
-    range: RunningRange,
-    prior_range: PriorRange,
+    chain: LevelChain,
     min_iqr_st: f32,
-    disc: Discretizer,
-    binner: LevelBinner,
     /// f0 per hop after gate and fences (streaming: filled as hops arrive; offline: at the end).
     pub f0: Vec<f32>,
     /// Level per hop.
@@ -359,14 +420,17 @@ impl PitchTrack {
             raw_f0: Vec::new(),
             raw_rms: Vec::new(),
             next: 0,
-            gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s)?,
-            tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
-                .with_min_iqr(min_iqr_st),
-            range: RunningRange::new(),
-            prior_range: PriorRange::new(prior_span_st(fmax_hz), FOLLOW_PRIOR_FADE_HOPS)?,
+            chain: LevelChain {
+                gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s)?,
+                tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
+                    .with_min_iqr(min_iqr_st),
+                range: RunningRange::new(),
+                prior_range: PriorRange::new(prior_span_st(fmax_hz), FOLLOW_PRIOR_FADE_HOPS)?,
+                rule: geo.level_rule,
+                disc: Discretizer::new(geo.levels, Scale::Semitones)?,
+                binner: LevelBinner::new(hop, geo.bin_samples)?,
+            },
             min_iqr_st,
-            disc: Discretizer::new(geo.levels, Scale::Semitones)?,
-            binner: LevelBinner::new(hop, geo.bin_samples)?,
             f0: Vec::new(),
             hop_levels: Vec::new(),
             bins: Vec::new(),
@@ -384,6 +448,13 @@ impl PitchTrack {
             .latency_samples()
             .max(self.rms.latency_samples())
             * self.decimator.factor
+    }
+
+    /// Samples the streaming post-processing (gate → fences → range → discretizer →
+    /// binner) holds a hop back, summed from its stages: the binner's wait for the rest of
+    /// a bin.
+    pub fn level_latency_samples(&self) -> usize {
+        self.chain.latency_samples()
     }
 
     /// Decimation factor in front of the tracker.
@@ -411,7 +482,7 @@ impl PitchTrack {
         self.rms.finish(&mut |_, r| raw_rms.push(r));
         self.post_streaming();
         let bins = &mut self.bins;
-        self.binner.finish(&mut |_, l| bins.push(l));
+        self.chain.binner.finish(&mut |_, l| bins.push(l));
         if self.geo.mode == Mode::Offline {
             self.post_offline();
         }
@@ -425,22 +496,11 @@ impl PitchTrack {
         // long the stream): `raw_*[j]` is hop `next + j`.
         let ready = self.raw_f0.len().min(self.raw_rms.len());
         for j in 0..ready {
-            let i = self.next;
-            let open = self.gate.process(self.raw_rms[j]);
-            let f0 = if open { self.raw_f0[j] } else { 0.0 };
-            let f0 = self.tukey.process(f0);
-            let range = match self.geo.level_rule {
-                LevelRule::Paper => self.range.update(f0),
-                LevelRule::Follow => self.prior_range.update(f0),
-            };
-            let level = match range {
-                Some(r) => self.disc.level(f0, r),
-                None => 0,
-            };
+            let (f0, level) =
+                self.chain
+                    .push(self.next, self.raw_rms[j], self.raw_f0[j], &mut self.bins);
             self.f0.push(f0);
             self.hop_levels.push(level);
-            let bins = &mut self.bins;
-            self.binner.push(i, level, &mut |_, l| bins.push(l));
             self.next += 1;
         }
         self.raw_f0.drain(..ready);
@@ -460,7 +520,7 @@ impl PitchTrack {
             LevelRule::Follow => range_quantiles(&f0, FOLLOW_RANGE_QUANTILE),
         };
         let levels: Vec<u8> = match r {
-            Some(r) => f0.iter().map(|&f| self.disc.level(f, r)).collect(),
+            Some(r) => f0.iter().map(|&f| self.chain.disc.level(f, r)).collect(),
             None => vec![0; n],
         };
         self.bins = bin_levels(&levels, self.hop, self.geo.bin_samples);
@@ -493,11 +553,7 @@ impl PitchTrack {
         self.raw_f0.clear();
         self.raw_rms.clear();
         self.next = 0;
-        self.gate.reset();
-        self.tukey.reset();
-        self.range.reset();
-        self.prior_range.reset();
-        self.binner.reset();
+        self.chain.reset();
         self.f0.clear();
         self.hop_levels.clear();
         self.bins.clear();
