@@ -575,11 +575,8 @@ pub struct OnsetTrack {
     gate: StreamingGate,
     /// The live profile's rise test: the levels of the last [`RISE_HOPS`] hops (dBFS).
     recent_rms: [f32; RISE_HOPS],
-    binner: BeatBinner,
-    /// Gated onset flag per hop.
-    pub onsets: Vec<bool>,
-    /// Beat per bin.
-    pub bins: Vec<bool>,
+    /// Gated onset flags per hop and beats per bin.
+    pub beats: Beats,
 }
 
 impl OnsetTrack {
@@ -611,9 +608,7 @@ impl OnsetTrack {
             next: 0,
             gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s)?,
             recent_rms: [tactus_dsp::rms::SILENCE_DB; RISE_HOPS],
-            binner: BeatBinner::new(hop, geo.bin_samples)?,
-            onsets: Vec::new(),
-            bins: Vec::new(),
+            beats: Beats::new(hop, geo.bin_samples)?,
         })
     }
 
@@ -644,14 +639,14 @@ impl OnsetTrack {
         let raw_rms = &mut self.raw_rms;
         self.rms.finish(&mut |_, r| raw_rms.push(r));
         self.post_streaming();
-        let bins = &mut self.bins;
-        self.binner.finish(&mut |_, b| bins.push(b));
+        self.beats.finish();
         if self.geo.mode == Mode::Offline {
             let n = self.raw_onset.len().min(self.raw_rms.len());
             let mut open = vec![false; n];
             gate_offline(&self.raw_rms[..n], GATE_BELOW_DB, &mut open);
-            self.onsets = (0..n).map(|i| self.raw_onset[i] && open[i]).collect();
-            self.bins = bin_beats(&self.onsets, self.hop, self.geo.bin_samples);
+            let onsets = (0..n).map(|i| self.raw_onset[i] && open[i]).collect();
+            self.beats
+                .set_offline(onsets, self.hop, self.geo.bin_samples);
         }
     }
 
@@ -673,10 +668,7 @@ impl OnsetTrack {
             let rises = !live
                 || level - self.recent_rms.iter().fold(f32::INFINITY, |a, &b| a.min(b)) >= RISE_DB;
             self.recent_rms[i % RISE_HOPS] = level;
-            let onset = open && self.raw_onset[j] && rises;
-            self.onsets.push(onset);
-            let bins = &mut self.bins;
-            self.binner.push(i, onset, &mut |_, b| bins.push(b));
+            self.beats.push(i, open && self.raw_onset[j] && rises);
             self.next += 1;
         }
         self.raw_onset.drain(..ready);
@@ -685,18 +677,17 @@ impl OnsetTrack {
 
     /// Onset times in seconds (after the gate).
     pub fn onset_times(&self) -> Vec<f64> {
-        onset_times(&self.onsets, self.hop, self.geo.sample_rate)
+        onset_times(&self.beats.onsets, self.hop, self.geo.sample_rate)
     }
 
     /// Per-hop and per-bin values held.
     pub fn retained(&self) -> usize {
-        self.bins.len() + self.onsets.len() + self.raw_onset.len() + self.raw_rms.len()
+        self.beats.retained() + self.raw_onset.len() + self.raw_rms.len()
     }
 
     /// Streaming: forgets the first `d` bins and the per-hop onsets already binned.
     pub fn discard(&mut self, d: usize) {
-        self.bins.drain(..d.min(self.bins.len()));
-        self.onsets.clear();
+        self.beats.discard(d);
     }
 
     /// Back to the initial state.
@@ -708,6 +699,62 @@ impl OnsetTrack {
         self.next = 0;
         self.gate.reset();
         self.recent_rms = [tactus_dsp::rms::SILENCE_DB; RISE_HOPS];
+        self.beats.reset();
+    }
+}
+
+/// Onset flags per hop and the beats they make per bin (a bin is a beat when one of its
+/// hops is an onset): what an onset track and a stem's note onsets keep.
+pub struct Beats {
+    binner: BeatBinner,
+    /// Onset flag per hop (streaming: the hops not yet discarded).
+    pub onsets: Vec<bool>,
+    /// Beat per bin.
+    pub bins: Vec<bool>,
+}
+
+impl Beats {
+    /// Hops of `hop` samples into bins of `bin_samples`.
+    pub fn new(hop: usize, bin_samples: usize) -> Result<Self, ConfigError> {
+        Ok(Beats {
+            binner: BeatBinner::new(hop, bin_samples)?,
+            onsets: Vec::new(),
+            bins: Vec::new(),
+        })
+    }
+
+    /// Streaming: hop `i`'s onset flag; a bin it completes is added.
+    pub fn push(&mut self, i: usize, onset: bool) {
+        self.onsets.push(onset);
+        let bins = &mut self.bins;
+        self.binner.push(i, onset, &mut |_, b| bins.push(b));
+    }
+
+    /// Streaming: adds the last, partial bin.
+    pub fn finish(&mut self) {
+        let bins = &mut self.bins;
+        self.binner.finish(&mut |_, b| bins.push(b));
+    }
+
+    /// Offline: every hop's flag at once, binned in one go.
+    pub fn set_offline(&mut self, onsets: Vec<bool>, hop: usize, bin_samples: usize) {
+        self.bins = bin_beats(&onsets, hop, bin_samples);
+        self.onsets = onsets;
+    }
+
+    /// Per-hop and per-bin values held.
+    pub fn retained(&self) -> usize {
+        self.bins.len() + self.onsets.len()
+    }
+
+    /// Streaming: forgets the first `d` bins and the onsets already binned.
+    pub fn discard(&mut self, d: usize) {
+        self.bins.drain(..d.min(self.bins.len()));
+        self.onsets.clear();
+    }
+
+    /// Back to the just-constructed state.
+    pub fn reset(&mut self) {
         self.binner.reset();
         self.onsets.clear();
         self.bins.clear();
