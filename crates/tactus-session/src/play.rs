@@ -123,10 +123,8 @@ impl std::fmt::Display for SoundReport {
 /// What a play session did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlayReport {
-    /// Frames handed to the sink.
-    pub sent: usize,
-    /// Frames not ready in time (skipped).
-    pub skipped: usize,
+    /// The scheduler's report: frames sent, frames not ready in time (skipped), jitter.
+    pub timing: tactus_transport::PlayReport,
     /// The speakers, when they played.
     pub sound: Option<SoundReport>,
     /// Things the user should know (no audio output, and why).
@@ -376,10 +374,8 @@ pub fn play_song(
     if let Some(f) = feeder {
         let _ = f.join();
     }
-    let r = outcome?;
     Ok(PlayReport {
-        sent: r.frames_sent,
-        skipped: r.skipped,
+        timing: outcome?,
         sound,
         warnings,
     })
@@ -389,8 +385,8 @@ pub fn play_song(
 // stop flag and the status callback are each a separate thing the caller owns.
 #[allow(clippy::too_many_arguments)]
 /// Plays a pattern's frames. With `song` (and speakers asked for), the song is decoded and
-/// played and the frames follow its audio clock; otherwise they follow `clock`, and the
-/// scheduler's timing report is returned too.
+/// played and the frames follow its audio clock (and [`PlayReport::sound`] says how it
+/// went); otherwise they follow `clock` and `status` is called after each frame.
 pub fn play_pattern(
     frames: &[Frame],
     bin_ms: u32,
@@ -400,7 +396,7 @@ pub fn play_pattern(
     opts: &PlayOptions,
     stop: &Arc<AtomicBool>,
     status: &mut dyn FnMut(tactus_transport::PlayStatus),
-) -> Result<(PlayReport, Option<tactus_transport::PlayReport>), SessionError> {
+) -> Result<PlayReport, SessionError> {
     #[cfg_attr(not(feature = "device"), allow(unused_mut))]
     let mut warnings = Vec::new();
     #[cfg(feature = "device")]
@@ -451,30 +447,20 @@ pub fn play_pattern(
             stop.store(true, Ordering::SeqCst);
             drop(playback);
             let _ = feeder.join();
-            let r = outcome?;
-            return Ok((
-                PlayReport {
-                    sent: r.frames_sent,
-                    skipped: r.skipped,
-                    sound,
-                    warnings,
-                },
-                None,
-            ));
+            return Ok(PlayReport {
+                timing: outcome?,
+                sound,
+                warnings,
+            });
         }
     }
     #[cfg(not(feature = "device"))]
     let _ = song;
-    let r = schedule_on(&mut { frames }, sink, clock, bin_ms, opts, stop, status)?;
-    Ok((
-        PlayReport {
-            sent: r.frames_sent,
-            skipped: r.skipped,
-            sound: None,
-            warnings,
-        },
-        Some(r),
-    ))
+    Ok(PlayReport {
+        timing: schedule_on(&mut { frames }, sink, clock, bin_ms, opts, stop, status)?,
+        sound: None,
+        warnings,
+    })
 }
 
 /// Waits (holding the lock between checks) while `pending(queue)` holds, the renderer is

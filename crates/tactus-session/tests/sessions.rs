@@ -151,11 +151,15 @@ fn play_song_on_a_fake_clock_sends_every_frame() {
     };
     let report = play_song(req, &sink, &clock, &opts, &stop).unwrap();
     sink.close();
-    assert_eq!(report.sent, rendered.pattern.frames.len(), "{report:?}");
-    assert_eq!(report.skipped, 0);
+    assert_eq!(
+        report.timing.frames_sent,
+        rendered.pattern.frames.len(),
+        "{report:?}"
+    );
+    assert_eq!(report.timing.skipped, 0);
     assert!(report.sound.is_none());
     // The session ended when the frame after the last was due: n·25 ms − lead.
-    let last = report.sent as f64 * 25.0 - opts.lead_ms as f64;
+    let last = report.timing.frames_sent as f64 * 25.0 - opts.lead_ms as f64;
     assert!(
         clock.now_ms() >= last && clock.now_ms() < last + 1.0,
         "{} vs {last}",
@@ -171,7 +175,7 @@ fn play_pattern_on_a_fake_clock_sends_every_frame() {
     let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
     let clock = FakeClock::new(0.0);
     let stop = Arc::new(AtomicBool::new(false));
-    let (report, r) = play_pattern(
+    let report = play_pattern(
         &frames,
         100,
         None,
@@ -183,8 +187,8 @@ fn play_pattern_on_a_fake_clock_sends_every_frame() {
     )
     .unwrap();
     sink.close();
-    assert_eq!(report.sent, 40);
-    let r = r.unwrap();
+    let r = report.timing;
+    assert_eq!(r.frames_sent, 40);
     assert!(r.jitter_max_ms < 1.0, "{r:?}");
     assert!(clock.now_ms() >= 40.0 * 100.0 - 50.0);
 }
