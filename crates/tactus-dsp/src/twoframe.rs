@@ -5,24 +5,28 @@
 //! 48.8 ms long, and a new note shows once most of that frame holds it: on the live bench a
 //! 98 Hz tone reached the thumb's pitch cell 66 ms (median) after it began, although it sits
 //! an octave and more above the frame's lowest note. [`TwoFrameYin`] runs two YIN stages on
-//! the same stream:
+//! the same stream, split at a frequency `split` above `fmin`:
 //!
-//! * **short**: `[2·fmin, fmax]`, a frame of two periods of `2·fmin`: about half as long;
+//! * **short**: `[split, fmax]`, a frame of two periods of `split` (`split = 2·fmin`: half
+//!   as long);
 //! * **long**: `[fmin, fmax]`, the frame the range needs.
 //!
 //! Hop `i` is emitted as soon as the short stage has it; the long stage's newest estimate
 //! then is hop `i − lag`, with `lag = ⌈(latency_long − latency_short) / hop⌉`. Per hop:
 //!
-//! * the long frame's estimate, when it is a note in the lowest octave (below
-//!   `2·fmin · 2^(1/12)`): the short frame cannot see such a note, and what it reports then
-//!   is a harmonic or an answer at the edge of its range;
+//! * the long frame's estimate, when it is a note below the split (below
+//!   `split · 2^(1/12)`): the short frame cannot see such a note, and what it reports then
+//!   is a harmonic or an answer at the edge of its range. Over a voiced short frame, the
+//!   long frame must have held that note (within a semitone) for two hops: a single low hop
+//!   at the start of a higher note is the long frame's own octave error;
 //! * otherwise the short frame's estimate, voiced or not: it is the fresher of the two; but
-//!   an estimate below `2·fmin` (a dip at the very end of its lag range, moved below it by
+//!   an estimate below `split` (a dip at the very end of its lag range, moved below it by
 //!   the interpolation) is the edge of a lower note, and counts as unvoiced.
 //!
-//! So notes from `2·fmin` up are shown with the short frame's latency, and notes in the
-//! lowest octave `lag` hops later, which is when the long frame alone would have shown them.
-//! The cost: the first `lag` hops of a lowest-octave note whose fundamental is weak may show
+//! So notes from `split` up are shown with the short frame's latency, and notes below it
+//! `lag` hops later, which is at most one hop after the long frame alone would have shown
+//! them. In the hop-aligned output (a rendered features file) those low notes therefore sit
+//! `lag` hops late. The cost: the first hops of a low note whose fundamental is weak may show
 //! its octave (the short frame's answer) before the long frame takes over.
 //!
 //! ## Latency
@@ -38,7 +42,7 @@ use crate::{ConfigError, HopStage};
 /// Ring of long-frame estimates (and of the short hops one call collects): [`TwoFrameYin::new`]
 /// accepts only configurations whose waiting estimates fit.
 const RING: usize = 32;
-/// One semitone: the short frame defers to a long-frame note below `2·fmin · SEMITONE`.
+/// One semitone: the short frame defers to a long-frame note below `split · SEMITONE`.
 const SEMITONE: f32 = 1.059_463_1;
 
 /// See the module docs.
@@ -48,7 +52,7 @@ pub struct TwoFrameYin {
     long: Yin,
     lag: usize,
     hop: usize,
-    /// Top of the lowest octave (`2·fmin`), Hz.
+    /// The short frame's lowest note, Hz.
     split_hz: f32,
     ring: [PitchEstimate; RING],
     /// Long estimates received (the next one is hop `long_seen`).
@@ -57,15 +61,18 @@ pub struct TwoFrameYin {
 
 impl TwoFrameYin {
     /// The long frame's configuration `long` (range `[fmin, fmax]`, its frame and hop); the
-    /// short frame gets `[2·fmin, fmax]` with the frame `short_frame` (two periods of
-    /// `2·fmin` or more). Errors when either is invalid, when the short frame is not shorter,
-    /// or when `2·fmin ≥ fmax`.
-    pub fn new(long: YinConfig, short_frame: usize) -> Result<Self, ConfigError> {
-        let split_hz = 2.0 * long.fmin_hz;
-        if split_hz.partial_cmp(&long.fmax_hz) != Some(std::cmp::Ordering::Less) {
+    /// short frame gets `[split_hz, fmax]` with the frame `short_frame` (two periods of
+    /// `split_hz` or more). Errors when either is invalid, when the short frame is not
+    /// shorter, or when `split_hz` is not inside `(fmin, fmax)`.
+    pub fn new(long: YinConfig, split_hz: f32, short_frame: usize) -> Result<Self, ConfigError> {
+        let inside = |lo: f32, x: f32, hi: f32| {
+            lo.partial_cmp(&x) == Some(std::cmp::Ordering::Less)
+                && x.partial_cmp(&hi) == Some(std::cmp::Ordering::Less)
+        };
+        if !inside(long.fmin_hz, split_hz, long.fmax_hz) {
             return Err(ConfigError::invalid(
-                "fmin_hz",
-                "two-frame YIN needs fmax above 2·fmin",
+                "split_hz",
+                "the short frame's lowest note must lie between fmin and fmax",
             ));
         }
         if short_frame >= long.frame {
@@ -108,15 +115,37 @@ impl TwoFrameYin {
         self.lag
     }
 
-    /// The per-hop rule of the module docs: `short` for hop `i`, `long` for hop `i − lag`.
-    pub fn pick(&self, short: PitchEstimate, long: Option<PitchEstimate>) -> PitchEstimate {
-        match long {
-            Some(l) if l.is_voiced() && l.f0_hz < self.split_hz * SEMITONE => l,
-            _ if short.is_voiced() && short.f0_hz < self.split_hz => PitchEstimate {
+    /// The per-hop rule of the module docs: `short` for hop `i`, `long` for hop `i − lag`
+    /// and `long_before` for the hop before that.
+    pub fn pick(
+        &self,
+        short: PitchEstimate,
+        long: Option<PitchEstimate>,
+        long_before: Option<PitchEstimate>,
+    ) -> PitchEstimate {
+        let lowest = |e: &PitchEstimate| e.is_voiced() && e.f0_hz < self.split_hz * SEMITONE;
+        // A short-frame answer below its range is the edge of a lower note: unvoiced.
+        let short = if short.is_voiced() && short.f0_hz < self.split_hz {
+            PitchEstimate {
                 f0_hz: 0.0,
                 voiced_prob: 0.0,
                 ..short
-            },
+            }
+        } else {
+            short
+        };
+        match long {
+            // Over a voiced short frame only when the long frame held the note for two hops:
+            // a single low hop at a note's start is the long frame's own octave error.
+            Some(l)
+                if lowest(&l)
+                    && (!short.is_voiced()
+                        || long_before.is_some_and(|b| {
+                            lowest(&b) && (b.f0_hz / l.f0_hz - 1.0).abs() < SEMITONE - 1.0
+                        })) =>
+            {
+                l
+            }
             _ => short,
         }
     }
@@ -127,9 +156,11 @@ impl TwoFrameYin {
         s: PitchEstimate,
         emit: &mut dyn FnMut(usize, PitchEstimate),
     ) {
-        let long = (i >= self.lag && i - self.lag < self.long_seen)
-            .then(|| self.ring[(i - self.lag) % RING]);
-        emit(i, self.pick(s, long));
+        let long_at = |back: usize| {
+            (i >= self.lag + back && i - self.lag - back < self.long_seen)
+                .then(|| self.ring[(i - self.lag - back) % RING])
+        };
+        emit(i, self.pick(s, long_at(0), long_at(1)));
     }
 
     /// Feeds both stages up to one hop, long first; `finish` closes both instead.

@@ -24,7 +24,7 @@ fn long_config() -> YinConfig {
 }
 
 fn two_frame() -> TwoFrameYin {
-    TwoFrameYin::new(long_config(), frame_for(2.0 * FMIN)).unwrap()
+    TwoFrameYin::new(long_config(), 2.0 * FMIN, frame_for(2.0 * FMIN)).unwrap()
 }
 
 /// A harmonic tone (5 partials, 1/k) of `f0` for `n` samples.
@@ -107,7 +107,10 @@ fn two_frame_yin_equals_its_rule_applied_to_two_plain_yins() {
     // Latencies 121 and 61 samples (frames of 242 and 122): 60 / 49, rounded up.
     assert_eq!(lag, 2);
     let oracle: Vec<PitchEstimate> = (0..short_all.len())
-        .map(|i| two.pick(short_all[i], i.checked_sub(lag).map(|j| long_all[j])))
+        .map(|i| {
+            let long = |back: usize| i.checked_sub(lag + back).map(|j| long_all[j]);
+            two.pick(short_all[i], long(0), long(1))
+        })
         .collect();
     for blocks in [
         vec![x.len()],
@@ -213,11 +216,37 @@ fn a_note_above_the_lowest_octave_shows_a_short_frame_earlier() {
 
 #[test]
 fn two_frame_yin_refuses_frames_that_cannot_work() {
-    assert!(TwoFrameYin::new(long_config(), frame_for(FMIN)).is_err());
+    assert!(TwoFrameYin::new(long_config(), 2.0 * FMIN, frame_for(FMIN)).is_err());
     let mut c = long_config();
     c.fmax_hz = 80.0;
-    assert!(TwoFrameYin::new(c, frame_for(2.0 * FMIN)).is_err());
+    assert!(TwoFrameYin::new(c, 2.0 * FMIN, frame_for(2.0 * FMIN)).is_err());
     let mut c = long_config();
     c.hop = 1;
-    assert!(TwoFrameYin::new(c, frame_for(2.0 * FMIN)).is_err());
+    assert!(TwoFrameYin::new(c, 2.0 * FMIN, frame_for(2.0 * FMIN)).is_err());
+}
+
+#[test]
+fn one_low_hop_of_the_long_frame_does_not_override_a_voiced_short_frame() {
+    let two = two_frame();
+    let e = |f0_hz: f32| PitchEstimate {
+        f0_hz,
+        aperiodicity: 0.05,
+        voiced_prob: 0.95,
+    };
+    let silent = PitchEstimate::SILENT;
+    // A 110 Hz note: the long frame's octave error for one hop at its start is ignored...
+    assert_eq!(
+        two.pick(e(110.0), Some(e(55.0)), Some(e(109.0))).f0_hz,
+        110.0
+    );
+    assert_eq!(two.pick(e(110.0), Some(e(55.0)), Some(silent)).f0_hz, 110.0);
+    // ...a low note held for two hops is taken, over a short frame hearing its octave...
+    assert_eq!(two.pick(e(110.0), Some(e(55.0)), Some(e(55.5))).f0_hz, 55.0);
+    // ...and at once when the short frame hears nothing, or only the edge of its range.
+    assert_eq!(two.pick(silent, Some(e(55.0)), None).f0_hz, 55.0);
+    assert_eq!(two.pick(e(80.5), Some(e(73.0)), None).f0_hz, 73.0);
+    assert!(!two.pick(e(80.5), None, None).is_voiced());
+    // Above the lowest octave the short frame answers, voiced or not.
+    assert_eq!(two.pick(e(98.0), Some(e(97.0)), Some(e(97.0))).f0_hz, 98.0);
+    assert!(!two.pick(silent, Some(e(98.0)), Some(e(98.0))).is_voiced());
 }

@@ -19,13 +19,13 @@
 //! | drum onsets (`--drums bands`, the live default) | Butterworth bands, spectral flux with 1024-point frames every 5 ms, causal rising-edge picking, the gate's level over two hops | 220 (5.0 ms) |
 //! | drum onsets (`--drums classes`) | the per-instrument transcriber on the mix (its embedded 4-hop model) | 2,276 (51.6 ms) |
 //! | separator (melodic stems) | spectral, [`separator`]: 512-point frames, hop 128, harmonic median over 5 frames, no look-ahead | 511 (11.6 ms) |
-//! | pitch | YIN (`--pitch auto`) on two frames ([`tactus_dsp::twoframe`]): two periods of `2·fmin` ([`pitch_frame`]) answer for every note but the lowest octave, whose notes come from a frame of two periods of `fmin`, two hops later; bass from 41 Hz (E1); `--pitch pyin` gets one frame of two periods of `fmin` and a Viterbi lag of [`PITCH_LAG_HOPS`] hops | bass 549 (12.4 ms; lowest octave 1,431), vocals 318, other 444 |
+//! | pitch | YIN (`--pitch auto`) on two frames ([`tactus_dsp::twoframe`]): two periods of [`TWO_FRAME_SPLIT`]` · fmin` ([`pitch_frame`]) answer for every note but those below that split, which come from a frame of two periods of `fmin`, one hop later; bass from 41 Hz (E1); `--pitch pyin` gets one frame of two periods of `fmin` and a Viterbi lag of [`PITCH_LAG_HOPS`] hops | bass 819 (18.6 ms; below 54.7 Hz 1,260), vocals 477, other 666 |
 //! | bins | [`BIN_MS`] = 10 ms | 441 |
 //! | pins | a beat holds its pins up for [`PULSE_MS`] = 50 ms, so a 50 ms pin rise completes | 0 |
 //!
 //! The rhythm path sums to 1 + 220 + 441 = 662 samples (15 ms), the slowest pitch path
-//! (bass) to 511 + 1 + 549 + 441 = 1,502 samples (34.1 ms; 2,384 = 54.1 ms for a bass note
-//! below 82 Hz, which only the long frame hears); `tests/profile.rs` feeds a
+//! (bass) to 511 + 1 + 819 + 441 = 1,772 samples (40.2 ms; 2,213 = 50.2 ms for a bass note
+//! below 54.7 Hz, which only the long frame hears); `tests/profile.rs` feeds a
 //! drum hit and tone steps in 64-sample blocks and checks that the frame showing them
 //! exists within that (plus one detector hop and one block). Measured from outside,
 //! sound to frame at the glove: README, "Live: sound to pin".
@@ -79,6 +79,16 @@ pub const DRUMS_ON_MIX: bool = true;
 /// Viterbi lag of the live profile's pYIN and harmonic-sum trackers (`--pitch pyin|shs`),
 /// hops of 10 ms. The default live tracker is plain YIN, which has none.
 pub const PITCH_LAG_HOPS: usize = 2;
+/// Where the live profile's YIN hands over from its long frame to its short one
+/// ([`tactus_dsp::twoframe`]), as a ratio to the stem's lowest note: a fourth above it. Notes
+/// from there up are shown with a frame of two periods of `4/3·fmin` (bass: 819 samples of
+/// latency instead of 1,089), the notes below it one 10 ms hop later than a single long
+/// frame would (bass: 1,260). Measured with `--profile live` on 18 corpus songs (6 chorales,
+/// 12 sung; `benches/bass_eval.py --modes streaming --extra "--profile live"`), isolated
+/// stems, against one frame: bass RPA 0.919 → 0.923, vocals 0.882 → 0.884, bass note-onset F
+/// 0.714 → 0.676; a split at `2·fmin` saved 6 ms more on a 98 Hz tone but dropped the bass
+/// note-onset F to 0.395 (a whole octave of notes stamped two hops late), at `1.5·fmin` 0.648.
+pub const TWO_FRAME_SPLIT: f32 = 4.0 / 3.0;
 /// Lowest bass note the live profile tracks, Hz (E1, the lowest string of a bass guitar):
 /// its frame holds two periods of it ([`pitch_frame`]).
 pub const BASS_FMIN_HZ: f32 = 41.0;

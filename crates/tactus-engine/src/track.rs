@@ -375,11 +375,14 @@ impl PitchTrack {
         let hop = yc.hop * factor;
         // Live YIN over more than an octave: a short frame for all but the lowest octave
         // (`tactus_dsp::twoframe`); its frame also sets the level's window below.
-        let two_frame = live && method == PitchMethod::Yin && 2.0 * fmin_hz < fmax_hz;
-        let short_frame = crate::profile::pitch_frame(rate, 2.0 * fmin_hz);
+        let split_hz = crate::profile::TWO_FRAME_SPLIT * fmin_hz;
+        let two_frame = live && method == PitchMethod::Yin && split_hz < fmax_hz;
+        let short_frame = crate::profile::pitch_frame(rate, split_hz);
         let frame = if two_frame { short_frame } else { yc.frame };
         let tracker: Box<dyn HopStage<Out = PitchEstimate>> = match method {
-            PitchMethod::Yin if two_frame => Box::new(TwoFrameYin::new(yc.clone(), short_frame)?),
+            PitchMethod::Yin if two_frame => {
+                Box::new(TwoFrameYin::new(yc.clone(), split_hz, short_frame)?)
+            }
             PitchMethod::Yin => Box::new(Yin::new(yc.clone())?),
             PitchMethod::Pyin | PitchMethod::Auto => {
                 let mut pc = PyinConfig::new(rate, fmin_hz, fmax_hz);
