@@ -167,14 +167,17 @@ fn the_band_method_stays_available_and_is_worse() {
 }
 
 /// Measured F on these two excerpts (kick, snare, toms, cymbals) minus about 0.1: isolated
-/// 0.98 / 0.60 / 0.67 / 0.85, mix 0.95 / 0.48 / 0.62 / 0.85 (2026-11-24, the model trained
-/// with the synth family). The excerpts are short (4–52 hits per class), so these are
-/// regression guards; README's table has the corpus figures. The mix snare floor is lower
-/// than the previous model's (0.52): on these 23 snare hits the current model fires 52 snare
-/// onsets on the mix (18 right), the previous one fewer, while on the 24 held-out corpus songs
-/// its mix snare F is higher (0.54 against 0.51).
-const ISOLATED_FLOORS: [f64; 4] = [0.88, 0.50, 0.57, 0.75];
-const MIX_FLOORS: [f64; 4] = [0.86, 0.38, 0.52, 0.75];
+/// 0.92 / 0.54 / 0.77 / 0.84, mix 0.98 / 0.53 / 0.70 / 0.86 (2026-11-24, the model trained
+/// with retune and stretch augmentation, `models/drums/README.md`). The excerpts are short
+/// (12–78 hits per class), so these are regression guards; README's table has the corpus
+/// figures. The isolated kick and snare floors stay where the previous model put them (0.88,
+/// 0.50: measured 0.98 / 0.60 then); the toms and mix floors rose with this model.
+const ISOLATED_FLOORS: [f64; 4] = [0.88, 0.50, 0.67, 0.75];
+const MIX_FLOORS: [f64; 4] = [0.88, 0.43, 0.60, 0.76];
 /// The 21.6 ms live model (`--drums classes-live`) on the same excerpts, isolated: measured
-/// 0.95 / 0.46 / 0.61 / 0.75, minus about 0.1.
-const LIVE_ISOLATED_FLOORS: [f64; 4] = [0.85, 0.36, 0.51, 0.65];
+/// 0.91 / 0.46 / 0.50 / 0.75, minus about 0.1. The toms floor was lowered from 0.51 (the
+/// previous live model measured 0.61) on purpose: these excerpts hold 12 tom hits (one hit
+/// moves F by about 0.05), and on the 24 held-out corpus songs (569 tom hits) the retrained
+/// live model's isolated toms F moved 0.61 → 0.58 while its snare rose 0.55 → 0.66 and its
+/// kick 0.82 → 0.86 (`benches/drums_eval.py`, README "Drums").
+const LIVE_ISOLATED_FLOORS: [f64; 4] = [0.85, 0.36, 0.40, 0.65];

@@ -27,6 +27,7 @@ import os
 import struct
 import subprocess
 import sys
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -54,7 +55,7 @@ def features(song_dir, cond, cache):
     src = os.path.join(song_dir, "drums.wav" if cond == "iso" else "mix.wav")
     os.makedirs(os.path.dirname(cache), exist_ok=True)
     if not os.path.exists(cache) or os.path.getmtime(cache) < os.path.getmtime(src):
-        tmp = cache + ".tmp"
+        tmp = f"{cache}.{os.getpid()}.{threading.get_ident()}.tmp"
         subprocess.run([dumper_path(), src, tmp, cond], check=True)
         os.replace(tmp, cache)
     return np.fromfile(cache, dtype="<f4").reshape(-1, BANDS)
@@ -74,7 +75,10 @@ def context(mel):
     return x.astype(np.float32)
 
 
-def labels(truth, n):
+def labels(truth, n, hard_neg=1.0):
+    """Targets and weights per hop. hard_neg > 1: a class's negative at another class's
+    onset (+-1 hop), e.g. toms on a snare hit, weighs hard_neg (the confusions that
+    differ most between kits)."""
     y = np.zeros((n, 4), np.float32)
     w = np.ones((n, 4), np.float32)
     for c, name in enumerate(CLASSES):
@@ -86,6 +90,14 @@ def labels(truth, n):
             if 0 <= i < n:
                 y[i, c] = 1.0
                 w[i, c] = 1.0
+    if hard_neg != 1.0:
+        near = y.copy()
+        near[1:] = np.maximum(near[1:], y[:-1])
+        near[:-1] = np.maximum(near[:-1], y[1:])
+        for c in range(4):
+            other = np.delete(near, c, axis=1).max(axis=1) > 0
+            sel = other & (y[:, c] == 0) & (w[:, c] > 0)
+            w[sel, c] *= hard_neg
     return y, w
 
 
@@ -156,6 +168,52 @@ def sigmoid(z):
 
 
 SHIFT = 2  # mel bands, --shift
+WARP = 1.0  # --warp: largest retuning ratio (1: none)
+STRETCH = 1.0  # --stretch: largest time-scale ratio of the context (1: none)
+F_LO, F_HI = 20.0, 16_000.0  # MelConfig::drums
+
+
+def _mel(f):
+    return 2595.0 * np.log10(1.0 + np.asarray(f) / 700.0)
+
+
+def _hz(m):
+    return 700.0 * (10.0 ** (np.asarray(m) / 2595.0) - 1.0)
+
+
+def _gather(z, pos, axis):
+    """Linear interpolation of z along axis (1: frames, 2: bands) at fractional positions
+    pos (batch, n), clamped to the edges."""
+    n = z.shape[axis]
+    pos = np.clip(pos, 0, n - 1)
+    i0 = np.floor(pos).astype(np.int64)
+    i1 = np.minimum(i0 + 1, n - 1)
+    fr = (pos - i0).astype(np.float32)
+    if axis == 2:
+        a = np.take_along_axis(z, i0[:, None, :], 2)
+        b = np.take_along_axis(z, i1[:, None, :], 2)
+        return a + (b - a) * fr[:, None, :]
+    a = np.take_along_axis(z, i0[:, :, None], 1)
+    b = np.take_along_axis(z, i1[:, :, None], 1)
+    return a + (b - a) * fr[:, :, None]
+
+
+def retune(z, rng):
+    """Each example's kit retuned by a ratio in [1/WARP, WARP] (log-uniform): band b takes
+    the value at frequency centre_b / ratio (a shift of a fraction of a band at the low
+    end, where mel is nearly linear, a few bands at the top), and its context stretched in
+    time around the current frame by [1/STRETCH, STRETCH] (shorter or longer decays)."""
+    b, win, _ = z.shape
+    if WARP > 1.0:
+        m = np.linspace(_mel(F_LO), _mel(F_HI), BANDS + 2)[1:-1]
+        r = np.exp(rng.uniform(-np.log(WARP), np.log(WARP), (b, 1)))
+        src = np.interp(_mel(_hz(m)[None, :] / r), m, np.arange(BANDS, dtype=np.float64))
+        z = _gather(z, src, 2)
+    if STRETCH > 1.0:
+        s = np.exp(rng.uniform(-np.log(STRETCH), np.log(STRETCH), (b, 1)))
+        t = np.arange(win, dtype=np.float64)[None, :]
+        z = _gather(z, PAST + (t - PAST) / s, 1)
+    return z
 
 
 def augment(x, rng):
@@ -165,6 +223,7 @@ def augment(x, rng):
     b = x.shape[0]
     win = x.shape[1] // BANDS
     z = x.reshape(b, win, BANDS).copy()
+    z = retune(z, rng)
     shift = rng.integers(-SHIFT, SHIFT + 1)
     if shift > 0:
         z[:, :, shift:] = z[:, :, :-shift].copy()
@@ -375,7 +434,7 @@ def report(ps, thr, sets):
 
 
 def main():
-    global PAST, FUTURE, SHIFT
+    global PAST, FUTURE, SHIFT, WARP, STRETCH
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
     ap.add_argument("--epochs", type=int, default=20)
@@ -392,17 +451,23 @@ def main():
                     help="families never trained or tuned on (comma-separated)")
     ap.add_argument("--report-md", default=None)
     ap.add_argument("--shift", type=int, default=SHIFT, help="augmentation: +- mel bands")
+    ap.add_argument("--warp", type=float, default=WARP,
+                    help="augmentation: retune each example by up to this frequency ratio")
+    ap.add_argument("--stretch", type=float, default=STRETCH,
+                    help="augmentation: stretch each example's context in time by up to this ratio")
     ap.add_argument("--pos-weight", default="4",
                     help="weight of a positive frame, one value or one per class (kick,snare,toms,cymbals)")
     ap.add_argument("--neg-keep", type=float, default=1.0,
                     help="fraction of frames far from any onset used per epoch (1: all)")
+    ap.add_argument("--hard-neg", type=float, default=1.0,
+                    help="weight of a class's negative frames at another class's onset (1: plain)")
     ap.add_argument("--families", default=None,
                     help="only these families (comma-separated; default: every one under --data)")
     a = ap.parse_args()
     if not os.path.exists(dumper_path()):
         sys.exit("build the feature dumper first: cargo build --release -p tactus-engine --example drum_features")
     conds = a.conds.split(",")
-    PAST, FUTURE, SHIFT = a.past, a.future, a.shift
+    PAST, FUTURE, SHIFT, WARP, STRETCH = a.past, a.future, a.shift, a.warp, a.stretch
     HELD_OUT[:] = a.held_out.split(",")
     items = songs(a.data)
     if a.families:
@@ -417,18 +482,18 @@ def main():
     else:
         rng = np.random.default_rng(a.seed)
 
-        def stack(D, cs):
+        def stack(D, cs, hard_neg=1.0):
             X, Y, W = [], [], []
             for (_, _, c, mel, truth) in D:
                 if c not in cs:
                     continue
                 X.append(context(mel))
-                y, w = labels(truth, mel.shape[0])
+                y, w = labels(truth, mel.shape[0], hard_neg)
                 Y.append(y)
                 W.append(w)
             return np.concatenate(X), np.concatenate(Y), np.concatenate(W)
 
-        X, Y, W = stack(D_tr, conds)
+        X, Y, W = stack(D_tr, conds, a.hard_neg)
         Xv, Yv, Wv = stack(D_va, conds)
         mean = X.mean(0)
         std = X.std(0) + 1e-3

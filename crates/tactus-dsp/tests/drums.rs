@@ -423,7 +423,11 @@ fn onset_within_latency(model: DrumModel, expect_latency: usize) {
     // hop of the hit... for every class the model fires on.
     let s = 30_000usize;
     let mut x = vec![0f32; 60_000];
-    add_at(&mut x, &kick(20_000), s);
+    // The kick rings out to 38 dB under its peak before its 10 ms fade. (With 20,000
+    // samples it was cut at 26 dB under the peak, a click of its own, which the model
+    // retrained with stretch augmentation in 2026-11 calls a snare 0.44 s after the hit;
+    // models/drums/README.md.)
+    add_at(&mut x, &kick(29_000), s);
     let mut t = DrumTranscriber::with_model(SR, model.clone()).unwrap();
     let lat = t.latency_samples();
     assert_eq!(

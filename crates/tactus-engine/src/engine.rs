@@ -514,9 +514,18 @@ impl Engine {
                     cfg.separator,
                     SeparatorChoice::Spectral | SeparatorChoice::None
                 );
-            chains.push(StemChain::new(
-                stem, geo, pitch, notes, &bands, &cfg.drums, mixture,
-            )?);
+            let mut chain = StemChain::new(stem, geo, pitch, notes, &bands, &cfg.drums, mixture)?;
+            if let Some(p) = chain.pitch.as_mut() {
+                // The spectral separator's stems lag their stated latency (track.rs).
+                if cfg.profile != Profile::Live
+                    && matches!(stem, Stem::Bass | Stem::Vocals)
+                    && !cfg.supplied.contains(stem)
+                    && cfg.separator == SeparatorChoice::Spectral
+                {
+                    p.set_advance_hops(crate::track::SPECTRAL_PITCH_ADVANCE_HOPS);
+                }
+            }
+            chains.push(chain);
             let on_mix =
                 stem == Stem::Drums && cfg.profile == Profile::Live && profile::DRUMS_ON_MIX;
             if !cfg.supplied.contains(stem) && !on_mix {
@@ -936,8 +945,12 @@ impl Engine {
                 }
             }
             v.push(("denoise (high-pass + 3-median)".into(), denoise(c)));
+            let lag = match c.pitch.as_ref().map_or(0, |p| p.advance_hops()) {
+                0 => "",
+                _ => " + the separator's note lag",
+            };
             v.push((
-                format!("{} pitch (YIN frame/2, + Viterbi lag)", c.stem.name()),
+                format!("{} pitch (YIN frame/2, + Viterbi lag{lag})", c.stem.name()),
                 c.pitch.as_ref().map_or(0, |p| p.latency_samples()),
             ));
             out.push(("pitch".to_string(), v));

@@ -126,6 +126,12 @@ pub const MIXTURE_FUNDAMENTAL_RATIO: f32 = 0.1;
 /// it only removed quiet sung notes (isolated sung vocals RPA 0.926 → 0.898).
 pub const MIXTURE_MELODY_CONTOUR_GATE_DB: f32 = 6.0;
 
+/// How many hops a pitch track on the spectral separator's bass or vocals stem is moved
+/// earlier ([`PitchTrack::set_advance_hops`]): the separator's harmonic time median spans more
+/// past frames than look-ahead ones (5 + 2, the bass 8 + 2, of 23 ms), so a new note reaches
+/// these stems later than its stated latency says. Render profile only.
+pub const SPECTRAL_PITCH_ADVANCE_HOPS: usize = 3;
+
 /// Pitch ranges up to this top (Hz) are a bass line for [`PitchMethod::Shs`]; above, a melody.
 const BASS_MAX_HZ: f32 = 500.0;
 
@@ -345,6 +351,11 @@ pub struct PitchTrack {
     pub hop_levels: Vec<u8>,
     /// Level per bin.
     pub bins: Vec<u8>,
+    /// Hops of the tracker's (and the RMS's) output dropped at the start and padded at the
+    /// end ([`PitchTrack::set_advance_hops`]).
+    advance: usize,
+    skipped_f0: usize,
+    skipped_rms: usize,
 }
 
 impl PitchTrack {
@@ -437,7 +448,23 @@ impl PitchTrack {
             f0: Vec::new(),
             hop_levels: Vec::new(),
             bins: Vec::new(),
+            advance: 0,
+            skipped_f0: 0,
+            skipped_rms: 0,
         })
+    }
+
+    /// Moves the whole track `hops` hops earlier: what the tracker reports for hop
+    /// `i + hops` is hop `i` (the last `hops` hops are unvoiced). For a stem whose separator
+    /// delays notes more than its stated latency ([`SPECTRAL_PITCH_ADVANCE_HOPS`]); the
+    /// track's latency grows by as much. Call before the first block.
+    pub fn set_advance_hops(&mut self, hops: usize) {
+        self.advance = hops;
+    }
+
+    /// Hops the track is moved earlier ([`PitchTrack::set_advance_hops`]).
+    pub fn advance_hops(&self) -> usize {
+        self.advance
     }
 
     /// Samples between hops.
@@ -451,6 +478,7 @@ impl PitchTrack {
             .latency_samples()
             .max(self.rms.latency_samples())
             * self.decimator.factor
+            + self.advance * self.hop
     }
 
     /// Samples the streaming post-processing (gate → fences → range → discretizer →
@@ -469,20 +497,29 @@ impl PitchTrack {
     pub fn process(&mut self, block: &[f32]) {
         self.decimator.process(block);
         let block = self.decimator.output();
-        let raw_f0 = &mut self.raw_f0;
-        self.tracker
-            .process(block, &mut |_, e| raw_f0.push(e.f0_hz));
-        let raw_rms = &mut self.raw_rms;
-        self.rms.process(block, &mut |_, r| raw_rms.push(r));
+        let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
+        self.tracker.process(block, &mut |_, e| {
+            advanced_push(raw_f0, skipped, advance, e.f0_hz)
+        });
+        let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
+        self.rms.process(block, &mut |_, r| {
+            advanced_push(raw_rms, skipped, advance, r)
+        });
         self.post_streaming();
     }
 
     /// Ends the stream (and, offline, computes the whole-track statistics).
     pub fn finish(&mut self) {
-        let raw_f0 = &mut self.raw_f0;
-        self.tracker.finish(&mut |_, e| raw_f0.push(e.f0_hz));
-        let raw_rms = &mut self.raw_rms;
-        self.rms.finish(&mut |_, r| raw_rms.push(r));
+        let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
+        self.tracker
+            .finish(&mut |_, e| advanced_push(raw_f0, skipped, advance, e.f0_hz));
+        // The advanced track ends as long as it would have: the dropped hops come back
+        // unvoiced and silent at the end.
+        raw_f0.extend(std::iter::repeat_n(0.0, *skipped));
+        let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
+        self.rms
+            .finish(&mut |_, r| advanced_push(raw_rms, skipped, advance, r));
+        raw_rms.extend(std::iter::repeat_n(ADVANCE_PAD_DB, *skipped));
         self.post_streaming();
         let bins = &mut self.bins;
         self.chain.binner.finish(&mut |_, l| bins.push(l));
@@ -560,6 +597,20 @@ impl PitchTrack {
         self.f0.clear();
         self.hop_levels.clear();
         self.bins.clear();
+        self.skipped_f0 = 0;
+        self.skipped_rms = 0;
+    }
+}
+
+/// Level (dBFS) of the hops that an advanced track pads at its end: below any gate.
+const ADVANCE_PAD_DB: f32 = -200.0;
+
+/// Pushes `v` unless it is one of the first `advance` values (counted in `skipped`).
+fn advanced_push(out: &mut Vec<f32>, skipped: &mut usize, advance: usize, v: f32) {
+    if *skipped < advance {
+        *skipped += 1;
+    } else {
+        out.push(v);
     }
 }
 
