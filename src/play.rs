@@ -107,12 +107,15 @@ pub fn run(
                 },
             )
         });
-        let (report, frames_report) = played?;
-        if tty && frames_report.is_some() {
+        let report = played?;
+        // Without the speakers the frames followed the wall clock: say how closely.
+        let wall_clock = report.sound.is_none();
+        if tty && wall_clock {
             eprintln!();
         }
-        match frames_report {
-            Some(r) => eprintln!(
+        if wall_clock {
+            let r = &report.timing;
+            eprintln!(
                 "tactus: played {} frames to {}: jitter p95 {:.2} ms, max {:.2} ms; sent {}, dropped {} ({DROPPED}), reconnects {}{}",
                 r.frames_sent,
                 spec,
@@ -122,8 +125,9 @@ pub fn run(
                 stats.dropped,
                 stats.reconnects,
                 if r.stopped { " (stopped)" } else { "" }
-            ),
-            None => print_play(&report, &spec, &stats),
+            );
+        } else {
+            print_play(&report, &spec, &stats);
         }
         return Ok(());
     }
@@ -178,7 +182,7 @@ fn print_play(r: &PlayReport, spec: &SinkSpec, stats: &tactus_transport::SinkSta
     }
     eprintln!(
         "tactus: streamed {} frames ({} not ready in time) to {spec}; sink sent {}, dropped {} ({DROPPED}), reconnects {}",
-        r.sent, r.skipped, stats.sent, stats.dropped, stats.reconnects
+        r.timing.frames_sent, r.timing.skipped, stats.sent, stats.dropped, stats.reconnects
     );
     if let Some(s) = &r.sound {
         eprintln!("tactus: {s}");

@@ -44,6 +44,20 @@ fn le_f64(v: &[f64]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
 
+/// `d[name] = {key: bytes(values)}` for one per-stem or per-band group of the features.
+fn set_group<V>(
+    d: &Bound<'_, PyDict>,
+    name: &str,
+    m: &std::collections::BTreeMap<String, V>,
+    bytes: impl Fn(&V) -> Vec<u8>,
+) -> PyResult<()> {
+    let g = PyDict::new(d.py());
+    for (k, v) in m {
+        g.set_item(k, PyBytes::new(d.py(), &bytes(v)))?;
+    }
+    d.set_item(name, g)
+}
+
 /// The result dictionary that `tactus.Result` is built from.
 fn result_dict<'py>(py: Python<'py>, out: &RenderOutput) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
@@ -53,29 +67,10 @@ fn result_dict<'py>(py: Python<'py>, out: &RenderOutput) -> PyResult<Bound<'py, 
     d.set_item("hop_s", out.features.hop_s)?;
     d.set_item("duration_s", out.duration_s)?;
     let f = &out.features;
-    let group = |m: Vec<(&String, Vec<u8>)>| -> PyResult<Bound<'py, PyDict>> {
-        let g = PyDict::new(py);
-        for (k, v) in m {
-            g.set_item(k, PyBytes::new(py, &v))?;
-        }
-        Ok(g)
-    };
-    d.set_item(
-        "pitch_hz",
-        group(f.pitch_hz.iter().map(|(k, v)| (k, le_f32(v))).collect())?,
-    )?;
-    d.set_item(
-        "levels",
-        group(f.levels.iter().map(|(k, v)| (k, v.clone())).collect())?,
-    )?;
-    d.set_item(
-        "onsets_s",
-        group(f.onsets_s.iter().map(|(k, v)| (k, le_f64(v))).collect())?,
-    )?;
-    d.set_item(
-        "beats",
-        group(f.beats.iter().map(|(k, v)| (k, v.clone())).collect())?,
-    )?;
+    set_group(&d, "pitch_hz", &f.pitch_hz, |v| le_f32(v))?;
+    set_group(&d, "levels", &f.levels, |v| v.clone())?;
+    set_group(&d, "onsets_s", &f.onsets_s, |v| le_f64(v))?;
+    set_group(&d, "beats", &f.beats, |v| v.clone())?;
     d.set_item("latency_ms", out.latency.clone())?;
     let stages: Vec<(String, f64)> = out
         .times
@@ -354,23 +349,22 @@ fn sdr_db(reference: Vec<f32>, estimate: Vec<f32>) -> PyResult<f64> {
     tactus_eval::sdr::sdr_db(&reference, &estimate).map_err(fail)
 }
 
+/// `m.add_function(wrap_pyfunction!(f, m)?)?` for each `f`.
+macro_rules! add_functions {
+    ($m:ident; $($f:ident),+ $(,)?) => {
+        $($m.add_function(wrap_pyfunction!($f, $m)?)?;)+
+    };
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("TactusError", m.py().get_type::<TactusError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("ENGINE_RATE", ENGINE_RATE)?;
-    m.add_function(wrap_pyfunction!(render, m)?)?;
-    m.add_function(wrap_pyfunction!(render_array, m)?)?;
-    m.add_function(wrap_pyfunction!(batch_plan, m)?)?;
-    m.add_function(wrap_pyfunction!(batch_key, m)?)?;
-    m.add_function(wrap_pyfunction!(batch_rejected, m)?)?;
-    m.add_function(wrap_pyfunction!(batch_job, m)?)?;
-    m.add_function(wrap_pyfunction!(batch_read_manifest, m)?)?;
-    m.add_function(wrap_pyfunction!(batch_finish, m)?)?;
-    m.add_function(wrap_pyfunction!(eval_report, m)?)?;
-    m.add_function(wrap_pyfunction!(onset_scores, m)?)?;
-    m.add_function(wrap_pyfunction!(melody_scores, m)?)?;
-    m.add_function(wrap_pyfunction!(level_accuracy, m)?)?;
-    m.add_function(wrap_pyfunction!(sdr_db, m)?)?;
+    add_functions![
+        m; render, render_array, batch_plan, batch_key, batch_rejected, batch_job,
+        batch_read_manifest, batch_finish, eval_report, onset_scores, melody_scores,
+        level_accuracy, sdr_db
+    ];
     Ok(())
 }

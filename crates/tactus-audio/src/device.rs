@@ -176,6 +176,22 @@ fn device_label(d: &cpal::Device) -> String {
     }
 }
 
+/// [`find_device`], with the device's id and its default configuration.
+fn device_with_config(
+    name: Option<&str>,
+    input: bool,
+) -> Result<(cpal::Device, String, cpal::SupportedStreamConfig), DeviceError> {
+    let device = find_device(name, input)?;
+    let label = device_id(&device);
+    let (what, sc) = if input {
+        ("input", device.default_input_config())
+    } else {
+        ("output", device.default_output_config())
+    };
+    let sc = sc.map_err(|e| device_err(what, &label, "read its configuration", e))?;
+    Ok((device, label, sc))
+}
+
 /// Finds an input (`input`) or output device by name; `None` = the host's default.
 fn find_device(name: Option<&str>, input: bool) -> Result<cpal::Device, DeviceError> {
     let host = cpal::default_host();
@@ -362,11 +378,7 @@ impl Capture {
     /// [`CaptureRequest`]); what the device refuses falls back to its default.
     pub fn open_with(name: Option<&str>, req: &CaptureRequest) -> Result<Capture, DeviceError> {
         const WHAT: &str = "input";
-        let device = find_device(name, true)?;
-        let label = device_id(&device);
-        let sc = device
-            .default_input_config()
-            .map_err(|e| device_err(WHAT, &label, "read its configuration", e))?;
+        let (device, label, sc) = device_with_config(name, true)?;
         let (sc, config) = req.choose(&device, sc);
         let rate = config.sample_rate;
         let frames = ((rate as f64 * CAPTURE_RING_S) as usize).max(4096);
@@ -673,11 +685,7 @@ impl Playback {
         stop: Arc<AtomicBool>,
     ) -> Result<(Playback, PlaybackFeed), DeviceError> {
         const WHAT: &str = "output";
-        let device = find_device(None, false)?;
-        let label = device_id(&device);
-        let sc = device
-            .default_output_config()
-            .map_err(|e| device_err(WHAT, &label, "read its configuration", e))?;
+        let (device, label, sc) = device_with_config(None, false)?;
         let config = sc.config();
         let rate = config.sample_rate;
         let channels = usize::from(config.channels.max(1));

@@ -87,6 +87,20 @@ fn choice<'a>(
 
 /// [`choice`] for options whose values map to plain values: the value `table` pairs with
 /// the name given (or `default`).
+/// `v` when it is in `lo..=hi`, else clap's message for option `arg` (`--levels <LEVELS>`).
+fn in_range<T>(arg: &str, v: T, lo: T, hi: T) -> Result<T, BatchError>
+where
+    T: PartialOrd + std::fmt::Display,
+{
+    if lo <= v && v <= hi {
+        Ok(v)
+    } else {
+        Err(BatchError::Options(format!(
+            "invalid value '{v}' for '{arg}': {v} is not in {lo}..={hi}"
+        )))
+    }
+}
+
 fn pick<T: Copy>(
     flag: &str,
     given: Option<&str>,
@@ -143,12 +157,7 @@ impl RenderOptions {
             Some(p) => GloveMap::from_name_or_path(p).map_err(BatchError::Map)?,
             None => GloveMap::default(),
         };
-        let levels = self.levels.unwrap_or(8);
-        if !(1..=8).contains(&levels) {
-            return Err(err(format!(
-                "invalid value '{levels}' for '--levels <LEVELS>': {levels} is not in 1..=8"
-            )));
-        }
+        let levels = in_range("--levels <LEVELS>", self.levels.unwrap_or(8), 1, 8)?;
         let profile = pick(
             "profile",
             self.profile.as_deref(),
@@ -160,11 +169,7 @@ impl RenderOptions {
             (Profile::Full, Command::Render) => 100,
             (Profile::Full, _) => 25,
         });
-        if !(1..=10_000).contains(&bin_ms) {
-            return Err(err(format!(
-                "invalid value '{bin_ms}' for '--bin-ms <BIN_MS>': {bin_ms} is not in 1..=10000"
-            )));
-        }
+        let bin_ms = in_range("--bin-ms <BIN_MS>", bin_ms, 1, 10_000)?;
         let pitch = pick(
             "pitch",
             self.pitch.as_deref(),

@@ -12,23 +12,18 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use tactus_dsp::median::MedianFilter;
 use tactus_dsp::sos::SosFilter;
 use tactus_dsp::{Band, SampleStage};
+use tactus_testkit::Rng;
 
 const FS: u32 = 44100;
 const SONG_S: f64 = 180.45;
 
 /// Deterministic noise with a slow envelope, in [-1, 1].
 fn signal(n: usize) -> Vec<f32> {
-    let mut s = 0x9E37_79B9_7F4A_7C15u64;
-    (0..n)
-        .map(|i| {
-            s = s
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            let u = (s >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0;
-            let env = 0.5 + 0.5 * (i as f32 * 2.0e-4).sin();
-            u * env
-        })
-        .collect()
+    let mut x = Rng::new(0x9E37_79B9_7F4A_7C15).noise(n);
+    for (i, u) in x.iter_mut().enumerate() {
+        *u *= 0.5 + 0.5 * (i as f32 * 2.0e-4).sin();
+    }
+    x
 }
 
 fn stages() -> Vec<(String, Box<dyn SampleStage>)> {

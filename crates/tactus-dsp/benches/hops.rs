@@ -14,6 +14,7 @@ use tactus_dsp::tukey::{
     reject_outliers_offline, SlidingTukey, DEFAULT_MIN_COUNT, DEFAULT_WINDOW_HOPS, TUKEY_K,
 };
 use tactus_dsp::HopStage;
+use tactus_testkit::Rng;
 
 const SR: usize = 44_100;
 const FRAME: usize = 2048;
@@ -21,16 +22,9 @@ const HOP: usize = 441;
 const BIN: usize = 4410;
 const HOPS: usize = 18_000;
 
+/// White noise in `[-1, 1)`, seeded.
 fn noise(n: usize) -> Vec<f32> {
-    let mut s = 0x2545_F491_4F6C_DD1Du64;
-    (0..n)
-        .map(|_| {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            ((s >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-        })
-        .collect()
+    Rng::new(0x2545_F491_4F6C_DD1D).noise(n)
 }
 
 /// A melody-like f0 track: 250 ms notes over an octave, 20% unvoiced, 3% octave errors.

@@ -80,28 +80,23 @@ fn song(c: &mut Criterion) {
     ycfg.hop = 512;
     let mut g = c.benchmark_group("song_180s");
     g.sample_size(10);
-    let mut yin = Yin::new(ycfg.clone()).unwrap();
-    g.bench_function("yin", |b| {
-        b.iter(|| {
-            yin.reset();
-            let mut acc = 0.0f32;
-            yin.process(black_box(&x), &mut |_, e| acc += e.f0_hz);
-            yin.finish(&mut |_, e| acc += e.f0_hz);
-            acc
-        })
-    });
     let mut pcfg = PyinConfig::new(SR, 50.0, 2000.0);
-    pcfg.yin = ycfg;
-    let mut p = Pyin::new(pcfg).unwrap();
-    g.bench_function("pyin", |b| {
-        b.iter(|| {
-            p.reset();
-            let mut acc = 0.0f32;
-            p.process(black_box(&x), &mut |_, e| acc += e.f0_hz);
-            p.finish(&mut |_, e| acc += e.f0_hz);
-            acc
-        })
-    });
+    pcfg.yin = ycfg.clone();
+    let trackers: [(&str, Box<dyn HopStage<Out = PitchEstimate>>); 2] = [
+        ("yin", Box::new(Yin::new(ycfg).unwrap())),
+        ("pyin", Box::new(Pyin::new(pcfg).unwrap())),
+    ];
+    for (name, mut t) in trackers {
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                t.reset();
+                let mut acc = 0.0f32;
+                t.process(black_box(&x), &mut |_, e| acc += e.f0_hz);
+                t.finish(&mut |_, e| acc += e.f0_hz);
+                acc
+            })
+        });
+    }
     g.finish();
 }
 

@@ -281,32 +281,51 @@ impl<A: BinAcc + Default> Binner<A> {
     }
 }
 
+/// The binners in the hop-filter shape: a bin out when its last hop arrives.
+impl<A: BinAcc + Default> crate::HopFilter for Binner<A> {
+    type In = A::In;
+    type Out = A::Out;
+    fn push(&mut self, hop_index: usize, v: A::In, emit: &mut dyn FnMut(usize, A::Out)) {
+        Binner::push(self, hop_index, v, emit)
+    }
+    fn finish(&mut self, emit: &mut dyn FnMut(usize, A::Out)) {
+        Binner::finish(self, emit)
+    }
+    fn reset(&mut self) {
+        Binner::reset(self)
+    }
+    /// The first hop of the longest bin waits for the others: `(⌈bin / hop⌉ − 1) · hop`.
+    fn latency_samples(&self) -> usize {
+        let (hop, bin) = (self.clock.hop, self.clock.bin);
+        ((bin.div_ceil(hop) - 1) * hop) as usize
+    }
+}
+
+impl<A: BinAcc + Default> Binner<A> {
+    /// Offline: values per hop (hop `i` at `i·hop_samples`) into values per bin, with a
+    /// fresh binner. Empty when `hops` is empty or a size is 0.
+    pub fn bin_all(hops: &[A::In], hop_samples: usize, bin_samples: usize) -> Vec<A::Out> {
+        let Ok(mut b) = Self::new(hop_samples, bin_samples) else {
+            return Vec::new();
+        };
+        let mut out = Vec::new();
+        let mut emit = |_: usize, v: A::Out| out.push(v);
+        for (i, &v) in hops.iter().enumerate() {
+            b.push(i, v, &mut emit);
+        }
+        b.finish(&mut emit);
+        out
+    }
+}
+
 /// Offline: levels per hop (hop `i` at `i·hop_samples`) into levels per bin. Returns an empty
 /// `Vec` when `levels` is empty or a size is 0.
 pub fn bin_levels(levels: &[u8], hop_samples: usize, bin_samples: usize) -> Vec<u8> {
-    let Ok(mut b) = LevelBinner::new(hop_samples, bin_samples) else {
-        return Vec::new();
-    };
-    let mut out = Vec::new();
-    let mut emit = |_: usize, v: u8| out.push(v);
-    for (i, &l) in levels.iter().enumerate() {
-        b.push(i, l, &mut emit);
-    }
-    b.finish(&mut emit);
-    out
+    LevelBinner::bin_all(levels, hop_samples, bin_samples)
 }
 
 /// Offline: onset flags per hop into beats per bin. Returns an empty `Vec` when `onsets` is
 /// empty or a size is 0.
 pub fn bin_beats(onsets: &[bool], hop_samples: usize, bin_samples: usize) -> Vec<bool> {
-    let Ok(mut b) = BeatBinner::new(hop_samples, bin_samples) else {
-        return Vec::new();
-    };
-    let mut out = Vec::new();
-    let mut emit = |_: usize, v: bool| out.push(v);
-    for (i, &o) in onsets.iter().enumerate() {
-        b.push(i, o, &mut emit);
-    }
-    b.finish(&mut emit);
-    out
+    BeatBinner::bin_all(onsets, hop_samples, bin_samples)
 }

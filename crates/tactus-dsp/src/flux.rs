@@ -170,51 +170,32 @@ impl OnsetConfig {
     }
 
     fn validate(&self) -> Result<(), ConfigError> {
+        use ConfigError as E;
         if let Some((lo, hi)) = self.band_hz {
-            if !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && lo < hi) {
-                return Err(ConfigError::invalid("band_hz", "needs 0 <= low < high"));
-            }
+            let ok = lo.is_finite() && hi.is_finite() && lo >= 0.0 && lo < hi;
+            E::require(ok, "band_hz", "needs 0 <= low < high")?;
         }
-        if self.sample_rate == 0 {
-            return Err(ConfigError::invalid("sample_rate", "must be positive"));
-        }
-        if self.frame < 2 {
-            return Err(ConfigError::invalid("frame", "must be at least 2 samples"));
-        }
-        if self.hop == 0 {
-            return Err(ConfigError::invalid("hop", "must be at least 1 sample"));
-        }
+        E::require(self.sample_rate > 0, "sample_rate", "must be positive")?;
+        E::require(self.frame >= 2, "frame", "must be at least 2 samples")?;
+        E::require(self.hop > 0, "hop", "must be at least 1 sample")?;
         if let Some(g) = self.log_compression {
-            if !(g.is_finite() && g > 0.0) {
-                return Err(ConfigError::invalid(
-                    "log_compression",
-                    "gamma must be finite and positive",
-                ));
+            let why = "gamma must be finite and positive";
+            E::require(g.is_finite() && g > 0.0, "log_compression", why)?;
+        }
+        let d = self.delta;
+        let why = "must be finite and positive (it is the silence floor)";
+        E::require(d.is_finite() && d > 0.0, "delta", why)?;
+        let m = self.min_interval_s;
+        let why = "must be finite and non-negative";
+        E::require(m.is_finite() && m >= 0.0, "min_interval_s", why)?;
+        for (name, hops) in [
+            ("mean_before_hops", self.mean_before_hops),
+            ("lookahead_hops", self.lookahead_hops),
+        ] {
+            if hops > MAX_WINDOW_HOPS {
+                let why = format!("must be at most {MAX_WINDOW_HOPS}");
+                return Err(E::invalid(name, why));
             }
-        }
-        if !(self.delta.is_finite() && self.delta > 0.0) {
-            return Err(ConfigError::invalid(
-                "delta",
-                "must be finite and positive (it is the silence floor)",
-            ));
-        }
-        if !(self.min_interval_s.is_finite() && self.min_interval_s >= 0.0) {
-            return Err(ConfigError::invalid(
-                "min_interval_s",
-                "must be finite and non-negative",
-            ));
-        }
-        if self.mean_before_hops > MAX_WINDOW_HOPS {
-            return Err(ConfigError::invalid(
-                "mean_before_hops",
-                format!("must be at most {MAX_WINDOW_HOPS}"),
-            ));
-        }
-        if self.lookahead_hops > MAX_WINDOW_HOPS {
-            return Err(ConfigError::invalid(
-                "lookahead_hops",
-                format!("must be at most {MAX_WINDOW_HOPS}"),
-            ));
         }
         Ok(())
     }

@@ -77,10 +77,13 @@ pub mod sanitize;
 pub mod sdr;
 pub mod shs;
 pub mod sos;
+pub mod stage;
 pub mod tukey;
 pub mod twoframe;
 mod viterbi;
 pub mod yin;
+
+pub use stage::HopFilter;
 
 /// Errors raised when a stage is constructed with impossible parameters.
 /// Processing itself never fails.
@@ -103,6 +106,16 @@ impl ConfigError {
         ConfigError::Invalid {
             name,
             reason: reason.into(),
+        }
+    }
+
+    /// `Ok(())` when `ok`, else [`ConfigError::Invalid`] for `name`: one line per check in a
+    /// config's validation.
+    pub fn require(ok: bool, name: &'static str, reason: &str) -> Result<(), Self> {
+        if ok {
+            Ok(())
+        } else {
+            Err(ConfigError::invalid(name, reason))
         }
     }
 }

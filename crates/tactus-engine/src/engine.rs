@@ -742,7 +742,7 @@ impl Engine {
                 ready = ready.min(n.bins().len());
             }
             for b in &c.bands {
-                ready = ready.min(b.track.bins.len());
+                ready = ready.min(b.track.beats.bins.len());
             }
             if let Some(t) = &c.classes {
                 ready = ready.min(t.ready_bins());
@@ -790,7 +790,7 @@ impl Engine {
                 continue;
             };
             for b in &c.bands {
-                f.band_beat[b.band as usize] = held(&b.track.bins, kb);
+                f.band_beat[b.band as usize] = held(&b.track.beats.bins, kb);
             }
             if let Some(t) = &c.classes {
                 for &band in &c.class_bands {
@@ -865,7 +865,7 @@ impl Engine {
                 ready = ready.min(t.bins().len() + shift(Feature::Notes));
             }
             for b in &c.bands {
-                ready = ready.min(b.track.bins.len() + shift(Feature::Beats));
+                ready = ready.min(b.track.beats.bins.len() + shift(Feature::Beats));
             }
             if let Some(t) = &c.classes {
                 ready = ready.min(t.ready_bins() + shift(Feature::Beats));
@@ -1023,7 +1023,7 @@ impl Engine {
             for b in &c.bands {
                 let bn = b.band.name().to_string();
                 out.onsets_s.insert(bn.clone(), b.track.onset_times());
-                let mut beats: Vec<u8> = b.track.bins.iter().map(|&x| x as u8).collect();
+                let mut beats: Vec<u8> = b.track.beats.bins.iter().map(|&x| x as u8).collect();
                 beats.resize(bins, 0);
                 out.beats.insert(bn, beats);
             }

@@ -12,11 +12,10 @@
 //! lie more than 80 ms from every pitch onset (to catch repeated notes) added at most 0.02 F
 //! there, so the pitch rule stands alone.
 
-use tactus_dsp::binner::{bin_beats, BeatBinner};
 use tactus_dsp::notes::{note_onsets_offline, NoteConfig, NoteOnsets};
 use tactus_dsp::ConfigError;
 
-use crate::track::{Geometry, Mode, OnsetTrack, PitchTrack};
+use crate::track::{Beats, Geometry, Mode, OnsetTrack, PitchTrack};
 
 /// Note onsets from the pitch track. See the module docs.
 pub struct PitchNotes {
@@ -25,11 +24,8 @@ pub struct PitchNotes {
     hop: usize,
     /// Pitch hops consumed so far (streaming).
     consumed: usize,
-    binner: BeatBinner,
-    /// Onset flag per pitch hop.
-    pub onsets: Vec<bool>,
-    /// Note onset per bin.
-    pub bins: Vec<bool>,
+    /// Onset flag per pitch hop, note onset per bin.
+    pub beats: Beats,
 }
 
 impl PitchNotes {
@@ -40,9 +36,7 @@ impl PitchNotes {
             geo,
             hop,
             consumed: 0,
-            binner: BeatBinner::new(hop, geo.bin_samples)?,
-            onsets: Vec::new(),
-            bins: Vec::new(),
+            beats: Beats::new(hop, geo.bin_samples)?,
         })
     }
 
@@ -51,18 +45,9 @@ impl PitchNotes {
         if self.geo.mode != Mode::Streaming {
             return;
         }
-        let (det, onsets, binner, bins) = (
-            &mut self.det,
-            &mut self.onsets,
-            &mut self.binner,
-            &mut self.bins,
-        );
-        let mut put = |j: usize, o: bool| {
-            onsets.push(o);
-            binner.push(j, o, &mut |_, b| bins.push(b));
-        };
+        let (det, beats) = (&mut self.det, &mut self.beats);
         for &f in &pitch.f0[self.consumed..] {
-            det.push(f, &mut put);
+            det.push(f, &mut |j, o| beats.push(j, o));
         }
         self.consumed = pitch.f0.len();
     }
@@ -71,22 +56,15 @@ impl PitchNotes {
     pub fn finish(&mut self, pitch: &PitchTrack) {
         if self.geo.mode == Mode::Streaming {
             self.update(pitch);
-            let (det, onsets, binner, bins) = (
-                &mut self.det,
-                &mut self.onsets,
-                &mut self.binner,
-                &mut self.bins,
-            );
-            det.finish(&mut |j, o| {
-                onsets.push(o);
-                binner.push(j, o, &mut |_, b| bins.push(b));
-            });
-            self.binner.finish(&mut |_, b| self.bins.push(b));
+            let beats = &mut self.beats;
+            self.det.finish(&mut |j, o| beats.push(j, o));
+            self.beats.finish();
         } else {
             // The config was validated in `new`, so this cannot fail; stay silent if it did.
-            self.onsets = note_onsets_offline(&pitch.f0, NoteConfig::default())
+            let onsets = note_onsets_offline(&pitch.f0, NoteConfig::default())
                 .unwrap_or_else(|_| vec![false; pitch.f0.len()]);
-            self.bins = bin_beats(&self.onsets, self.hop, self.geo.bin_samples);
+            self.beats
+                .set_offline(onsets, self.hop, self.geo.bin_samples);
         }
     }
 
@@ -97,14 +75,13 @@ impl PitchNotes {
 
     /// Per-hop and per-bin values held.
     pub fn retained(&self) -> usize {
-        self.bins.len() + self.onsets.len()
+        self.beats.retained()
     }
 
     /// Streaming: forgets the first `d` bins and the onsets already binned; the pitch
     /// track forgets its consumed hops at the same time, so counting starts again at 0.
     pub fn discard(&mut self, d: usize) {
-        self.bins.drain(..d.min(self.bins.len()));
-        self.onsets.clear();
+        self.beats.discard(d);
         self.consumed = 0;
     }
 
@@ -112,9 +89,7 @@ impl PitchNotes {
     pub fn reset(&mut self) {
         self.det.reset();
         self.consumed = 0;
-        self.binner.reset();
-        self.onsets.clear();
-        self.bins.clear();
+        self.beats.reset();
     }
 }
 
@@ -131,8 +106,8 @@ impl NoteTrack {
     /// Note onset per bin.
     pub fn bins(&self) -> &[bool] {
         match self {
-            NoteTrack::Pitch(p) => &p.bins,
-            NoteTrack::Flux(f) => &f.bins,
+            NoteTrack::Pitch(p) => &p.beats.bins,
+            NoteTrack::Flux(f) => &f.beats.bins,
         }
     }
 
@@ -140,7 +115,9 @@ impl NoteTrack {
     pub fn onset_times(&self) -> Vec<f64> {
         match self {
             NoteTrack::Flux(f) => f.onset_times(),
-            NoteTrack::Pitch(p) => crate::track::onset_times(&p.onsets, p.hop, p.geo.sample_rate),
+            NoteTrack::Pitch(p) => {
+                crate::track::onset_times(&p.beats.onsets, p.hop, p.geo.sample_rate)
+            }
         }
     }
 

@@ -23,7 +23,7 @@ use tactus_dsp::sos::{Response, SosFilter};
 use tactus_dsp::tukey::{reject_outliers_offline_min_iqr, SlidingTukey, TUKEY_K};
 use tactus_dsp::twoframe::TwoFrameYin;
 use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
-use tactus_dsp::{ConfigError, HopStage, SampleStage};
+use tactus_dsp::{ConfigError, HopFilter, HopStage, SampleStage};
 
 /// Statistics mode (docs/design.md "One engine, two drivers").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -263,6 +263,72 @@ impl Decimator {
     }
 }
 
+/// The streaming post-processing of a pitch track: per hop, its RMS and raw pitch through
+/// the gate, the Tukey fences, the range (the paper's running range or the prior-padded
+/// one, by the level rule) and the discretizer to a level, and the levels through the
+/// binner to bins. Every stage is a [`HopFilter`]: one reset, latencies that add up.
+struct LevelChain {
+    gate: StreamingGate,
+    tukey: SlidingTukey,
+    range: RunningRange,
+    prior_range: PriorRange,
+    rule: LevelRule,
+    disc: Discretizer,
+    binner: LevelBinner,
+}
+
+impl LevelChain {
+    /// Hop `i`: returns its pitch after gate and fences and its level; completed bins go to
+    /// `bins`.
+    fn push(&mut self, i: usize, rms_db: f32, raw_f0: f32, bins: &mut Vec<u8>) -> (f32, u8) {
+        let open = self.gate.process(rms_db);
+        let f0 = self.tukey.process(if open { raw_f0 } else { 0.0 });
+        let range = match self.rule {
+            LevelRule::Paper => self.range.update(f0),
+            LevelRule::Follow => self.prior_range.update(f0),
+        };
+        let level = range.map_or(0, |r| self.disc.level(f0, r));
+        self.binner.push(i, level, &mut |_, l| bins.push(l));
+        (f0, level)
+    }
+
+    fn reset(&mut self) {
+        let stages: [&mut dyn Reset; 6] = [
+            &mut self.gate,
+            &mut self.tukey,
+            &mut self.range,
+            &mut self.prior_range,
+            &mut self.disc,
+            &mut self.binner,
+        ];
+        stages.into_iter().for_each(|s| s.reset());
+    }
+
+    /// The sum of the latencies of the stages a hop goes through.
+    fn latency_samples(&self) -> usize {
+        let range = match self.rule {
+            LevelRule::Paper => self.range.latency_samples(),
+            LevelRule::Follow => self.prior_range.latency_samples(),
+        };
+        self.gate.latency_samples()
+            + self.tukey.latency_samples()
+            + range
+            + self.disc.latency_samples()
+            + self.binner.latency_samples()
+    }
+}
+
+/// [`HopFilter::reset`] for a chain whose stages have different value types.
+trait Reset {
+    fn reset(&mut self);
+}
+
+impl<F: HopFilter> Reset for F {
+    fn reset(&mut self) {
+        HopFilter::reset(self)
+    }
+}
+
 /// Pitch feature track of one melodic stem.
 pub struct PitchTrack {
     decimator: Decimator,
@@ -275,15 +341,10 @@ pub struct PitchTrack {
     pub raw_f0: Vec<f32>,
     /// RMS per hop in dBFS (kept like `raw_f0`).
     pub raw_rms: Vec<f32>,
-    // streaming post-processing
+    /// Streaming: the next hop for the chain.
     next: usize,
-    gate: StreamingGate,
-    tukey: SlidingTukey,
-    range: RunningRange,
-    prior_range: PriorRange,
+    chain: LevelChain,
     min_iqr_st: f32,
-    disc: Discretizer,
-    binner: LevelBinner,
     /// f0 per hop after gate and fences (streaming: filled as hops arrive; offline: at the end).
     pub f0: Vec<f32>,
     /// Level per hop.
@@ -373,14 +434,17 @@ impl PitchTrack {
             raw_f0: Vec::new(),
             raw_rms: Vec::new(),
             next: 0,
-            gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s)?,
-            tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
-                .with_min_iqr(min_iqr_st),
-            range: RunningRange::new(),
-            prior_range: PriorRange::new(prior_span_st(fmax_hz), FOLLOW_PRIOR_FADE_HOPS)?,
+            chain: LevelChain {
+                gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s)?,
+                tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
+                    .with_min_iqr(min_iqr_st),
+                range: RunningRange::new(),
+                prior_range: PriorRange::new(prior_span_st(fmax_hz), FOLLOW_PRIOR_FADE_HOPS)?,
+                rule: geo.level_rule,
+                disc: Discretizer::new(geo.levels, Scale::Semitones)?,
+                binner: LevelBinner::new(hop, geo.bin_samples)?,
+            },
             min_iqr_st,
-            disc: Discretizer::new(geo.levels, Scale::Semitones)?,
-            binner: LevelBinner::new(hop, geo.bin_samples)?,
             f0: Vec::new(),
             hop_levels: Vec::new(),
             bins: Vec::new(),
@@ -417,6 +481,13 @@ impl PitchTrack {
             + self.advance * self.hop
     }
 
+    /// Samples the streaming post-processing (gate → fences → range → discretizer →
+    /// binner) holds a hop back, summed from its stages: the binner's wait for the rest of
+    /// a bin.
+    pub fn level_latency_samples(&self) -> usize {
+        self.chain.latency_samples()
+    }
+
     /// Decimation factor in front of the tracker.
     pub fn decimation(&self) -> usize {
         self.decimator.factor
@@ -451,7 +522,7 @@ impl PitchTrack {
         raw_rms.extend(std::iter::repeat_n(ADVANCE_PAD_DB, *skipped));
         self.post_streaming();
         let bins = &mut self.bins;
-        self.binner.finish(&mut |_, l| bins.push(l));
+        self.chain.binner.finish(&mut |_, l| bins.push(l));
         if self.geo.mode == Mode::Offline {
             self.post_offline();
         }
@@ -465,22 +536,11 @@ impl PitchTrack {
         // long the stream): `raw_*[j]` is hop `next + j`.
         let ready = self.raw_f0.len().min(self.raw_rms.len());
         for j in 0..ready {
-            let i = self.next;
-            let open = self.gate.process(self.raw_rms[j]);
-            let f0 = if open { self.raw_f0[j] } else { 0.0 };
-            let f0 = self.tukey.process(f0);
-            let range = match self.geo.level_rule {
-                LevelRule::Paper => self.range.update(f0),
-                LevelRule::Follow => self.prior_range.update(f0),
-            };
-            let level = match range {
-                Some(r) => self.disc.level(f0, r),
-                None => 0,
-            };
+            let (f0, level) =
+                self.chain
+                    .push(self.next, self.raw_rms[j], self.raw_f0[j], &mut self.bins);
             self.f0.push(f0);
             self.hop_levels.push(level);
-            let bins = &mut self.bins;
-            self.binner.push(i, level, &mut |_, l| bins.push(l));
             self.next += 1;
         }
         self.raw_f0.drain(..ready);
@@ -500,7 +560,7 @@ impl PitchTrack {
             LevelRule::Follow => range_quantiles(&f0, FOLLOW_RANGE_QUANTILE),
         };
         let levels: Vec<u8> = match r {
-            Some(r) => f0.iter().map(|&f| self.disc.level(f, r)).collect(),
+            Some(r) => f0.iter().map(|&f| self.chain.disc.level(f, r)).collect(),
             None => vec![0; n],
         };
         self.bins = bin_levels(&levels, self.hop, self.geo.bin_samples);
@@ -533,11 +593,7 @@ impl PitchTrack {
         self.raw_f0.clear();
         self.raw_rms.clear();
         self.next = 0;
-        self.gate.reset();
-        self.tukey.reset();
-        self.range.reset();
-        self.prior_range.reset();
-        self.binner.reset();
+        self.chain.reset();
         self.f0.clear();
         self.hop_levels.clear();
         self.bins.clear();
@@ -573,11 +629,8 @@ pub struct OnsetTrack {
     gate: StreamingGate,
     /// The live profile's rise test: the levels of the last [`RISE_HOPS`] hops (dBFS).
     recent_rms: [f32; RISE_HOPS],
-    binner: BeatBinner,
-    /// Gated onset flag per hop.
-    pub onsets: Vec<bool>,
-    /// Beat per bin.
-    pub bins: Vec<bool>,
+    /// Gated onset flags per hop and beats per bin.
+    pub beats: Beats,
 }
 
 impl OnsetTrack {
@@ -609,9 +662,7 @@ impl OnsetTrack {
             next: 0,
             gate: StreamingGate::new(GATE_BELOW_DB, GATE_DECAY_DB_PER_S, hop_s)?,
             recent_rms: [tactus_dsp::rms::SILENCE_DB; RISE_HOPS],
-            binner: BeatBinner::new(hop, geo.bin_samples)?,
-            onsets: Vec::new(),
-            bins: Vec::new(),
+            beats: Beats::new(hop, geo.bin_samples)?,
         })
     }
 
@@ -642,14 +693,14 @@ impl OnsetTrack {
         let raw_rms = &mut self.raw_rms;
         self.rms.finish(&mut |_, r| raw_rms.push(r));
         self.post_streaming();
-        let bins = &mut self.bins;
-        self.binner.finish(&mut |_, b| bins.push(b));
+        self.beats.finish();
         if self.geo.mode == Mode::Offline {
             let n = self.raw_onset.len().min(self.raw_rms.len());
             let mut open = vec![false; n];
             gate_offline(&self.raw_rms[..n], GATE_BELOW_DB, &mut open);
-            self.onsets = (0..n).map(|i| self.raw_onset[i] && open[i]).collect();
-            self.bins = bin_beats(&self.onsets, self.hop, self.geo.bin_samples);
+            let onsets = (0..n).map(|i| self.raw_onset[i] && open[i]).collect();
+            self.beats
+                .set_offline(onsets, self.hop, self.geo.bin_samples);
         }
     }
 
@@ -671,10 +722,7 @@ impl OnsetTrack {
             let rises = !live
                 || level - self.recent_rms.iter().fold(f32::INFINITY, |a, &b| a.min(b)) >= RISE_DB;
             self.recent_rms[i % RISE_HOPS] = level;
-            let onset = open && self.raw_onset[j] && rises;
-            self.onsets.push(onset);
-            let bins = &mut self.bins;
-            self.binner.push(i, onset, &mut |_, b| bins.push(b));
+            self.beats.push(i, open && self.raw_onset[j] && rises);
             self.next += 1;
         }
         self.raw_onset.drain(..ready);
@@ -683,18 +731,17 @@ impl OnsetTrack {
 
     /// Onset times in seconds (after the gate).
     pub fn onset_times(&self) -> Vec<f64> {
-        onset_times(&self.onsets, self.hop, self.geo.sample_rate)
+        onset_times(&self.beats.onsets, self.hop, self.geo.sample_rate)
     }
 
     /// Per-hop and per-bin values held.
     pub fn retained(&self) -> usize {
-        self.bins.len() + self.onsets.len() + self.raw_onset.len() + self.raw_rms.len()
+        self.beats.retained() + self.raw_onset.len() + self.raw_rms.len()
     }
 
     /// Streaming: forgets the first `d` bins and the per-hop onsets already binned.
     pub fn discard(&mut self, d: usize) {
-        self.bins.drain(..d.min(self.bins.len()));
-        self.onsets.clear();
+        self.beats.discard(d);
     }
 
     /// Back to the initial state.
@@ -706,6 +753,62 @@ impl OnsetTrack {
         self.next = 0;
         self.gate.reset();
         self.recent_rms = [tactus_dsp::rms::SILENCE_DB; RISE_HOPS];
+        self.beats.reset();
+    }
+}
+
+/// Onset flags per hop and the beats they make per bin (a bin is a beat when one of its
+/// hops is an onset): what an onset track and a stem's note onsets keep.
+pub struct Beats {
+    binner: BeatBinner,
+    /// Onset flag per hop (streaming: the hops not yet discarded).
+    pub onsets: Vec<bool>,
+    /// Beat per bin.
+    pub bins: Vec<bool>,
+}
+
+impl Beats {
+    /// Hops of `hop` samples into bins of `bin_samples`.
+    pub fn new(hop: usize, bin_samples: usize) -> Result<Self, ConfigError> {
+        Ok(Beats {
+            binner: BeatBinner::new(hop, bin_samples)?,
+            onsets: Vec::new(),
+            bins: Vec::new(),
+        })
+    }
+
+    /// Streaming: hop `i`'s onset flag; a bin it completes is added.
+    pub fn push(&mut self, i: usize, onset: bool) {
+        self.onsets.push(onset);
+        let bins = &mut self.bins;
+        self.binner.push(i, onset, &mut |_, b| bins.push(b));
+    }
+
+    /// Streaming: adds the last, partial bin.
+    pub fn finish(&mut self) {
+        let bins = &mut self.bins;
+        self.binner.finish(&mut |_, b| bins.push(b));
+    }
+
+    /// Offline: every hop's flag at once, binned in one go.
+    pub fn set_offline(&mut self, onsets: Vec<bool>, hop: usize, bin_samples: usize) {
+        self.bins = bin_beats(&onsets, hop, bin_samples);
+        self.onsets = onsets;
+    }
+
+    /// Per-hop and per-bin values held.
+    pub fn retained(&self) -> usize {
+        self.bins.len() + self.onsets.len()
+    }
+
+    /// Streaming: forgets the first `d` bins and the onsets already binned.
+    pub fn discard(&mut self, d: usize) {
+        self.bins.drain(..d.min(self.bins.len()));
+        self.onsets.clear();
+    }
+
+    /// Back to the just-constructed state.
+    pub fn reset(&mut self) {
         self.binner.reset();
         self.onsets.clear();
         self.bins.clear();

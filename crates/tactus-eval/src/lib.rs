@@ -85,3 +85,24 @@ pub(crate) fn check_finite(what: &'static str, x: &[f64]) -> Result<(), EvalErro
         Err(EvalError::NonFinite(what))
     }
 }
+
+/// [`check_finite`] on each named sequence, in order.
+pub(crate) fn check_all_finite(seqs: &[(&'static str, &[f64])]) -> Result<(), EvalError> {
+    seqs.iter().try_for_each(|&(what, x)| check_finite(what, x))
+}
+
+/// Two sequences that a metric `what` compares element by element: the same length, not
+/// empty.
+pub(crate) fn check_aligned(
+    what: &'static str,
+    left: usize,
+    right: usize,
+) -> Result<(), EvalError> {
+    if left != right {
+        Err(EvalError::LengthMismatch { what, left, right })
+    } else if left == 0 {
+        Err(EvalError::Empty(what))
+    } else {
+        Ok(())
+    }
+}

@@ -25,8 +25,8 @@ use crate::EvalError;
 /// Default tolerance of RPA and RCA, in cents.
 pub const CENT_TOLERANCE: f64 = 50.0;
 
-/// The four melody scores.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+/// The four melody scores (all 0 by default, what mir_eval gives on empty input).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MelodyScores {
     /// Raw pitch accuracy at 50 cents.
     pub raw_pitch_accuracy: f64,
@@ -76,16 +76,10 @@ pub fn melody_scores(
     est_hz: &[f64],
     cent_tolerance: f64,
 ) -> Result<MelodyScores, EvalError> {
-    crate::check_finite("melody reference", ref_hz)?;
-    crate::check_finite("melody estimate", est_hz)?;
+    crate::check_all_finite(&[("melody reference", ref_hz), ("melody estimate", est_hz)])?;
     if ref_hz.is_empty() || est_hz.is_empty() {
         // mir_eval returns 0 for every score on empty input.
-        return Ok(MelodyScores {
-            raw_pitch_accuracy: 0.0,
-            raw_chroma_accuracy: 0.0,
-            voicing_recall: 0.0,
-            voicing_false_alarm: 0.0,
-        });
+        return Ok(MelodyScores::default());
     }
     let est = |i: usize| est_hz.get(i).copied().unwrap_or(0.0);
     let (mut ref_voiced, mut ref_unvoiced) = (0usize, 0usize);

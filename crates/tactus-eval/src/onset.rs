@@ -15,8 +15,8 @@ use crate::EvalError;
 /// Default matching window in seconds (±50 ms).
 pub const WINDOW_S: f64 = 0.05;
 
-/// Onset scores.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+/// Onset scores (all 0 by default, what mir_eval gives on empty input).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct OnsetScores {
     /// Matched / estimated.
     pub precision: f64,
@@ -93,8 +93,7 @@ pub fn onset_scores(
     estimate: &[f64],
     window_s: f64,
 ) -> Result<OnsetScores, EvalError> {
-    crate::check_finite("onset reference", reference)?;
-    crate::check_finite("onset estimate", estimate)?;
+    crate::check_all_finite(&[("onset reference", reference), ("onset estimate", estimate)])?;
     if !window_s.is_finite() || window_s < 0.0 {
         return Err(EvalError::Invalid {
             name: "window_s",
@@ -102,12 +101,7 @@ pub fn onset_scores(
         });
     }
     if reference.is_empty() || estimate.is_empty() {
-        return Ok(OnsetScores {
-            precision: 0.0,
-            recall: 0.0,
-            f_measure: 0.0,
-            matched: 0,
-        });
+        return Ok(OnsetScores::default());
     }
     let matched = match_count(reference, estimate, window_s);
     let precision = matched as f64 / estimate.len() as f64;

@@ -22,7 +22,7 @@
 //!
 //! Cost: DTW is O(n·m) time and memory (a 3-minute song at 10 bins/s: 1800² cells, 26 MB).
 //! There is no latency: these are offline metrics.
-use crate::{check_finite, EvalError};
+use crate::{check_aligned, check_all_finite, check_finite, EvalError};
 
 /// Min–max normalization to [0, 1]: `(x − min) / (max − min)`; all zeros if `max == min`.
 pub fn normalize_min_max(x: &[f64]) -> Vec<f64> {
@@ -38,18 +38,8 @@ pub fn normalize_min_max(x: &[f64]) -> Vec<f64> {
 /// The paper's MAE: mean of `|y_i − ŷ_i|` over the N bins (§3.1.1).
 /// The caller normalizes first (see [`normalize_min_max`]).
 pub fn mae(y: &[f64], y_hat: &[f64]) -> Result<f64, EvalError> {
-    if y.len() != y_hat.len() {
-        return Err(EvalError::LengthMismatch {
-            what: "mae",
-            left: y.len(),
-            right: y_hat.len(),
-        });
-    }
-    if y.is_empty() {
-        return Err(EvalError::Empty("mae"));
-    }
-    check_finite("mae", y)?;
-    check_finite("mae", y_hat)?;
+    check_aligned("mae", y.len(), y_hat.len())?;
+    check_all_finite(&[("mae", y), ("mae", y_hat)])?;
     let sum: f64 = y.iter().zip(y_hat).map(|(a, b)| (a - b).abs()).sum();
     Ok(sum / y.len() as f64)
 }
@@ -81,8 +71,7 @@ pub fn dtw(a: &[f64], b: &[f64]) -> Result<Dtw, EvalError> {
     if a.is_empty() || b.is_empty() {
         return Err(EvalError::Empty("dtw"));
     }
-    check_finite("dtw", a)?;
-    check_finite("dtw", b)?;
+    check_all_finite(&[("dtw", a), ("dtw", b)])?;
     let (n, m) = (a.len(), b.len());
     let mut acc = vec![0.0f64; n * m];
     let at = |i: usize, j: usize| i * m + j;
@@ -137,16 +126,7 @@ pub fn normalized_dtw(a: &[f64], b: &[f64]) -> Result<f64, EvalError> {
 /// The paper's rhythm accuracy (§3.1.3): the fraction of bins where the tactile beat
 /// (`y_hat`) equals the audio beat (`y`).
 pub fn rhythm_accuracy(y: &[bool], y_hat: &[bool]) -> Result<f64, EvalError> {
-    if y.len() != y_hat.len() {
-        return Err(EvalError::LengthMismatch {
-            what: "rhythm_accuracy",
-            left: y.len(),
-            right: y_hat.len(),
-        });
-    }
-    if y.is_empty() {
-        return Err(EvalError::Empty("rhythm_accuracy"));
-    }
+    check_aligned("rhythm_accuracy", y.len(), y_hat.len())?;
     let hits = y.iter().zip(y_hat).filter(|(a, b)| a == b).count();
     Ok(hits as f64 / y.len() as f64)
 }

@@ -329,6 +329,17 @@ pub fn sdr(reference: &[f32], estimate: &[f32]) -> f32 {
     tactus_dsp::sdr::sdr_db(reference, estimate) as f32
 }
 
+/// The common prefix of `left` and `right` in blocks of at most `block` samples (the
+/// per-block loop of the STFT backends' `process`).
+pub(crate) fn stereo_blocks<'a>(
+    left: &'a [f32],
+    right: &'a [f32],
+    block: usize,
+) -> impl Iterator<Item = (&'a [f32], &'a [f32])> {
+    let n = left.len().min(right.len());
+    left[..n].chunks(block).zip(right[..n].chunks(block))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

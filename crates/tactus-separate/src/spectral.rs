@@ -610,11 +610,9 @@ impl Separator for SpectralSeparator {
 
     fn process(&mut self, left: &[f32], right: &[f32], out: &mut StemOutput) {
         out.declare(self.stems);
-        let n = left.len().min(right.len());
-        for start in (0..n).step_by(BLOCK) {
-            let end = (start + BLOCK).min(n);
-            let m = end - start;
-            for (i, (&l, &r)) in left[start..end].iter().zip(&right[start..end]).enumerate() {
+        for (bl, br) in crate::stereo_blocks(left, right, BLOCK) {
+            let m = bl.len();
+            for (i, (&l, &r)) in bl.iter().zip(br).enumerate() {
                 let (l, r) = (sanitize_sample(l).0, sanitize_sample(r).0);
                 // Halve first so that two large samples cannot overflow; clamp so that
                 // FFT sums and squared magnitudes stay finite.

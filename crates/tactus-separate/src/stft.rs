@@ -71,6 +71,24 @@ impl StftConfig {
     }
 }
 
+/// `spec` = the real FFT of `src · window` (through `frame` and `scratch`, all sized for
+/// `fft` at construction, so it cannot fail; were it to, `spec` is zeroed).
+pub(crate) fn windowed_fft(
+    fft: &dyn RealToComplex<f32>,
+    window: &[f32],
+    src: &[f32],
+    frame: &mut [f32],
+    spec: &mut [Complex<f32>],
+    scratch: &mut [Complex<f32>],
+) {
+    for ((f, &x), &w) in frame.iter_mut().zip(src).zip(window) {
+        *f = x * w;
+    }
+    if fft.process_with_scratch(frame, spec, scratch).is_err() {
+        spec.fill(Complex::new(0.0, 0.0));
+    }
+}
+
 /// The periodic Hann window of length `n`.
 pub fn hann_periodic(n: usize) -> Vec<f32> {
     (0..n)
@@ -199,17 +217,8 @@ impl StftAnalysis {
             pos += take;
             if self.fill == n_fft {
                 for (buf, spec) in self.bufs.iter().zip(self.spectra.iter_mut()) {
-                    for ((f, &x), &w) in self.frame.iter_mut().zip(buf).zip(&self.window) {
-                        *f = x * w;
-                    }
-                    // Lengths are fixed at construction, so this cannot fail.
-                    if self
-                        .fft
-                        .process_with_scratch(&mut self.frame, spec, &mut self.scratch)
-                        .is_err()
-                    {
-                        spec.fill(Complex::new(0.0, 0.0));
-                    }
+                    let (frame, scratch) = (&mut self.frame, &mut self.scratch);
+                    windowed_fft(&*self.fft, &self.window, buf, frame, spec, scratch);
                 }
                 emit(self.frames_emitted, &self.spectra);
                 self.frames_emitted += 1;

@@ -130,3 +130,10 @@ pub enum SessionError {
     #[error("{0}")]
     Renderer(String),
 }
+
+/// A source that cannot fail (a pattern's frames) fails a session never.
+impl From<std::convert::Infallible> for SessionError {
+    fn from(never: std::convert::Infallible) -> SessionError {
+        match never {}
+    }
+}

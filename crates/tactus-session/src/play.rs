@@ -15,20 +15,24 @@
 //! frame carries the full state anyway). Every exit (end, stop, error) sends all-down.
 //!
 //! ## A pattern ([`play_pattern`])
-//! Its frames are the queue, sent exactly as a song's, on the audio clock of its song when
-//! one is given (decoded and played, no engine), else through
-//! [`tactus_transport::play_frames`] on the caller's clock.
+//! Its frames are sent by the same scheduler ([`tactus_transport::schedule`]), on the audio
+//! clock of its song when one is given (decoded and played, no engine), else on the caller's
+//! clock.
 
 use std::collections::VecDeque;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Duration;
+#[cfg(feature = "device")]
+use std::time::Instant;
 
 use tactus_engine::render::{render_tapped, RenderRequest};
 use tactus_engine::EngineError;
 use tactus_glove::Frame;
-use tactus_transport::{Clock, SinkHandle};
+use tactus_transport::{
+    schedule, Clock, FrameSource, PlayStatus, ScheduleError, SinkHandle, Slot, Timing,
+};
 
 use crate::SessionError;
 
@@ -119,10 +123,8 @@ impl std::fmt::Display for SoundReport {
 /// What a play session did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlayReport {
-    /// Frames handed to the sink.
-    pub sent: usize,
-    /// Frames not ready in time (skipped).
-    pub skipped: usize,
+    /// The scheduler's report: frames sent, frames not ready in time (skipped), jitter.
+    pub timing: tactus_transport::PlayReport,
     /// The speakers, when they played.
     pub sound: Option<SoundReport>,
     /// Things the user should know (no audio output, and why).
@@ -334,21 +336,26 @@ pub fn play_song(
             }
         })
     };
+    let mut source = QueueSource {
+        shared: &shared,
+        late: opts.late,
+    };
     let outcome = wait_first_frame(&shared, stop).and_then(|()| {
         #[cfg(feature = "device")]
         if let Some(playback) = &playback {
             playback.wait_prefilled(Duration::from_secs(5));
             playback.start()?;
-            return schedule(
-                &shared,
+            return schedule_on(
+                &mut source,
                 sink,
+                &speakers::AudioClock(playback),
                 bin_ms,
                 opts,
                 stop,
-                &speakers::AudioClock(playback),
+                &mut |_| {},
             );
         }
-        schedule(&shared, sink, bin_ms, opts, stop, clock)
+        schedule_on(&mut source, sink, clock, bin_ms, opts, stop, &mut |_| {})
     });
     if outcome.is_err() {
         sink.all_down();
@@ -367,10 +374,8 @@ pub fn play_song(
     if let Some(f) = feeder {
         let _ = f.join();
     }
-    let (sent, skipped) = outcome?;
     Ok(PlayReport {
-        sent,
-        skipped,
+        timing: outcome?,
         sound,
         warnings,
     })
@@ -380,8 +385,8 @@ pub fn play_song(
 // stop flag and the status callback are each a separate thing the caller owns.
 #[allow(clippy::too_many_arguments)]
 /// Plays a pattern's frames. With `song` (and speakers asked for), the song is decoded and
-/// played and the frames follow its audio clock; otherwise they follow `clock` through
-/// [`tactus_transport::play_frames`], whose report is returned too.
+/// played and the frames follow its audio clock (and [`PlayReport::sound`] says how it
+/// went); otherwise they follow `clock` and `status` is called after each frame.
 pub fn play_pattern(
     frames: &[Frame],
     bin_ms: u32,
@@ -391,7 +396,7 @@ pub fn play_pattern(
     opts: &PlayOptions,
     stop: &Arc<AtomicBool>,
     status: &mut dyn FnMut(tactus_transport::PlayStatus),
-) -> Result<(PlayReport, Option<tactus_transport::PlayReport>), SessionError> {
+) -> Result<PlayReport, SessionError> {
     #[cfg_attr(not(feature = "device"), allow(unused_mut))]
     let mut warnings = Vec::new();
     #[cfg(feature = "device")]
@@ -423,25 +428,16 @@ pub fn play_pattern(
                     what: "audio feeder",
                     source,
                 })?;
-            // The whole pattern is the queue: nothing to render.
-            let shared: SharedQueue = Arc::new((
-                Mutex::new(Queue {
-                    frames: frames.iter().copied().collect(),
-                    base: 0,
-                    done: true,
-                    error: None,
-                }),
-                Condvar::new(),
-            ));
             playback.wait_prefilled(Duration::from_secs(5));
             let outcome = playback.start().map_err(SessionError::from).and_then(|()| {
-                schedule(
-                    &shared,
+                schedule_on(
+                    &mut { frames },
                     sink,
+                    &speakers::AudioClock(&playback),
                     bin_ms.max(1),
                     opts,
                     stop,
-                    &speakers::AudioClock(&playback),
+                    &mut |_| {},
                 )
             });
             if outcome.is_err() {
@@ -451,30 +447,20 @@ pub fn play_pattern(
             stop.store(true, Ordering::SeqCst);
             drop(playback);
             let _ = feeder.join();
-            let (sent, skipped) = outcome?;
-            return Ok((
-                PlayReport {
-                    sent,
-                    skipped,
-                    sound,
-                    warnings,
-                },
-                None,
-            ));
+            return Ok(PlayReport {
+                timing: outcome?,
+                sound,
+                warnings,
+            });
         }
     }
     #[cfg(not(feature = "device"))]
     let _ = song;
-    let r = tactus_transport::play_frames(frames, bin_ms, sink, clock, opts.lead_ms, stop, status);
-    Ok((
-        PlayReport {
-            sent: r.frames_sent,
-            skipped: 0,
-            sound: None,
-            warnings,
-        },
-        Some(r),
-    ))
+    Ok(PlayReport {
+        timing: schedule_on(&mut { frames }, sink, clock, bin_ms, opts, stop, status)?,
+        sound: None,
+        warnings,
+    })
 }
 
 /// Waits (holding the lock between checks) while `pending(queue)` holds, the renderer is
@@ -504,47 +490,24 @@ fn wait_first_frame(shared: &SharedQueue, stop: &AtomicBool) -> Result<(), Sessi
     wait_while(shared, g, stop, |q| q.frames.is_empty()).map(drop)
 }
 
-/// The scheduler: sends frame `k` when `clock` reads `k · bin_ms − lead_ms`. Returns
-/// (sent, skipped). Ends with all-down.
-fn schedule(
-    shared: &SharedQueue,
-    sink: &SinkHandle,
-    bin_ms: u32,
-    opts: &PlayOptions,
-    stop: &AtomicBool,
-    clock: &dyn Clock,
-) -> Result<(usize, usize), SessionError> {
-    let (lead_ms, stall, late) = (opts.lead_ms, opts.stall, opts.late);
-    let (m, cv) = &**shared;
-    let (mut k, mut sent, mut skipped) = (0usize, 0usize, 0usize);
-    let (mut last, mut moved) = (f64::NAN, Instant::now());
-    'frames: while !stop.load(Ordering::Relaxed) {
-        let due = k as f64 * f64::from(bin_ms) - lead_ms as f64;
-        loop {
-            if stop.load(Ordering::Relaxed) {
-                break 'frames;
-            }
-            let now = clock.now_ms();
-            if now != last {
-                (last, moved) = (now, Instant::now());
-            } else if moved.elapsed() > stall {
-                sink.all_down();
-                return Err(SessionError::ClockStalled {
-                    seconds: stall.as_secs_f64(),
-                });
-            }
-            if now >= due {
-                break;
-            }
-            clock.sleep_ms(if now.is_finite() {
-                (due - now).min(10.0)
-            } else {
-                2.0
-            });
-        }
+/// The rendering thread's queue as the scheduler's frame source: frame `k` if it is queued,
+/// else skipped ([`Late::Skip`]) or waited for ([`Late::Wait`]); the end once the renderer
+/// is done and the queue is empty.
+struct QueueSource<'a> {
+    shared: &'a SharedQueue,
+    late: Late,
+}
+
+impl FrameSource for QueueSource<'_> {
+    type Error = SessionError;
+
+    fn take(&mut self, k: usize, stop: &AtomicBool) -> Result<Slot, SessionError> {
+        let (m, cv) = &**self.shared;
         let g = m.lock().map_err(|_| crashed())?;
-        let wait = late == Late::Wait;
-        let mut g = wait_while(shared, g, stop, |q| wait && q.base + q.frames.len() <= k)?;
+        let wait = self.late == Late::Wait;
+        let mut g = wait_while(self.shared, g, stop, |q| {
+            wait && q.base + q.frames.len() <= k
+        })?;
         // Frames that came too late for their turn.
         while g.base < k && !g.frames.is_empty() {
             g.frames.pop_front();
@@ -554,18 +517,40 @@ fn schedule(
             let f = g.frames.pop_front().expect("checked non-empty");
             g.base += 1;
             cv.notify_all();
-            drop(g);
-            sink.send_frame(f, (k as u64 * u64::from(bin_ms)) as u32);
-            sent += 1;
+            Ok(Slot::Frame(f))
         } else if g.done {
-            break;
+            Ok(Slot::End)
         } else {
-            skipped += 1;
+            Ok(Slot::Missing)
         }
-        k += 1;
     }
-    sink.all_down();
-    Ok((sent, skipped))
+}
+
+/// Runs [`tactus_transport::schedule`]: frame `k` of `source` is sent when `clock` reads
+/// `k · bin_ms − lead_ms`; a clock that stands still for `opts.stall` ends it. Ends with
+/// all-down.
+fn schedule_on<S>(
+    source: &mut S,
+    sink: &SinkHandle,
+    clock: &dyn Clock,
+    bin_ms: u32,
+    opts: &PlayOptions,
+    stop: &AtomicBool,
+    status: &mut dyn FnMut(PlayStatus),
+) -> Result<tactus_transport::PlayReport, SessionError>
+where
+    S: FrameSource + ?Sized,
+    S::Error: Into<SessionError>,
+{
+    let timing = Timing {
+        bin_ms,
+        lead_ms: opts.lead_ms,
+        stall: Some(opts.stall),
+    };
+    schedule(source, sink, clock, &timing, stop, status).map_err(|e| match e {
+        ScheduleError::Stalled { seconds } => SessionError::ClockStalled { seconds },
+        ScheduleError::Source(e) => e.into(),
+    })
 }
 
 /// The song of a pattern: `audio` if given, else the recorded path (as given, then relative

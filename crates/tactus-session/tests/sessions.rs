@@ -3,7 +3,6 @@
 //! capture callback does not allocate; `play` of a song and of a pattern on a fake clock
 //! sends every frame at its time.
 
-use std::cell::Cell;
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -15,24 +14,12 @@ use tactus_engine::render::RenderRequest;
 use tactus_engine::{Engine, ENGINE_RATE};
 use tactus_session::{live, play_pattern, play_song, Late, LiveInput, LiveOptions, PlayOptions};
 use tactus_testkit::{allocations, Counting};
-use tactus_transport::{open_sink, Clock, SinkOptions, SinkSpec};
+use tactus_transport::{open_sink, Clock, FakeClock, SinkOptions, SinkSpec};
 
 mod common;
 
 #[global_allocator]
 static GLOBAL: Counting = Counting;
-
-/// A clock that moves only when slept on: a session runs as fast as the machine allows.
-struct FakeClock(Cell<f64>);
-
-impl Clock for FakeClock {
-    fn now_ms(&self) -> f64 {
-        self.0.get()
-    }
-    fn sleep_ms(&self, ms: f64) {
-        self.0.set(self.0.get() + ms.max(0.01));
-    }
-}
 
 fn demo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/demo.ogg")
@@ -155,7 +142,7 @@ fn play_song_on_a_fake_clock_sends_every_frame() {
     // The frames a streaming render makes, for comparison.
     let rendered = tactus_engine::render::render(&req, &mut |_| {}).unwrap();
     let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
-    let clock = FakeClock(Cell::new(0.0));
+    let clock = FakeClock::new(0.0);
     let stop = Arc::new(AtomicBool::new(false));
     // Nothing is late on a fake clock: frames are waited for, not skipped.
     let opts = PlayOptions {
@@ -164,11 +151,15 @@ fn play_song_on_a_fake_clock_sends_every_frame() {
     };
     let report = play_song(req, &sink, &clock, &opts, &stop).unwrap();
     sink.close();
-    assert_eq!(report.sent, rendered.pattern.frames.len(), "{report:?}");
-    assert_eq!(report.skipped, 0);
+    assert_eq!(
+        report.timing.frames_sent,
+        rendered.pattern.frames.len(),
+        "{report:?}"
+    );
+    assert_eq!(report.timing.skipped, 0);
     assert!(report.sound.is_none());
     // The session ended when the frame after the last was due: n·25 ms − lead.
-    let last = report.sent as f64 * 25.0 - opts.lead_ms as f64;
+    let last = report.timing.frames_sent as f64 * 25.0 - opts.lead_ms as f64;
     assert!(
         clock.now_ms() >= last && clock.now_ms() < last + 1.0,
         "{} vs {last}",
@@ -182,9 +173,9 @@ fn play_pattern_on_a_fake_clock_sends_every_frame() {
         .map(|i| tactus_glove::Frame([i, 0, 0, 0, 0, 0, 0, 0, 0, i]))
         .collect();
     let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
-    let clock = FakeClock(Cell::new(0.0));
+    let clock = FakeClock::new(0.0);
     let stop = Arc::new(AtomicBool::new(false));
-    let (report, r) = play_pattern(
+    let report = play_pattern(
         &frames,
         100,
         None,
@@ -196,8 +187,8 @@ fn play_pattern_on_a_fake_clock_sends_every_frame() {
     )
     .unwrap();
     sink.close();
-    assert_eq!(report.sent, 40);
-    let r = r.unwrap();
+    let r = report.timing;
+    assert_eq!(r.frames_sent, 40);
     assert!(r.jitter_max_ms < 1.0, "{r:?}");
     assert!(clock.now_ms() >= 40.0 * 100.0 - 50.0);
 }

@@ -16,7 +16,8 @@
 //! | `ble` | the BLE sink (feature `ble`: btleplug over BlueZ/D-Bus), [`list_ble_devices`] |
 //! | [`file`](mod@file) | the JSON Lines recorder sink |
 //! | [`emulator`] | [`VirtualGlove`]: decoder + 50 ms pin-rise model + actuation log; [`run_emulator_on_port`] |
-//! | [`player`] | [`play_frames`]: clocked, early sending with a [`Clock`] and Ctrl-C safety |
+//! | [`clock`] | [`Clock`]: [`WallClock`], [`FakeClock`] (the audio clock lives with the device) |
+//! | [`player`] | the one scheduler [`schedule`] (and [`play_frames`] for a pattern): clocked, early sending, Ctrl-C safety |
 //! | [`devices`] | [`devices_report`]: what `tactus devices` prints |
 //!
 //! ## Tutorial
@@ -45,6 +46,7 @@
 
 #[cfg(feature = "ble")]
 mod ble;
+pub mod clock;
 pub mod devices;
 pub mod emulator;
 mod error;
@@ -57,11 +59,15 @@ pub mod serial;
 pub mod sink;
 pub mod spec;
 
+pub use clock::{Clock, FakeClock, WallClock};
 pub use devices::{devices_report, list_ble_devices, BleDevice};
 pub use emulator::{run_emulator_on_port, EmulatorOptions, EmulatorReport, VirtualGlove};
 pub use error::{LinkError, TransportError};
 pub use factory::open_sink;
-pub use player::{lead_ms, play_frames, Clock, PlayReport, PlayStatus, WallClock};
+pub use player::{
+    lead_ms, play_frames, schedule, FrameSource, PlayReport, PlayStatus, ScheduleError, Slot,
+    Timing,
+};
 pub use serial::{list_serial_ports, SerialPortEntry};
 pub use sink::{SinkCommand, SinkHandle, SinkOptions, SinkStats};
 pub use spec::{SinkSpec, DEFAULT_BAUD};

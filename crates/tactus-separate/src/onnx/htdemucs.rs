@@ -52,7 +52,7 @@ use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use tactus_dsp::sanitize::sanitize_sample;
 
 use super::{open_session, OnnxConfig, OnnxError, Port};
-use crate::stft::hann_periodic;
+use crate::stft::{hann_periodic, windowed_fft};
 use crate::{stem_index, SegmentStats, SeparateError, Separator, Stem, StemOutput, StemSet};
 
 /// The only sample rate the model accepts, in Hz.
@@ -265,16 +265,8 @@ impl HtDemucsSeparator {
                 let nb = BLOCK_FRAMES.min(FRAMES - t0);
                 for (j, spec) in self.block.chunks_exact_mut(SPEC_LEN).take(nb).enumerate() {
                     let src = &self.padded[(t0 + j) * HOP..(t0 + j) * HOP + N_FFT];
-                    for ((f, &s), &w) in self.frame.iter_mut().zip(src).zip(&self.window) {
-                        *f = s * w;
-                    }
-                    if self
-                        .fft
-                        .process_with_scratch(&mut self.frame, spec, &mut self.scratch_fwd)
-                        .is_err()
-                    {
-                        spec.fill(Complex::new(0.0, 0.0));
-                    }
+                    let (frame, scratch) = (&mut self.frame, &mut self.scratch_fwd);
+                    windowed_fft(&*self.fft, &self.window, src, frame, spec, scratch);
                 }
                 let (re_plane, im_plane) =
                     self.mag[2 * c * plane..(2 * c + 2) * plane].split_at_mut(plane);

@@ -497,11 +497,9 @@ impl Separator for SpleeterSeparator {
     fn process(&mut self, left: &[f32], right: &[f32], out: &mut StemOutput) {
         let t_busy = Instant::now();
         out.declare(self.stems);
-        let n = left.len().min(right.len());
-        for start in (0..n).step_by(BLOCK) {
-            let end = (start + BLOCK).min(n);
-            let m = end - start;
-            for (i, (&l, &r)) in left[start..end].iter().zip(&right[start..end]).enumerate() {
+        for (bl, br) in crate::stereo_blocks(left, right, BLOCK) {
+            let m = bl.len();
+            for (i, (&l, &r)) in bl.iter().zip(br).enumerate() {
                 self.blk_l[i] = sanitize_sample(l).0.clamp(-INPUT_LIMIT, INPUT_LIMIT);
                 self.blk_r[i] = sanitize_sample(r).0.clamp(-INPUT_LIMIT, INPUT_LIMIT);
             }
