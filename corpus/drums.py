@@ -772,6 +772,23 @@ def song_plan(family, index):
     return seed, kit, style
 
 
+def write_song_dir(parent, song, final, ints, mix_i, truth):
+    """Writes a song folder: the 16-bit stems `ints`, the mix `mix_i` and truth.json go into
+    a hidden staging folder in `parent`, which is then renamed to `final` (replacing it), so
+    a song folder is either complete or absent."""
+    stage = os.path.join(parent, f".{song}.tmp")
+    shutil.rmtree(stage, ignore_errors=True)
+    os.makedirs(stage)
+    for k, v in list(ints.items()) + [("mix", mix_i)]:
+        sf.write(os.path.join(stage, f"{k}.wav"), v.astype(np.int16), SR, subtype="PCM_16")
+    with open(os.path.join(stage, "truth.json"), "w") as fh:
+        json.dump(truth, fh, separators=(",", ":"))
+        fh.write("\n")
+    if os.path.exists(final):
+        shutil.rmtree(final)
+    os.rename(stage, final)
+
+
 def build_song(args):
     family, index, out_dir, force = args
     seed, kit, style = song_plan(family, index)
@@ -895,17 +912,7 @@ def build_song(args):
         "hits": hits,
     }
     os.makedirs(fam_dir, exist_ok=True)
-    stage = os.path.join(fam_dir, f".{song}.tmp")
-    shutil.rmtree(stage, ignore_errors=True)
-    os.makedirs(stage)
-    for k, v in list(ints.items()) + [("mix", mix_i)]:
-        sf.write(os.path.join(stage, f"{k}.wav"), v.astype(np.int16), SR, subtype="PCM_16")
-    with open(os.path.join(stage, "truth.json"), "w") as fh:
-        json.dump(truth, fh, separators=(",", ":"))
-        fh.write("\n")
-    if os.path.exists(final):
-        shutil.rmtree(final)
-    os.rename(stage, final)
+    write_song_dir(fam_dir, song, final, ints, mix_i, truth)
     return family, song, final, f"{style} {meter} {bpm} bpm {duration:.1f} s, " + \
         " ".join(f"{c}={len(onsets[c])}" for c in CLASSES), time.time() - t0
 

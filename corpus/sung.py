@@ -347,17 +347,7 @@ def build_song(args):
         "onsets_rule": D.ONSETS_RULE,
         "hits": hits,
     }
-    stage = os.path.join(out_dir, f".{song}.tmp")
-    shutil.rmtree(stage, ignore_errors=True)
-    os.makedirs(stage)
-    for k, v in list(ints.items()) + [("mix", mix_i)]:
-        sf.write(os.path.join(stage, f"{k}.wav"), v.astype(np.int16), SR, subtype="PCM_16")
-    with open(os.path.join(stage, "truth.json"), "w") as fh:
-        json.dump(truth, fh, separators=(",", ":"))
-        fh.write("\n")
-    if os.path.exists(final):
-        shutil.rmtree(final)
-    os.rename(stage, final)
+    D.write_song_dir(out_dir, song, final, ints, mix_i, truth)
     voiced = sum(1 for v in f0_voc if v > 0) / max(1, n_frames)
     return song, final, f"{style} {bpm} bpm {duration:.1f} s, {voice}, {len(lyrics)} notes, voiced {voiced:.2f}", \
         time.time() - t0
