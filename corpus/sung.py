@@ -32,7 +32,6 @@ half, odd ones are held out (`held_out` in the truth, and OUT/SPLIT.txt).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import multiprocessing as mp
 import os
