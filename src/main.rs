@@ -112,7 +112,7 @@ struct EngineArgs {
     #[arg(long, value_enum)]
     pitch: Option<PitchArg>,
     /// Drum transcription: classes (embedded per-instrument transcriber; the default for
-    /// render and play), classes-live (the same with its 21.6 ms model), bands (the paper's band-pass; the default for live) or adtlib
+    /// render and play), classes-live (the same with its 21.6 ms model; the default for live), bands (the paper's band-pass) or adtlib
     /// (ONNX, --drum-model models/adtlib.onnx).
     #[arg(long, value_enum)]
     drums: Option<DrumsArg>,

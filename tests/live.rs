@@ -139,6 +139,7 @@ fn live_follows_a_drum_pattern() {
     }
     // paplay starts within ~1.5 s of the first capture callback, so 3..9 s hold 12 hits;
     // ask for 8.
+    eprintln!("index onsets ({}): {onsets:?}", onsets.len());
     assert!(onsets.len() >= 8, "index onsets {onsets:?}");
     // In captured-sample time the hits are exactly 500 ms apart (the WAV is at the sink's
     // rate, and the engine resamples by an exact ratio). Each onset is quantised to a 25 ms

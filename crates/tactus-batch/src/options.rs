@@ -62,7 +62,7 @@ pub enum Command {
     Render,
     /// `tactus play SONG`: 25 ms bins.
     Play,
-    /// `tactus live`: the live profile (10 ms bins, drums by bands); with `profile =
+    /// `tactus live`: the live profile (10 ms bins, drums by the 1-hop transcriber); with `profile =
     /// "full"`, 25 ms bins and pYIN.
     Live,
 }
@@ -194,10 +194,10 @@ impl RenderOptions {
         let drums = match choice(
             "drums",
             self.drums.as_deref(),
-            // Issue 13: live keeps the bands (rhythm p95 23-33 ms end to end);
-            // `classes-live` is more faithful but measured p95 38.7-40.1 ms and missed the
-            // synthetic hits of tests/live.rs after 5 s.
-            if live { "bands" } else { "classes" },
+            // Issues 10 and 13: live uses the per-instrument transcriber's 1-hop model
+            // (retrained 2026-11-24 with the synth kits: held-out mix kick F 0.80 against
+            // the bands' 0.29; rhythm p95 29.1 ms end to end, 12 of 12 hits of tests/live.rs).
+            if live { "classes-live" } else { "classes" },
             &["classes", "classes-live", "bands", "adtlib"],
         )? {
             "bands" => DrumMethod::Bands,

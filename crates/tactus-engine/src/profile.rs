@@ -16,14 +16,16 @@
 //! | capture (`tactus live`) | the engine's rate (no resampler), a 256-frame period asked for | the device's period (PulseAudio gave 170 frames, 3.9 ms) |
 //! | drums | no separator: the drum detector listens to the mix ([`DRUMS_ON_MIX`]) | 0 |
 //! | denoise | Butterworth high-pass + 3-sample median | 1 |
-//! | drum onsets (`--drums bands`, the live default) | Butterworth bands, spectral flux with 1024-point frames every 5 ms, causal rising-edge picking, the gate's level over two hops | 220 (5.0 ms) |
+//! | drum onsets (`--drums classes-live`, `tactus live`'s default) | the per-instrument transcriber on the mix (its embedded 1-hop model) | 953 (21.6 ms) |
+//! | drum onsets (`--drums bands`) | Butterworth bands, spectral flux with 1024-point frames every 5 ms, causal rising-edge picking, the gate's level over two hops | 220 (5.0 ms) |
 //! | drum onsets (`--drums classes`) | the per-instrument transcriber on the mix (its embedded 4-hop model) | 2,276 (51.6 ms) |
 //! | separator (melodic stems) | spectral, [`separator`]: 512-point frames, hop 128, harmonic median over 5 frames, no look-ahead | 511 (11.6 ms) |
 //! | pitch | YIN (`--pitch auto`) on two frames ([`tactus_dsp::twoframe`]): two periods of [`TWO_FRAME_SPLIT`]` · fmin` ([`pitch_frame`]) answer for every note but those below that split, which come from a frame of two periods of `fmin`, one hop later; bass from 41 Hz (E1); `--pitch pyin` gets one frame of two periods of `fmin` and a Viterbi lag of [`PITCH_LAG_HOPS`] hops | bass 819 (18.6 ms; below 54.7 Hz 1,260), vocals 477, other 666 |
 //! | bins | [`BIN_MS`] = 10 ms | 441 |
 //! | pins | a beat holds its pins up for [`PULSE_MS`] = 50 ms, so a 50 ms pin rise completes | 0 |
 //!
-//! The rhythm path sums to 1 + 220 + 441 = 662 samples (15 ms), the slowest pitch path
+//! The rhythm path sums to 1 + 953 + 441 = 1,395 samples (31.6 ms; with `--drums bands` 1 + 220
+//! + 441 = 662, 15 ms), the slowest pitch path
 //! (bass) to 511 + 1 + 819 + 441 = 1,772 samples (40.2 ms; 2,213 = 50.2 ms for a bass note
 //! below 54.7 Hz, which only the long frame hears); `tests/profile.rs` feeds a
 //! drum hit and tone steps in 64-sample blocks and checks that the frame showing them

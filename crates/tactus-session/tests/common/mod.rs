@@ -48,7 +48,8 @@ pub fn feed(mut w: CaptureWriter, rate: u32, seconds: f64) -> JoinHandle<()> {
     })
 }
 
-/// The live defaults of the CLI: streaming, 25 ms bins, pYIN, the band drums.
+/// A live configuration (the CLI's live defaults before the live profile): streaming,
+/// 25 ms bins, pYIN, the band drums.
 pub fn live_config() -> tactus_engine::EngineConfig {
     tactus_engine::EngineConfig {
         mode: tactus_engine::Mode::Streaming,
