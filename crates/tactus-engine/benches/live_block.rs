@@ -45,12 +45,17 @@ fn song(n: usize) -> Vec<f32> {
         .collect()
 }
 
+/// The CLI's defaults for the profile: `live` transcribes the drums with the 1-hop model,
+/// `render`/`play` with the 4-hop one.
 fn engine(profile: Profile) -> Engine {
     Engine::new(EngineConfig {
         mode: Mode::Streaming,
         profile,
         bin_ms: 10,
-        drums: DrumMethod::Bands,
+        drums: match profile {
+            Profile::Live => DrumMethod::ClassesLive,
+            Profile::Full => DrumMethod::Classes,
+        },
         pitch: PitchMethod::Auto,
         ..EngineConfig::default()
     })
