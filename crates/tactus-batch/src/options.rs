@@ -34,7 +34,8 @@ pub struct RenderOptions {
     pub map: Option<String>,
     /// `auto` (default), `yin`, `pyin` or `shs`.
     pub pitch: Option<String>,
-    /// `classes` (default), `classes-live`, `bands` or `adtlib`.
+    /// `classes` (default; `classes-live` for `tactus live`), `classes-live`, `bands` or
+    /// `adtlib`.
     pub drums: Option<String>,
     /// ONNX model for `drums = "adtlib"`.
     pub drum_model: Option<PathBuf>,
