@@ -78,19 +78,9 @@ fn write_hits(path: &Path, rate: u32, seconds: f32, period: f32) {
 
 /// (mono_ms, time_ms, index finger up) of every pins packet in a file-sink log.
 fn pins(log: &Path) -> Vec<(f64, f64, bool)> {
-    std::fs::read_to_string(log)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
-        .filter(|v| v["type"] == "pins")
-        .map(|v| {
-            let hex = v["frame"].as_str().unwrap();
-            (
-                v["mono_ms"].as_f64().unwrap(),
-                v["time_ms"].as_f64().unwrap(),
-                &hex[4..8] != "0000",
-            )
-        })
+    pulse::pins(log)
+        .into_iter()
+        .map(|(t, mono, hex)| (mono, t as f64, pulse::index_up(&hex)))
         .collect()
 }
 

@@ -94,3 +94,26 @@ pub fn write_wav(path: &Path, rate: u32, x: &[f32]) {
     }
     w.finalize().unwrap();
 }
+
+/// (time_ms, mono_ms, frame hex) of every pins packet in a file-sink log (`--glove
+/// file:LOG.jsonl`).
+pub fn pins(log: &Path) -> Vec<(u64, f64, String)> {
+    std::fs::read_to_string(log)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["type"] == "pins")
+        .map(|v| {
+            (
+                v["time_ms"].as_u64().unwrap(),
+                v["mono_ms"].as_f64().unwrap(),
+                v["frame"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect()
+}
+
+/// Whether any index-finger pin (cells 2 and 3: kick and snare) is up in a frame's hex.
+pub fn index_up(frame_hex: &str) -> bool {
+    &frame_hex[4..8] != "0000"
+}
