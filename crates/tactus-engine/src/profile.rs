@@ -24,10 +24,10 @@
 //! | bins | [`BIN_MS`] = 10 ms | 441 |
 //! | pins | a beat holds its pins up for [`PULSE_MS`] = 50 ms, so a 50 ms pin rise completes | 0 |
 //!
-//! The rhythm path sums to 1 + 953 + 441 = 1,395 samples (31.6 ms; with `--drums bands` 1 + 220
-//! + 441 = 662, 15 ms), the slowest pitch path
-//! (bass) to 511 + 1 + 819 + 441 = 1,772 samples (40.2 ms; 2,213 = 50.2 ms for a bass note
-//! below 54.7 Hz, which only the long frame hears); `tests/profile.rs` feeds a
+//! The rhythm path sums to 1 + 953 + 441 = 1,395 samples (31.6 ms; with `--drums bands`,
+//! 1 + 220 + 441 = 662 samples, 15 ms), the slowest pitch path (bass) to
+//! 511 + 1 + 819 + 441 = 1,772 samples (40.2 ms; 2,213 = 50.2 ms for a bass note below
+//! 54.7 Hz, which only the long frame hears); `tests/profile.rs` feeds a
 //! drum hit and tone steps in 64-sample blocks and checks that the frame showing them
 //! exists within that (plus one detector hop and one block). Measured from outside,
 //! sound to frame at the glove: README, "Live: sound to pin".
