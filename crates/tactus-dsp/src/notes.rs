@@ -30,6 +30,18 @@ const FOLLOW: f32 = 0.03;
 /// Longest stability window accepted.
 pub const MAX_STABLE_HOPS: usize = 32;
 
+/// Longest attack search before a pitch onset ([`NoteConfig::attack_back_hops`]).
+pub const MAX_BACK_HOPS: usize = 16;
+
+/// Hops before a hop over which the level's rise is measured (its minimum is the base).
+pub const RISE_BEHIND_HOPS: usize = 3;
+
+/// Hops after a hop over which the level's rise is measured (its maximum is the top).
+pub const RISE_AHEAD_HOPS: usize = 2;
+
+/// History kept: look-ahead, look-back and the rise's windows fit.
+const HIST: usize = 64;
+
 /// Parameters of [`NoteOnsets`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoteConfig {
@@ -41,30 +53,77 @@ pub struct NoteConfig {
     pub jump_st: f32,
     /// Unvoiced hops a note survives (a longer gap ends it; the next voiced note is new).
     pub gap_hops: usize,
+    /// Re-attacks: a rise of the stem's level by at least this many dB (from the minimum of
+    /// the [`RISE_BEHIND_HOPS`] hops before to the maximum of the hop and the
+    /// [`RISE_AHEAD_HOPS`] after) inside a held note starts a new note of the same pitch.
+    /// 0 = off (pitch only, the first implementation).
+    pub reattack_db: f32,
+    /// A pitch onset moves back to the steepest level rise of at least `attack_db` within
+    /// this many hops before it (the attack, heard before the pitch settles), or is dropped
+    /// when a re-attack already started a note there. 0 = off.
+    pub attack_back_hops: usize,
+    /// Smallest level rise, dB, that counts as an attack for `attack_back_hops`.
+    pub attack_db: f32,
+    /// Fewest hops between two onsets (a closer one is dropped; the note still changes).
+    /// 0 = no limit.
+    pub min_ioi_hops: usize,
 }
 
-impl Default for NoteConfig {
-    fn default() -> Self {
+impl NoteConfig {
+    /// Pitch only: the first implementation (no re-attacks, no attack search, no minimum
+    /// interval). Reads no level.
+    pub fn pitch_only() -> Self {
         NoteConfig {
             stable_hops: 4,
             tolerance_st: 0.5,
             jump_st: 0.7,
             gap_hops: 2,
+            reattack_db: 0.0,
+            attack_back_hops: 0,
+            attack_db: 0.0,
+            min_ioi_hops: 0,
+        }
+    }
+
+    /// Whether the detector reads the level ([`NoteOnsets::push_level`]).
+    pub fn uses_level(&self) -> bool {
+        self.reattack_db > 0.0 || self.attack_back_hops > 0
+    }
+}
+
+impl Default for NoteConfig {
+    fn default() -> Self {
+        NoteConfig {
+            reattack_db: 6.0,
+            attack_back_hops: 8,
+            attack_db: 3.0,
+            min_ioi_hops: 6,
+            ..NoteConfig::pitch_only()
         }
     }
 }
 
-/// Streaming note-onset detector on a pitch track. See the module docs.
+/// Streaming note-onset detector on a pitch track (and, optionally, the stem's level).
+/// See the module docs.
 #[derive(Debug, Clone)]
 pub struct NoteOnsets {
     cfg: NoteConfig,
-    /// The last `stable_hops` values in semitones (NaN = unvoiced), in arrival order.
-    ring: [f32; MAX_STABLE_HOPS],
-    len: usize,
-    head: usize,
+    /// Pitch in semitones (NaN = unvoiced) of hop `k` at `k % HIST`.
+    st: [f32; HIST],
+    /// Level in dB (NaN = unknown) of hop `k` at `k % HIST`.
+    db: [f32; HIST],
+    /// Onset flag of decided, not yet emitted hop `k` at `k % HIST`.
+    flag: [bool; HIST],
+    /// Hops pushed.
+    n_in: usize,
+    /// Next hop to decide.
+    decided: usize,
+    /// Next hop to emit.
+    emitted: usize,
     current: Option<f32>,
     unvoiced: usize,
-    next_out: usize,
+    /// Last onset hop (decided), if any.
+    last_onset: Option<usize>,
 }
 
 impl NoteOnsets {
@@ -85,128 +144,260 @@ impl NoteOnsets {
         if !(cfg.jump_st.is_finite() && cfg.jump_st > 0.0) {
             return Err(ConfigError::invalid("jump_st", "must be finite and > 0"));
         }
+        if !(cfg.reattack_db.is_finite() && cfg.reattack_db >= 0.0) {
+            return Err(ConfigError::invalid(
+                "reattack_db",
+                "must be finite and ≥ 0",
+            ));
+        }
+        if !(cfg.attack_db.is_finite() && cfg.attack_db >= 0.0) {
+            return Err(ConfigError::invalid("attack_db", "must be finite and ≥ 0"));
+        }
+        if cfg.attack_back_hops > MAX_BACK_HOPS {
+            return Err(ConfigError::invalid(
+                "attack_back_hops",
+                format!("must be ≤ {MAX_BACK_HOPS}"),
+            ));
+        }
         Ok(NoteOnsets {
             cfg,
-            ring: [f32::NAN; MAX_STABLE_HOPS],
-            len: 0,
-            head: 0,
+            st: [f32::NAN; HIST],
+            db: [f32::NAN; HIST],
+            flag: [false; HIST],
+            n_in: 0,
+            decided: 0,
+            emitted: 0,
             current: None,
             unvoiced: usize::MAX / 2,
-            next_out: 0,
+            last_onset: None,
         })
     }
 
-    /// Hops of look-ahead.
-    pub fn latency_hops(&self) -> usize {
-        self.cfg.stable_hops - 1
+    /// Hops of look-ahead of a decision (the stability window's, and the level rise's when
+    /// the level is read).
+    fn ahead(&self) -> usize {
+        let a = self.cfg.stable_hops - 1;
+        if self.cfg.reattack_db > 0.0 {
+            a.max(RISE_AHEAD_HOPS)
+        } else {
+            a
+        }
     }
 
-    /// Feeds hop `i`'s f0 (hops in order, from 0); calls `emit(j, onset)` for hop
-    /// `j = i − latency_hops()` once it is decided.
+    /// Hops of look-ahead: hop `j` is emitted when hop `j + latency_hops()` arrives (the
+    /// decision's look-ahead plus the attack search, which may still move an onset back).
+    pub fn latency_hops(&self) -> usize {
+        self.ahead() + self.cfg.attack_back_hops
+    }
+
+    /// Feeds hop `i`'s f0 (hops in order, from 0) without a level; calls `emit(j, onset)`
+    /// for hop `j = i − latency_hops()` once it is decided.
     pub fn push(&mut self, f0_hz: f32, emit: &mut dyn FnMut(usize, bool)) {
+        self.push_level(f0_hz, f32::NAN, emit);
+    }
+
+    /// Feeds hop `i`'s f0 and the stem's level at that hop (dB; NaN = unknown, which never
+    /// rises); calls `emit(j, onset)` for hop `j = i − latency_hops()` once it is decided.
+    pub fn push_level(&mut self, f0_hz: f32, level_db: f32, emit: &mut dyn FnMut(usize, bool)) {
         let st = if f0_hz.is_finite() && f0_hz > 0.0 {
             hz_to_semitones(f0_hz)
         } else {
             f32::NAN
         };
-        let n = self.cfg.stable_hops;
-        if self.len < n {
-            self.ring[(self.head + self.len) % n] = st;
-            self.len += 1;
-        } else {
-            self.ring[self.head] = st;
-            self.head = (self.head + 1) % n;
+        let k = self.n_in % HIST;
+        self.st[k] = st;
+        self.db[k] = if level_db.is_finite() { level_db } else { f32::NAN };
+        self.n_in += 1;
+        let ahead = self.ahead();
+        while self.decided + ahead < self.n_in {
+            self.decide(true);
         }
-        if self.len == n {
-            let onset = self.decide();
-            emit(self.next_out, onset);
-            self.next_out += 1;
-        }
+        self.drain(emit, false);
     }
 
-    /// Ends the stream: decides the remaining hops (their windows run past the end, so they
-    /// cannot start a note).
+    /// Ends the stream: decides and emits the remaining hops (their windows run past the
+    /// end, so they cannot start a note by pitch).
     pub fn finish(&mut self, emit: &mut dyn FnMut(usize, bool)) {
-        let n = self.cfg.stable_hops;
-        if self.len == n {
-            // A full window's oldest hop was decided when the window filled.
-            self.head = (self.head + 1) % n;
-            self.len -= 1;
+        while self.decided < self.n_in {
+            self.decide(false);
         }
-        while self.len > 0 {
-            // The window shrinks: the oldest hop is decided, then dropped.
-            let onset = self.decide_partial();
-            emit(self.next_out, onset);
-            self.next_out += 1;
-            self.head = (self.head + 1) % n;
-            self.len -= 1;
+        self.drain(emit, true);
+    }
+
+    fn drain(&mut self, emit: &mut dyn FnMut(usize, bool), all: bool) {
+        let back = self.cfg.attack_back_hops;
+        while self.emitted < self.decided && (all || self.emitted + back < self.decided) {
+            let k = self.emitted % HIST;
+            emit(self.emitted, self.flag[k]);
+            self.flag[k] = false;
+            self.emitted += 1;
         }
     }
 
-    /// Decides the oldest hop of a full window.
-    fn decide(&mut self) -> bool {
-        let n = self.cfg.stable_hops;
-        let mut w = [0f32; MAX_STABLE_HOPS];
-        for (k, v) in w[..n].iter_mut().enumerate() {
-            *v = self.ring[(self.head + k) % n];
+    fn level(&self, h: usize) -> f32 {
+        if h < self.n_in && h + HIST > self.n_in {
+            self.db[h % HIST]
+        } else {
+            f32::NAN
         }
-        self.decide_window(&w[..n], true)
     }
 
-    /// Decides the oldest hop of a window cut short by the end of the stream.
-    fn decide_partial(&mut self) -> bool {
-        let n = self.cfg.stable_hops;
-        let mut w = [0f32; MAX_STABLE_HOPS];
-        for (k, v) in w[..self.len].iter_mut().enumerate() {
-            *v = self.ring[(self.head + k) % n];
+    /// Level step into hop `h` (NaN when unknown).
+    fn step(&self, h: usize) -> f32 {
+        if h == 0 {
+            return f32::NAN;
         }
-        let full = self.len == n;
-        let len = self.len;
-        self.decide_window(&w[..len], full)
+        self.level(h) - self.level(h - 1)
     }
 
-    fn decide_window(&mut self, w: &[f32], full: bool) -> bool {
-        let first = w[0];
+    /// Rise of the level at hop `h`: the maximum of hops `h ..= h + RISE_AHEAD_HOPS` minus
+    /// the minimum of the `RISE_BEHIND_HOPS` hops before (NaN when any is unknown).
+    fn rise(&self, h: usize) -> f32 {
+        if h < RISE_BEHIND_HOPS {
+            return f32::NAN;
+        }
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for x in h - RISE_BEHIND_HOPS..=h + RISE_AHEAD_HOPS {
+            let v = self.level(x);
+            if v.is_nan() {
+                return f32::NAN;
+            }
+            if x < h {
+                lo = lo.min(v);
+            } else {
+                hi = hi.max(v);
+            }
+        }
+        hi - lo
+    }
+
+    /// Whether hop `h`'s level step is the steepest of hops `h − 1 ..= h + RISE_AHEAD_HOPS`
+    /// (ties go to the earliest).
+    fn steepest(&self, h: usize) -> bool {
+        let s = self.step(h);
+        if s.is_nan() || s <= 0.0 {
+            return false;
+        }
+        let before = self.step(h - 1);
+        if !before.is_nan() && s <= before {
+            return false;
+        }
+        (h + 1..=h + RISE_AHEAD_HOPS).all(|a| {
+            let t = self.step(a);
+            t.is_nan() || s >= t
+        })
+    }
+
+    fn spaced(&self, h: usize) -> bool {
+        match self.last_onset {
+            Some(l) => h >= l + self.cfg.min_ioi_hops.max(1),
+            None => true,
+        }
+    }
+
+    /// Decides hop `decided` (`full`: its whole stability window has arrived).
+    fn decide(&mut self, full: bool) {
+        let j = self.decided;
+        self.decided += 1;
+        let n = self.cfg.stable_hops;
+        let first = self.st[j % HIST];
         if first.is_nan() {
             self.unvoiced = self.unvoiced.saturating_add(1);
             if self.unvoiced > self.cfg.gap_hops {
                 self.current = None;
             }
-            return false;
+            return;
         }
         self.unvoiced = 0;
-        let stable = full && w.iter().all(|v| !v.is_nan()) && {
+        let len = (self.n_in - j).min(n);
+        let mut w = [0f32; MAX_STABLE_HOPS];
+        for (k, v) in w[..len].iter_mut().enumerate() {
+            *v = self.st[(j + k) % HIST];
+        }
+        let w = &w[..len];
+        let stable = full && len == n && w.iter().all(|v| !v.is_nan()) && {
             let med = median(w);
             w.iter().all(|v| (v - med).abs() <= self.cfg.tolerance_st)
         };
-        if !stable {
-            return false;
+        let med = if stable { median(w) } else { f32::NAN };
+        let pitch_onset = match self.current {
+            _ if !stable => false,
+            None => true,
+            Some(c) => (first - c).abs() >= self.cfg.jump_st,
+        };
+        if pitch_onset {
+            self.current = Some(med);
+            self.pitch_onset_at(j);
+            return;
         }
-        let med = median(w);
-        match self.current {
-            None => {
-                self.current = Some(med);
-                true
-            }
-            Some(c) if (first - c).abs() >= self.cfg.jump_st => {
-                self.current = Some(med);
-                true
-            }
-            Some(c) => {
+        if stable {
+            if let Some(c) = self.current {
                 // Follow the note's centre slowly (vibrato averages out, a drift is followed).
                 self.current = Some(c + FOLLOW * (med - c));
-                false
+            }
+        }
+        // A re-attack inside the held note.
+        if self.cfg.reattack_db > 0.0 && full {
+            if let Some(c) = self.current {
+                if (first - c).abs() < self.cfg.jump_st
+                    && self.spaced(j)
+                    && self.rise(j) >= self.cfg.reattack_db
+                    && self.steepest(j)
+                {
+                    self.mark(j);
+                }
             }
         }
     }
 
+    /// A pitch onset decided at hop `j`: moved back to the attack before it, dropped when a
+    /// note already started there, or kept at `j`.
+    fn pitch_onset_at(&mut self, j: usize) {
+        let back = self.cfg.attack_back_hops;
+        if back > 0 {
+            let from = j.saturating_sub(back).max(self.emitted);
+            if self.last_onset.is_some_and(|l| l >= from) {
+                return; // a re-attack in the window already started this note
+            }
+            let mut best: Option<(usize, f32)> = None;
+            for h in from..j {
+                if !self.spaced(h) {
+                    continue;
+                }
+                let r = self.rise(h);
+                if r >= self.cfg.attack_db && self.steepest(h) {
+                    let s = self.step(h);
+                    if best.is_none_or(|(_, b)| s > b) {
+                        best = Some((h, s));
+                    }
+                }
+            }
+            if let Some((h, _)) = best {
+                self.mark(h);
+                return;
+            }
+        }
+        if self.spaced(j) {
+            self.mark(j);
+        }
+    }
+
+    fn mark(&mut self, h: usize) {
+        self.flag[h % HIST] = true;
+        self.last_onset = Some(h);
+    }
+
     /// Back to the initial state.
     pub fn reset(&mut self) {
-        self.len = 0;
-        self.head = 0;
+        self.st = [f32::NAN; HIST];
+        self.db = [f32::NAN; HIST];
+        self.flag = [false; HIST];
+        self.n_in = 0;
+        self.decided = 0;
+        self.emitted = 0;
         self.current = None;
         self.unvoiced = usize::MAX / 2;
-        self.next_out = 0;
+        self.last_onset = None;
     }
 }
 
@@ -221,6 +412,16 @@ fn median(w: &[f32]) -> f32 {
 
 /// Note onsets of a whole pitch track (Hz per hop): one flag per hop. Allocates the result.
 pub fn note_onsets_offline(f0_hz: &[f32], cfg: NoteConfig) -> Result<Vec<bool>, ConfigError> {
+    note_onsets_offline_level(f0_hz, &[], cfg)
+}
+
+/// Note onsets of a whole pitch track (Hz per hop) and the stem's level per hop (dB; a
+/// missing value counts as unknown): one flag per hop. Allocates the result.
+pub fn note_onsets_offline_level(
+    f0_hz: &[f32],
+    level_db: &[f32],
+    cfg: NoteConfig,
+) -> Result<Vec<bool>, ConfigError> {
     let mut d = NoteOnsets::new(cfg)?;
     let mut out = vec![false; f0_hz.len()];
     let mut put = |j: usize, o: bool| {
@@ -228,8 +429,8 @@ pub fn note_onsets_offline(f0_hz: &[f32], cfg: NoteConfig) -> Result<Vec<bool>, 
             *x = o;
         }
     };
-    for &f in f0_hz {
-        d.push(f, &mut put);
+    for (i, &f) in f0_hz.iter().enumerate() {
+        d.push_level(f, level_db.get(i).copied().unwrap_or(f32::NAN), &mut put);
     }
     d.finish(&mut put);
     Ok(out)

@@ -12,7 +12,7 @@
 //! lie more than 80 ms from every pitch onset (to catch repeated notes) added at most 0.02 F
 //! there, so the pitch rule stands alone.
 
-use tactus_dsp::notes::{note_onsets_offline, NoteConfig, NoteOnsets};
+use tactus_dsp::notes::{note_onsets_offline_level, NoteConfig, NoteOnsets};
 use tactus_dsp::ConfigError;
 
 use crate::track::{Beats, Geometry, Mode, OnsetTrack, PitchTrack};
@@ -20,6 +20,7 @@ use crate::track::{Beats, Geometry, Mode, OnsetTrack, PitchTrack};
 /// Note onsets from the pitch track. See the module docs.
 pub struct PitchNotes {
     det: NoteOnsets,
+    cfg: NoteConfig,
     geo: Geometry,
     hop: usize,
     /// Pitch hops consumed so far (streaming).
@@ -31,8 +32,17 @@ pub struct PitchNotes {
 impl PitchNotes {
     /// A detector for a pitch track with `hop` engine samples between hops.
     pub fn new(geo: Geometry, hop: usize) -> Result<Self, ConfigError> {
+        let mut cfg = NoteConfig::default();
+        let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f32>().ok());
+        if let Some(v) = env("TN_REATTACK") { cfg.reattack_db = v; }
+        if let Some(v) = env("TN_BACK") { cfg.attack_back_hops = v as usize; }
+        if let Some(v) = env("TN_ATTACK") { cfg.attack_db = v; }
+        if let Some(v) = env("TN_IOI") { cfg.min_ioi_hops = v as usize; }
+        if let Some(v) = env("TN_STABLE") { cfg.stable_hops = v as usize; }
+        if let Some(v) = env("TN_JUMP") { cfg.jump_st = v; }
         Ok(PitchNotes {
-            det: NoteOnsets::new(NoteConfig::default())?,
+            det: NoteOnsets::new(cfg)?,
+            cfg,
             geo,
             hop,
             consumed: 0,
@@ -46,8 +56,9 @@ impl PitchNotes {
             return;
         }
         let (det, beats) = (&mut self.det, &mut self.beats);
-        for &f in &pitch.f0[self.consumed..] {
-            det.push(f, &mut |j, o| beats.push(j, o));
+        for (k, &f) in pitch.f0.iter().enumerate().skip(self.consumed) {
+            let l = pitch.level_db.get(k).copied().unwrap_or(f32::NAN);
+            det.push_level(f, l, &mut |j, o| beats.push(j, o));
         }
         self.consumed = pitch.f0.len();
     }
@@ -61,7 +72,7 @@ impl PitchNotes {
             self.beats.finish();
         } else {
             // The config was validated in `new`, so this cannot fail; stay silent if it did.
-            let onsets = note_onsets_offline(&pitch.f0, NoteConfig::default())
+            let onsets = note_onsets_offline_level(&pitch.f0, &pitch.level_db, self.cfg)
                 .unwrap_or_else(|_| vec![false; pitch.f0.len()]);
             self.beats
                 .set_offline(onsets, self.hop, self.geo.bin_samples);
