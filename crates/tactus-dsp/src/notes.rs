@@ -67,6 +67,10 @@ pub struct NoteConfig {
     /// Fewest hops between two onsets (a closer one is dropped; the note still changes).
     /// 0 = no limit.
     pub min_ioi_hops: usize,
+    /// A note that resumes at the pitch it had before a gap of at most this many unvoiced
+    /// hops is the same note (a dropout of the track) unless the level rises there by
+    /// `attack_db` (searched like `attack_back_hops`, which must be > 0). 0 = off.
+    pub resume_hops: usize,
 }
 
 impl NoteConfig {
@@ -82,6 +86,7 @@ impl NoteConfig {
             attack_back_hops: 0,
             attack_db: 0.0,
             min_ioi_hops: 0,
+            resume_hops: 0,
         }
     }
 
@@ -122,6 +127,8 @@ pub struct NoteOnsets {
     emitted: usize,
     current: Option<f32>,
     unvoiced: usize,
+    /// The note that the last gap ended.
+    ended: Option<f32>,
     /// Last onset hop (decided), if any.
     last_onset: Option<usize>,
 }
@@ -169,6 +176,7 @@ impl NoteOnsets {
             emitted: 0,
             current: None,
             unvoiced: usize::MAX / 2,
+            ended: None,
             last_onset: None,
         })
     }
@@ -304,10 +312,13 @@ impl NoteOnsets {
         if first.is_nan() {
             self.unvoiced = self.unvoiced.saturating_add(1);
             if self.unvoiced > self.cfg.gap_hops {
-                self.current = None;
+                if let Some(c) = self.current.take() {
+                    self.ended = Some(c);
+                }
             }
             return;
         }
+        let gap = self.unvoiced;
         self.unvoiced = 0;
         let len = (self.n_in - j).min(n);
         let mut w = [0f32; MAX_STABLE_HOPS];
@@ -326,8 +337,14 @@ impl NoteOnsets {
             Some(c) => (first - c).abs() >= self.cfg.jump_st,
         };
         if pitch_onset {
+            // Voicing resumed on the note a short gap ended: a dropout unless it is attacked.
+            let resumed = self.current.is_none()
+                && self.cfg.resume_hops > 0
+                && self.cfg.attack_back_hops > 0
+                && gap <= self.cfg.resume_hops
+                && self.ended.is_some_and(|p| (med - p).abs() < self.cfg.jump_st);
             self.current = Some(med);
-            self.pitch_onset_at(j);
+            self.pitch_onset_at(j, resumed);
             return;
         }
         if stable {
@@ -352,7 +369,7 @@ impl NoteOnsets {
 
     /// A pitch onset decided at hop `j`: moved back to the attack before it, dropped when a
     /// note already started there, or kept at `j`.
-    fn pitch_onset_at(&mut self, j: usize) {
+    fn pitch_onset_at(&mut self, j: usize, need_attack: bool) {
         let back = self.cfg.attack_back_hops;
         if back > 0 {
             let from = j.saturating_sub(back).max(self.emitted);
@@ -376,6 +393,9 @@ impl NoteOnsets {
                 self.mark(h);
                 return;
             }
+            if need_attack {
+                return;
+            }
         }
         if self.spaced(j) {
             self.mark(j);
@@ -397,6 +417,7 @@ impl NoteOnsets {
         self.emitted = 0;
         self.current = None;
         self.unvoiced = usize::MAX / 2;
+        self.ended = None;
         self.last_onset = None;
     }
 }

@@ -40,6 +40,7 @@ impl PitchNotes {
         if let Some(v) = env("TN_IOI") { cfg.min_ioi_hops = v as usize; }
         if let Some(v) = env("TN_STABLE") { cfg.stable_hops = v as usize; }
         if let Some(v) = env("TN_JUMP") { cfg.jump_st = v; }
+        if let Some(v) = env("TN_RESUME") { cfg.resume_hops = v as usize; }
         Ok(PitchNotes {
             det: NoteOnsets::new(cfg)?,
             cfg,
@@ -72,6 +73,14 @@ impl PitchNotes {
             self.beats.finish();
         } else {
             // The config was validated in `new`, so this cannot fail; stay silent if it did.
+            if let Ok(path) = std::env::var("TN_DUMP") {
+                let mut v: Vec<f32> = pitch.f0.iter().copied().filter(|&x| x > 0.0).collect();
+                v.sort_by(f32::total_cmp);
+                let med = v.get(v.len() / 2).copied().unwrap_or(0.0);
+                let path = format!("{path}.{}", if med < 180.0 { "bass" } else { "vocals" });
+                let txt: String = pitch.f0.iter().zip(&pitch.level_db).map(|(a, b)| format!("{a} {b}\n")).collect();
+                let _ = std::fs::write(path, txt);
+            }
             let onsets = note_onsets_offline_level(&pitch.f0, &pitch.level_db, self.cfg)
                 .unwrap_or_else(|_| vec![false; pitch.f0.len()]);
             self.beats
