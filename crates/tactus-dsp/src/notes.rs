@@ -102,7 +102,8 @@ impl Default for NoteConfig {
             reattack_db: 6.0,
             attack_back_hops: 8,
             attack_db: 3.0,
-            min_ioi_hops: 6,
+            min_ioi_hops: 10,
+            resume_hops: 10,
             ..NoteConfig::pitch_only()
         }
     }

@@ -15,7 +15,37 @@
 use tactus_dsp::notes::{note_onsets_offline_level, NoteConfig, NoteOnsets};
 use tactus_dsp::ConfigError;
 
+use crate::profile::Profile;
 use crate::track::{Beats, Geometry, Mode, OnsetTrack, PitchTrack};
+
+/// How note onsets are read from a pitch track. See the module docs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum NoteRule {
+    /// The pitch alone (the first implementation): voicing begins or the pitch settles on a
+    /// new note ([`NoteConfig::pitch_only`]).
+    Pitch,
+    /// The pitch and the stem's level: also re-attacks inside a held pitch, each onset
+    /// moved back to its attack, a minimum interval, dropouts that resume the same note
+    /// without an attack ignored ([`NoteConfig::default`]). The live profile keeps the
+    /// pitch rule's latency: no attack search, re-attacks and the interval only.
+    #[default]
+    Attack,
+}
+
+impl NoteRule {
+    /// The detector's configuration for `profile`.
+    pub fn config(self, profile: Profile) -> NoteConfig {
+        match (self, profile) {
+            (NoteRule::Pitch, _) => NoteConfig::pitch_only(),
+            (NoteRule::Attack, Profile::Live) => NoteConfig {
+                attack_back_hops: 0,
+                resume_hops: 0,
+                ..NoteConfig::default()
+            },
+            (NoteRule::Attack, Profile::Full) => NoteConfig::default(),
+        }
+    }
+}
 
 /// Note onsets from the pitch track. See the module docs.
 pub struct PitchNotes {
@@ -31,16 +61,8 @@ pub struct PitchNotes {
 
 impl PitchNotes {
     /// A detector for a pitch track with `hop` engine samples between hops.
-    pub fn new(geo: Geometry, hop: usize) -> Result<Self, ConfigError> {
-        let mut cfg = NoteConfig::default();
-        let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f32>().ok());
-        if let Some(v) = env("TN_REATTACK") { cfg.reattack_db = v; }
-        if let Some(v) = env("TN_BACK") { cfg.attack_back_hops = v as usize; }
-        if let Some(v) = env("TN_ATTACK") { cfg.attack_db = v; }
-        if let Some(v) = env("TN_IOI") { cfg.min_ioi_hops = v as usize; }
-        if let Some(v) = env("TN_STABLE") { cfg.stable_hops = v as usize; }
-        if let Some(v) = env("TN_JUMP") { cfg.jump_st = v; }
-        if let Some(v) = env("TN_RESUME") { cfg.resume_hops = v as usize; }
+    pub fn new(geo: Geometry, hop: usize, rule: NoteRule) -> Result<Self, ConfigError> {
+        let cfg = rule.config(geo.profile);
         Ok(PitchNotes {
             det: NoteOnsets::new(cfg)?,
             cfg,
@@ -73,14 +95,6 @@ impl PitchNotes {
             self.beats.finish();
         } else {
             // The config was validated in `new`, so this cannot fail; stay silent if it did.
-            if let Ok(path) = std::env::var("TN_DUMP") {
-                let mut v: Vec<f32> = pitch.f0.iter().copied().filter(|&x| x > 0.0).collect();
-                v.sort_by(f32::total_cmp);
-                let med = v.get(v.len() / 2).copied().unwrap_or(0.0);
-                let path = format!("{path}.{}", if med < 180.0 { "bass" } else { "vocals" });
-                let txt: String = pitch.f0.iter().zip(&pitch.level_db).map(|(a, b)| format!("{a} {b}\n")).collect();
-                let _ = std::fs::write(path, txt);
-            }
             let onsets = note_onsets_offline_level(&pitch.f0, &pitch.level_db, self.cfg)
                 .unwrap_or_else(|_| vec![false; pitch.f0.len()]);
             self.beats
