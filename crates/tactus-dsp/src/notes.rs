@@ -245,7 +245,11 @@ impl NoteOnsets {
         };
         let k = self.n_in % HIST;
         self.st[k] = st;
-        self.db[k] = if level_db.is_finite() { level_db } else { f32::NAN };
+        self.db[k] = if level_db.is_finite() {
+            level_db
+        } else {
+            f32::NAN
+        };
         self.n_in += 1;
         let ahead = self.ahead();
         while self.decided + ahead < self.n_in {
@@ -375,7 +379,9 @@ impl NoteOnsets {
                 && self.cfg.resume_hops > 0
                 && self.cfg.attack_back_hops > 0
                 && gap <= self.cfg.resume_hops
-                && self.ended.is_some_and(|p| (med - p).abs() < self.cfg.jump_st);
+                && self
+                    .ended
+                    .is_some_and(|p| (med - p).abs() < self.cfg.jump_st);
             self.current = Some(med);
             self.pitch_onset_at(j, resumed);
             return;

@@ -52,7 +52,8 @@ fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
     let mut ended: Option<f32> = None;
     let mut unv = usize::MAX / 2;
     let mut last: Option<usize> = None;
-    let spaced = |last: Option<usize>, h: usize| last.is_none_or(|l| h >= l + c.min_ioi_hops.max(1));
+    let spaced =
+        |last: Option<usize>, h: usize| last.is_none_or(|l| h >= l + c.min_ioi_hops.max(1));
     for j in 0..n {
         let Some(x) = st[j] else {
             unv = unv.saturating_add(1);
@@ -69,7 +70,9 @@ fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
             w.and_then(|mut w| {
                 w.sort_by(f32::total_cmp);
                 let m = w[(w.len() - 1) / 2];
-                w.iter().all(|v| (v - m).abs() <= c.tolerance_st).then_some(m)
+                w.iter()
+                    .all(|v| (v - m).abs() <= c.tolerance_st)
+                    .then_some(m)
             })
         } else {
             None
@@ -91,9 +94,7 @@ fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
                 let mut best: Option<(usize, f32)> = None;
                 for h in from..j {
                     let hi = h as isize;
-                    if spaced(last, h)
-                        && rise(hi).is_some_and(|r| r >= c.attack_db)
-                        && steepest(hi)
+                    if spaced(last, h) && rise(hi).is_some_and(|r| r >= c.attack_db) && steepest(hi)
                     {
                         let s = step(hi).unwrap();
                         if best.is_none_or(|(_, b)| s > b) {
@@ -170,7 +171,11 @@ fn random_track(seed: u64, n: usize) -> (Vec<f32>, Vec<f32>) {
         let peak = -40.0 + u() * 35.0;
         let glide = u() < 0.2;
         for i in 0..len {
-            let p = if glide && i < 4 { pitch - 2.0 + i as f32 * 0.5 } else { pitch };
+            let p = if glide && i < 4 {
+                pitch - 2.0 + i as f32 * 0.5
+            } else {
+                pitch
+            };
             let p = p + (u() - 0.5) * 0.3;
             let drop = u() < 0.04;
             f0.push(if drop { 0.0 } else { semitones_to_hz(p) });
@@ -229,7 +234,10 @@ fn streaming_equals_the_slow_oracle_on_random_tracks() {
             let got = streamed(&f0, &db, c);
             assert_eq!(got.len(), n);
             let diff: Vec<usize> = (0..n).filter(|&i| got[i] != want[i]).collect();
-            assert!(diff.is_empty(), "config {c:?} seed {seed}: differs at hops {diff:?}");
+            assert!(
+                diff.is_empty(),
+                "config {c:?} seed {seed}: differs at hops {diff:?}"
+            );
             assert_eq!(note_onsets_offline_level(&f0, &db, c).unwrap(), want);
             onsets += want.iter().filter(|&&o| o).count();
         }
@@ -248,7 +256,10 @@ fn without_a_level_the_attack_rule_never_invents_onsets() {
     let with = note_onsets_offline(&f0, c).unwrap();
     let pitch = note_onsets_offline(&f0, NoteConfig::pitch_only()).unwrap();
     for i in 0..f0.len() {
-        assert!(!with[i] || pitch[i], "hop {i}: an onset the pitch rule does not have");
+        assert!(
+            !with[i] || pitch[i],
+            "hop {i}: an onset the pitch rule does not have"
+        );
     }
 }
 
@@ -264,7 +275,11 @@ fn plucks(notes: usize, len: usize, pitch_st: f32) -> (Vec<f32>, Vec<f32>, Vec<u
             let p = pitch_st + 0.01 * ((i * 7 + k) % 3) as f32;
             f0.push(semitones_to_hz(p));
             let tremolo = 1.0 * (i as f32 * 0.9).sin();
-            db.push(if i == 0 { -38.0 } else { -18.0 - 0.5 * i as f32 + tremolo });
+            db.push(if i == 0 {
+                -38.0
+            } else {
+                -18.0 - 0.5 * i as f32 + tremolo
+            });
         }
     }
     (f0, db, starts)
@@ -329,7 +344,10 @@ fn a_dropout_that_resumes_the_note_is_not_a_new_note() {
     assert_eq!(got, vec![0]);
     // The pitch rule starts a note after any gap longer than 2 hops.
     let pitch = note_onsets_offline(&f0, NoteConfig::pitch_only()).unwrap();
-    assert_eq!((0..100).filter(|&i| pitch[i]).collect::<Vec<_>>(), vec![0, 45]);
+    assert_eq!(
+        (0..100).filter(|&i| pitch[i]).collect::<Vec<_>>(),
+        vec![0, 45]
+    );
     // With an attack after the dropout it is a new note (a re-struck string), at the attack.
     let mut db2 = db.clone();
     for (i, v) in db2.iter_mut().enumerate().skip(44) {
@@ -374,18 +392,38 @@ fn latency_reset_and_no_allocation() {
         assert_eq!(allocs, 0, "push and finish allocate nothing");
     }
     // The pitch rule keeps its latency.
-    assert_eq!(NoteOnsets::new(NoteConfig::pitch_only()).unwrap().latency_hops(), 3);
+    assert_eq!(
+        NoteOnsets::new(NoteConfig::pitch_only())
+            .unwrap()
+            .latency_hops(),
+        3
+    );
 }
 
 #[test]
 fn bad_configs_are_refused() {
     let d = NoteConfig::default();
     for bad in [
-        NoteConfig { reattack_db: -1.0, ..d },
-        NoteConfig { reattack_db: f32::NAN, ..d },
-        NoteConfig { attack_db: f32::INFINITY, ..d },
-        NoteConfig { attack_back_hops: 17, ..d },
-        NoteConfig { stable_hops: 0, ..d },
+        NoteConfig {
+            reattack_db: -1.0,
+            ..d
+        },
+        NoteConfig {
+            reattack_db: f32::NAN,
+            ..d
+        },
+        NoteConfig {
+            attack_db: f32::INFINITY,
+            ..d
+        },
+        NoteConfig {
+            attack_back_hops: 17,
+            ..d
+        },
+        NoteConfig {
+            stable_hops: 0,
+            ..d
+        },
     ] {
         assert!(NoteOnsets::new(bad).is_err(), "{bad:?}");
     }

@@ -505,10 +505,7 @@ impl Engine {
                     (PitchMethod::Auto, _) => PitchMethod::Pyin,
                     (m, _) => m,
                 });
-            let notes = needs
-                .note_onsets
-                .contains(&stem)
-                .then_some(cfg.note_rule);
+            let notes = needs.note_onsets.contains(&stem).then_some(cfg.note_rule);
             let bands: Vec<Band> = if stem == Stem::Drums {
                 needs.bands.clone()
             } else {

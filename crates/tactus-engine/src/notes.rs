@@ -107,6 +107,11 @@ impl PitchNotes {
         self.det.latency_hops() * self.hop
     }
 
+    /// Onset times in seconds (streaming: those decided so far).
+    pub fn onset_times(&self) -> Vec<f64> {
+        crate::track::onset_times(&self.beats.onsets, self.hop, self.geo.sample_rate)
+    }
+
     /// Per-hop and per-bin values held.
     pub fn retained(&self) -> usize {
         self.beats.retained()
@@ -149,9 +154,7 @@ impl NoteTrack {
     pub fn onset_times(&self) -> Vec<f64> {
         match self {
             NoteTrack::Flux(f) => f.onset_times(),
-            NoteTrack::Pitch(p) => {
-                crate::track::onset_times(&p.beats.onsets, p.hop, p.geo.sample_rate)
-            }
+            NoteTrack::Pitch(p) => p.onset_times(),
         }
     }
 
