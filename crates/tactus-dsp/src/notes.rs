@@ -27,6 +27,8 @@
 //! 4. **Dropouts**: a note that resumes within `resume_hops` unvoiced hops at the pitch it had
 //!    before is the same note unless rule 2 finds an attack (the gate or a chord tone broke
 //!    the track, the player did not).
+//! 5. **Attacked changes** (`pitch_needs_attack`, off by default; the engine turns it on for
+//!    the bass of a mixture): a change of note counts only where rule 2 finds an attack.
 //!
 //! Without a level (NaN) rules 1, 2 and 4 find no attack, so the rule never adds an onset the
 //! pitch rule lacks. The kick leaking into a separated bass stem also raises its level, but on
@@ -101,6 +103,10 @@ pub struct NoteConfig {
     /// hops is the same note (a dropout of the track) unless the level rises there by
     /// `attack_db` (searched like `attack_back_hops`, which must be > 0). 0 = off.
     pub resume_hops: usize,
+    /// A change of note (not voicing after a rest) counts only where the attack search
+    /// finds an attack (`attack_back_hops` must be > 0): for a plucked bass in a mixture,
+    /// where a pitch change without an attack is mostly a chord tone the tracker took.
+    pub pitch_needs_attack: bool,
 }
 
 impl NoteConfig {
@@ -117,6 +123,7 @@ impl NoteConfig {
             attack_db: 0.0,
             min_ioi_hops: 0,
             resume_hops: 0,
+            pitch_needs_attack: false,
         }
     }
 
@@ -382,8 +389,13 @@ impl NoteOnsets {
                 && self
                     .ended
                     .is_some_and(|p| (med - p).abs() < self.cfg.jump_st);
+            // A change of note that must be attacked (a plucked bass on a mixture).
+            let need = resumed
+                || (self.cfg.pitch_needs_attack
+                    && self.cfg.attack_back_hops > 0
+                    && self.current.is_some());
             self.current = Some(med);
-            self.pitch_onset_at(j, resumed);
+            self.pitch_onset_at(j, need);
             return;
         }
         if stable {

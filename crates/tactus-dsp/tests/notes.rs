@@ -84,6 +84,9 @@ fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
                 && c.attack_back_hops > 0
                 && gap <= c.resume_hops
                 && ended.is_some_and(|p| (m - p).abs() < c.jump_st);
+            // Rule 5: a change of note (a note was current) must be attacked.
+            let resumed =
+                resumed || (c.pitch_needs_attack && c.attack_back_hops > 0 && cur.is_some());
             cur = Some(m);
             if c.attack_back_hops > 0 {
                 let from = j.saturating_sub(c.attack_back_hops);
@@ -220,6 +223,10 @@ fn configs() -> Vec<NoteConfig> {
             attack_db: 1.0,
             ..d
         },
+        NoteConfig {
+            pitch_needs_attack: true,
+            ..d
+        },
     ]
 }
 
@@ -329,6 +336,16 @@ fn a_pitch_onset_moves_back_to_its_attack() {
     let on = note_onsets_offline_level(&f0, &flat, NoteConfig::default()).unwrap();
     let got: Vec<usize> = (0..f0.len()).filter(|&i| on[i]).collect();
     assert_eq!(got, vec![0, 45]);
+    // Unless changes must be attacked (a bass in a mixture): then it is no new note, while
+    // the attacked change still is.
+    let plucked = NoteConfig {
+        pitch_needs_attack: true,
+        ..NoteConfig::default()
+    };
+    let on = note_onsets_offline_level(&f0, &flat, plucked).unwrap();
+    assert_eq!((0..80).filter(|&i| on[i]).collect::<Vec<_>>(), vec![0]);
+    let on = note_onsets_offline_level(&f0, &db, plucked).unwrap();
+    assert_eq!((0..80).filter(|&i| on[i]).collect::<Vec<_>>(), vec![0, 40]);
 }
 
 #[test]

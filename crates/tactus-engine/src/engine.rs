@@ -166,7 +166,17 @@ impl StemChain {
         };
         let notes = match (notes, &pitch) {
             (None, _) => None,
-            (Some(rule), Some(p)) => Some(NoteTrack::Pitch(PitchNotes::new(geo, p.hop(), rule)?)),
+            (Some(rule), Some(p)) => {
+                // A bass band of the mix: a change of note without an attack is mostly a
+                // chord tone (README, "Note onsets from the attack").
+                let plucked_mix = mixture && stem == Stem::Bass;
+                Some(NoteTrack::Pitch(PitchNotes::new(
+                    geo,
+                    p.hop(),
+                    rule,
+                    plucked_mix,
+                )?))
+            }
             (Some(_), None) => Some(NoteTrack::Flux(OnsetTrack::new(geo, None)?)),
         };
         let mut chains = Vec::new();

@@ -37,8 +37,9 @@ pub enum NoteRule {
 }
 
 impl NoteRule {
-    /// The detector's configuration for `profile`.
-    pub fn config(self, profile: Profile) -> NoteConfig {
+    /// The detector's configuration for `profile`; `plucked_mix`: the stem is the bass of a
+    /// mixture, whose changes of note must be attacked ([`NoteConfig::pitch_needs_attack`]).
+    pub fn config(self, profile: Profile, plucked_mix: bool) -> NoteConfig {
         match (self, profile) {
             (NoteRule::Pitch, _) => NoteConfig::pitch_only(),
             (NoteRule::Attack, Profile::Live) => NoteConfig {
@@ -46,7 +47,10 @@ impl NoteRule {
                 resume_hops: 0,
                 ..NoteConfig::default()
             },
-            (NoteRule::Attack, Profile::Full) => NoteConfig::default(),
+            (NoteRule::Attack, Profile::Full) => NoteConfig {
+                pitch_needs_attack: plucked_mix,
+                ..NoteConfig::default()
+            },
         }
     }
 }
@@ -65,8 +69,14 @@ pub struct PitchNotes {
 
 impl PitchNotes {
     /// A detector for a pitch track with `hop` engine samples between hops.
-    pub fn new(geo: Geometry, hop: usize, rule: NoteRule) -> Result<Self, ConfigError> {
-        let cfg = rule.config(geo.profile);
+    /// `plucked_mix`: see [`NoteRule::config`].
+    pub fn new(
+        geo: Geometry,
+        hop: usize,
+        rule: NoteRule,
+        plucked_mix: bool,
+    ) -> Result<Self, ConfigError> {
+        let cfg = rule.config(geo.profile, plucked_mix);
         Ok(PitchNotes {
             det: NoteOnsets::new(cfg)?,
             cfg,

@@ -47,7 +47,7 @@ fn plucked_line() -> (Vec<f32>, Vec<f64>) {
 fn onsets(mode: Mode, profile: Profile, rule: NoteRule, x: &[f32], chunk: usize) -> Vec<f64> {
     let g = geo(mode, profile);
     let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
-    let mut n = PitchNotes::new(g, p.hop(), rule).unwrap();
+    let mut n = PitchNotes::new(g, p.hop(), rule, false).unwrap();
     for b in x.chunks(chunk) {
         p.process(b);
         n.update(&p);
@@ -97,7 +97,7 @@ fn the_stated_latency_of_each_rule() {
     let p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
     let hop = p.hop();
     let lat = |profile, rule| {
-        PitchNotes::new(geo(Mode::Streaming, profile), hop, rule)
+        PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, true)
             .unwrap()
             .latency_samples()
     };
@@ -116,7 +116,7 @@ fn streaming_decides_no_onset_before_its_stated_latency() {
     let (x, starts) = plucked_line();
     let g = geo(Mode::Streaming, Profile::Full);
     let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
-    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack).unwrap();
+    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, false).unwrap();
     let lat = p.latency_samples() + n.latency_samples();
     let dec = p.decimation();
     let mut fed = 0usize;
