@@ -78,6 +78,7 @@ enum ProfileArg {
 #[derive(Clone, Copy, ValueEnum)]
 enum NoteOnsetsArg {
     Attack,
+    Legato,
     Pitch,
 }
 
@@ -130,7 +131,9 @@ struct EngineArgs {
     #[arg(long, value_enum, default_value = "follow")]
     levels_rule: LevelRuleArg,
     /// Note onsets of bass, vocals and other: attack (the pitch track and the stem's level:
-    /// re-attacks of a held note, onsets at the attack) or pitch (the pitch track alone).
+    /// re-attacks of a held note, onsets at the attack; on a mix the bass changes note only
+    /// with an attack), legato (the same, without that bass rule: legato bass lines) or
+    /// pitch (the pitch track alone).
     #[arg(long, value_enum, default_value = "attack")]
     note_onsets: NoteOnsetsArg,
     /// Latency profile: full (quality first) or live (under 40 ms to the rhythm pins;

@@ -41,7 +41,8 @@ pub struct RenderOptions {
     pub drum_model: Option<PathBuf>,
     /// `follow` (default) or `paper`.
     pub levels_rule: Option<String>,
-    /// Note onsets of the melodic stems: `attack` (default: pitch and the stem's level) or
+    /// Note onsets of the melodic stems: `attack` (default: pitch and the stem's level),
+    /// `legato` (the same, but the bass of a mix may change note without an attack) or
     /// `pitch` (the pitch alone, the first implementation).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub note_onsets: Option<String>,
@@ -200,7 +201,11 @@ impl RenderOptions {
             "note-onsets",
             self.note_onsets.as_deref(),
             "attack",
-            &[("attack", NoteRule::Attack), ("pitch", NoteRule::Pitch)],
+            &[
+                ("attack", NoteRule::Attack),
+                ("legato", NoteRule::Legato),
+                ("pitch", NoteRule::Pitch),
+            ],
         )?;
         let drums = match choice(
             "drums",
@@ -287,7 +292,7 @@ impl RenderOptions {
             key["profile"] = cfg.profile.name().into();
         }
         if cfg.note_rule != NoteRule::Attack {
-            key["note_onsets"] = "pitch".into();
+            key["note_onsets"] = self.note_onsets.as_deref().unwrap_or("attack").into();
         }
         Ok(key)
     }

@@ -34,6 +34,9 @@ pub enum NoteRule {
     /// pitch rule's latency: no attack search, re-attacks and the interval only.
     #[default]
     Attack,
+    /// [`NoteRule::Attack`], but a change of note never needs an attack, also for the bass
+    /// of a mixture (for legato bass lines: bowed, blown, synth).
+    Legato,
 }
 
 impl NoteRule {
@@ -42,7 +45,7 @@ impl NoteRule {
     pub fn config(self, profile: Profile, plucked_mix: bool) -> NoteConfig {
         match (self, profile) {
             (NoteRule::Pitch, _) => NoteConfig::pitch_only(),
-            (NoteRule::Attack, Profile::Live) => NoteConfig {
+            (NoteRule::Attack | NoteRule::Legato, Profile::Live) => NoteConfig {
                 attack_back_hops: 0,
                 resume_hops: 0,
                 ..NoteConfig::default()
@@ -51,6 +54,7 @@ impl NoteRule {
                 pitch_needs_attack: plucked_mix,
                 ..NoteConfig::default()
             },
+            (NoteRule::Legato, Profile::Full) => NoteConfig::default(),
         }
     }
 }
