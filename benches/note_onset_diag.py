@@ -64,7 +64,7 @@ def st(f):
 
 def note_span(f0, hop, t0):
     """(pitch in semitones, end time) of the true note that starts at t0."""
-    i = int(round(t0 / hop))
+    i = int(math.ceil(t0 / hop - 1e-6))  # the first hop at or after the start
     vals = []
     j = i
     while j < len(f0) and f0[j] > 0:
@@ -103,7 +103,7 @@ def diagnose(song, feat, stem):
         p, end = note_span(f0, hop, r)
         pp, pend = prev_note(f0, hop, r - 1e-9)
         # a true onset inside continuous voicing with the same pitch (no gap in f0) also counts
-        i0 = int(round(r / hop))
+        i0 = int(math.ceil(r / hop - 1e-6))
         cont = i0 > 0 and f0[i0 - 1] > 0 and f0[i0] > 0 and abs(st(f0[i0 - 1]) - st(f0[i0])) < 0.5
         after = [est[j] - r for j in ue if 0.05 < est[j] - r <= 0.2]
         before = [r - est[j] for j in ue if 0.05 < r - est[j] <= 0.2]
