@@ -37,7 +37,8 @@
 //!
 //! # Cost
 //! One 2048-point real FFT and one network pass (about 82 k multiply-adds with the
-//! embedded model) per 10 ms. No allocation after [`DrumTranscriber::new`].
+//! embedded model; a flux model with the same hidden layers, 1,104 inputs, about 150 k) per
+//! 10 ms. No allocation after [`DrumTranscriber::new`].
 
 use crate::melbank::{MelBank, MelConfig, LOG_FLOOR};
 use crate::{Band, ConfigError, HopStage};
