@@ -30,6 +30,17 @@
 //! `n` voiced hops. A line wider than the prior is not padded at all; a narrower one
 //! converges to its own min and max. Causal, allocation-free, O(1) per hop.
 //!
+//! **Running quantiles** ([`QuantileRange`], [`PriorRange::with_quantile`], our addition). The
+//! running min and max keep every early octave error for the rest of the song. The offline
+//! rule's 1st–99th percentile range can be followed causally instead: the quantiles of every
+//! voiced hop seen so far (not of a window), from a histogram of 1/8-semitone cells that also
+//! keeps each cell's smallest and largest value. The low end is the smallest value of the cell
+//! holding the `round((n − 1)·p)`-th smallest pitch, the high end the largest value of the cell
+//! holding its mirror, so the range is never narrower than the exact quantiles and at most one
+//! cell (12.5 cents) wider; with fewer than `1/(2p)` values it is the exact min and max. It
+//! converges to the offline range as the song goes on. O(cells) per hop, no allocation after
+//! construction.
+//!
 //! **Defaults.** [`DEFAULT_LEVELS`] = 8 (paper), semitone scale (docs/design.md). **Latency:** none.
 
 use crate::ConfigError;
@@ -182,11 +193,109 @@ impl RunningRange {
     }
 }
 
+/// Lowest pitch [`QuantileRange`] resolves; lower values share its first cell.
+const QUANTILE_F0_HZ: f64 = 16.0;
+/// Cells per semitone of [`QuantileRange`].
+const QUANTILE_CELLS_PER_ST: f64 = 8.0;
+/// Cells of [`QuantileRange`]: ten octaves above [`QUANTILE_F0_HZ`] (16 Hz–16 kHz).
+const QUANTILE_CELLS: usize = 960;
+
+/// Running quantile range of every voiced pitch seen so far (module docs, "Running
+/// quantiles"). Causal; allocates its histogram once, at construction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct QuantileRange {
+    p: f32,
+    count: Vec<u32>,
+    min: Vec<f32>,
+    max: Vec<f32>,
+    n: u64,
+}
+
+impl QuantileRange {
+    /// Quantile `p` cut from each end (clamped to `[0, 0.5]`; NaN counts as 0).
+    pub fn new(p: f32) -> Self {
+        let p = if p.is_nan() { 0.0 } else { p.clamp(0.0, 0.5) };
+        QuantileRange {
+            p,
+            count: vec![0; QUANTILE_CELLS],
+            min: vec![f32::INFINITY; QUANTILE_CELLS],
+            max: vec![0.0; QUANTILE_CELLS],
+            n: 0,
+        }
+    }
+
+    fn cell(f0_hz: f32) -> usize {
+        let c = (f64::from(f0_hz) / QUANTILE_F0_HZ).log2() * 12.0 * QUANTILE_CELLS_PER_ST;
+        if c.is_nan() || c < 0.0 {
+            0
+        } else {
+            (c as usize).min(QUANTILE_CELLS - 1)
+        }
+    }
+
+    /// Feeds one hop's pitch (unvoiced values are ignored); returns the range so far,
+    /// `None` until a voiced value has arrived.
+    pub fn update(&mut self, f0_hz: f32) -> Option<(f32, f32)> {
+        if f0_hz.is_finite() && f0_hz > 0.0 {
+            let c = Self::cell(f0_hz);
+            self.count[c] += 1;
+            self.min[c] = self.min[c].min(f0_hz);
+            self.max[c] = self.max[c].max(f0_hz);
+            self.n += 1;
+        }
+        self.get()
+    }
+
+    /// The range so far.
+    pub fn get(&self) -> Option<(f32, f32)> {
+        if self.n == 0 {
+            return None;
+        }
+        // The k-th smallest (0-based) and the k-th largest, as `range_quantiles` picks them
+        // (in f32, as it does, so that a product on .5 rounds the same way).
+        let k = ((self.n - 1) as f32 * self.p).round() as u64;
+        let mut seen = 0u64;
+        let mut lo = f32::NAN;
+        for (c, &m) in self.count.iter().zip(&self.min) {
+            seen += u64::from(*c);
+            if seen > k {
+                lo = m;
+                break;
+            }
+        }
+        seen = 0;
+        let mut hi = f32::NAN;
+        for (c, &m) in self.count.iter().zip(&self.max).rev() {
+            seen += u64::from(*c);
+            if seen > k {
+                hi = m;
+                break;
+            }
+        }
+        Some((lo, hi))
+    }
+
+    /// Back to empty.
+    pub fn reset(&mut self) {
+        self.count.fill(0);
+        self.min.fill(f32::INFINITY);
+        self.max.fill(0.0);
+        self.n = 0;
+    }
+}
+
+/// Where [`PriorRange`] takes its unpadded range from.
+#[derive(Debug, Clone, PartialEq)]
+enum Inner {
+    MinMax(RunningRange),
+    Quantile(QuantileRange),
+}
+
 /// Running range padded to a prior span that fades (module docs, "Streaming range with a
-/// prior"). Causal, allocation-free.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// prior"). Causal, allocation-free after construction.
+#[derive(Debug, Clone, PartialEq)]
 pub struct PriorRange {
-    range: RunningRange,
+    range: Inner,
     span_st: f64,
     fade: f64,
     n: u64,
@@ -204,11 +313,22 @@ impl PriorRange {
             return Err(ConfigError::invalid("fade_hops", "must be > 0"));
         }
         Ok(PriorRange {
-            range: RunningRange::new(),
+            range: Inner::MinMax(RunningRange::new()),
             span_st: f64::from(span_st),
             fade: f64::from(fade_hops),
             n: 0,
         })
+    }
+
+    /// As [`PriorRange::new`], but padding the running quantile range ([`QuantileRange`],
+    /// quantile `p` from each end) instead of the running min and max.
+    pub fn with_quantile(span_st: f32, fade_hops: f32, p: f32) -> Result<Self, ConfigError> {
+        if p.is_nan() || !(0.0..=0.5).contains(&p) {
+            return Err(ConfigError::invalid("p", "must be in [0, 0.5]"));
+        }
+        let mut r = Self::new(span_st, fade_hops)?;
+        r.range = Inner::Quantile(QuantileRange::new(p));
+        Ok(r)
     }
 
     /// Feeds one hop's pitch (unvoiced values are ignored); returns the padded range so far,
@@ -218,13 +338,20 @@ impl PriorRange {
         if f0_hz.is_finite() && f0_hz > 0.0 {
             self.n += 1;
         }
-        let (lo, hi) = self.range.update(f0_hz)?;
+        let (lo, hi) = match &mut self.range {
+            Inner::MinMax(r) => r.update(f0_hz),
+            Inner::Quantile(r) => r.update(f0_hz),
+        }?;
         Some(self.padded(lo, hi))
     }
 
     /// The padded range so far.
     pub fn get(&self) -> Option<(f32, f32)> {
-        self.range.get().map(|(lo, hi)| self.padded(lo, hi))
+        let r = match &self.range {
+            Inner::MinMax(r) => r.get(),
+            Inner::Quantile(r) => r.get(),
+        };
+        r.map(|(lo, hi)| self.padded(lo, hi))
     }
 
     fn padded(&self, lo: f32, hi: f32) -> (f32, f32) {
@@ -245,7 +372,10 @@ impl PriorRange {
 
     /// Back to empty.
     pub fn reset(&mut self) {
-        self.range.reset();
+        match &mut self.range {
+            Inner::MinMax(r) => r.reset(),
+            Inner::Quantile(r) => r.reset(),
+        }
         self.n = 0;
     }
 }

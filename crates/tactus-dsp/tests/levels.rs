@@ -2,7 +2,7 @@
 //! with an IQR floor, the streaming range prior, the quantile range, and note onsets from a
 //! pitch track (against an obvious offline oracle, streaming = offline, stated latency).
 
-use tactus_dsp::discretize::{range_offline, range_quantiles, PriorRange};
+use tactus_dsp::discretize::{range_offline, range_quantiles, PriorRange, QuantileRange};
 use tactus_dsp::notes::{note_onsets_offline, NoteConfig, NoteOnsets};
 use tactus_dsp::tukey::{reject_outliers_offline, reject_outliers_offline_min_iqr, SlidingTukey};
 use tactus_dsp::{hz_to_semitones, semitones_to_hz};
@@ -70,6 +70,120 @@ fn quantile_range_ignores_rare_extremes() {
     assert_eq!(range_quantiles(&f, 0.0), range_offline(&f));
     assert_eq!(range_quantiles(&f, 0.01), Some((40.0, 100.0)));
     assert_eq!(range_quantiles(&[0.0, f32::NAN], 0.01), None);
+}
+
+/// A deterministic pitch line with rare octave errors, unvoiced gaps and junk values.
+fn wandering_line(n: usize, seed: u64) -> Vec<f32> {
+    let mut x = seed | 1;
+    let mut next = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..n)
+        .map(|_| {
+            let u = next();
+            if u < 0.05 {
+                [0.0, f32::NAN, -3.0, f32::INFINITY][(u * 80.0) as usize % 4]
+            } else if u < 0.07 {
+                hz(60.0 + 12.0 * (next() * 3.0).floor() as f32) // octave errors up
+            } else {
+                hz(36.0 + (next() * 14.0) as f32 + 0.3 * next() as f32)
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn running_quantile_range_brackets_the_exact_quantiles_of_the_prefix_within_one_cell() {
+    // Oracle: `range_quantiles` on every prefix (sort and index). The running range must
+    // contain the exact quantiles and exceed them by less than one 1/8-semitone cell.
+    for (seed, p) in [(1u64, 0.01f32), (2, 0.05), (3, 0.0), (4, 0.5)] {
+        let f = wandering_line(3000, seed);
+        let mut q = QuantileRange::new(p);
+        for (i, &x) in f.iter().enumerate() {
+            let got = q.update(x);
+            let want = range_quantiles(&f[..=i], p);
+            match (got, want) {
+                (None, None) => {}
+                (Some((lo, hi)), Some((wlo, whi))) => {
+                    assert!(
+                        lo <= wlo && hi >= whi,
+                        "hop {i} p {p}: {lo}..{hi} vs {wlo}..{whi}"
+                    );
+                    let cell = 1.0 / 8.0 + 1e-4;
+                    assert!(
+                        hz_to_semitones(wlo) - hz_to_semitones(lo) < cell
+                            && hz_to_semitones(hi) - hz_to_semitones(whi) < cell,
+                        "hop {i} p {p}: {lo}..{hi} vs {wlo}..{whi}"
+                    );
+                }
+                (g, w) => panic!("hop {i}: {g:?} vs {w:?}"),
+            }
+        }
+    }
+}
+
+#[test]
+fn running_quantile_range_is_the_exact_min_max_until_the_quantile_cuts_and_then_drops_a_rare_octave_error(
+) {
+    let mut q = QuantileRange::new(0.01);
+    assert_eq!(q.update(0.0), None);
+    // Fewer than 51 values: k = round((n − 1)·0.01) = 0, the exact min and max.
+    let f: Vec<f32> = (0..50).map(|i| 80.0 + i as f32 * 0.37).collect();
+    for (i, &x) in f.iter().enumerate() {
+        assert_eq!(q.update(x), range_offline(&f[..=i]));
+    }
+    // One early octave error: kept by the running max, dropped by the quantile once
+    // enough of the line has been seen (it is 1 of 400 values).
+    q.update(400.0);
+    for i in 0..400 {
+        q.update(80.0 + (i % 50) as f32 * 0.37);
+    }
+    let (lo, hi) = q.get().unwrap();
+    assert!(lo >= 80.0 * 0.99 && hi < 100.0, "{lo}..{hi}");
+    q.reset();
+    assert_eq!(q.get(), None);
+    // Extremes outside the cells' 16 Hz–16 kHz share the end cells but keep their values.
+    let mut q = QuantileRange::new(0.0);
+    q.update(3.0);
+    assert_eq!(q.update(40_000.0), Some((3.0, 40_000.0)));
+}
+
+#[test]
+fn prior_range_with_quantile_pads_the_quantile_range() {
+    // Same padding rule as the min/max prior, applied to the quantile range: on a line
+    // without outliers (fewer than 51 values) the two agree exactly.
+    let mut a = PriorRange::new(20.0, 300.0).unwrap();
+    let mut b = PriorRange::with_quantile(20.0, 300.0, 0.01).unwrap();
+    for i in 0..50 {
+        let x = hz(40.0 + (i % 9) as f32);
+        assert_eq!(a.update(x), b.update(x));
+    }
+    // After an octave error and enough of the line, the quantile prior is the line's own
+    // 9 semitones padded by (20 − 8)·w/2 with w = 300/851 (2.1 semitones each side); the
+    // min/max prior keeps the error (30 semitones, no padding).
+    a.update(hz(70.0));
+    b.update(hz(70.0));
+    for i in 0..500 {
+        let x = hz(40.0 + (i % 9) as f32);
+        a.update(x);
+        b.update(x);
+    }
+    let (alo, ahi) = a.get().unwrap();
+    let (blo, bhi) = b.get().unwrap();
+    assert!((hz_to_semitones(ahi) - 70.0).abs() < 1e-3, "{alo}..{ahi}");
+    let pad = 12.0 * 300.0 / 851.0 / 2.0;
+    assert!(
+        (hz_to_semitones(blo) - (40.0 - pad)).abs() < 1e-3
+            && (hz_to_semitones(bhi) - (48.0 + pad)).abs() < 1e-3,
+        "{blo}..{bhi}"
+    );
+    b.reset();
+    assert_eq!(b.get(), None);
+    assert!(PriorRange::with_quantile(20.0, 1.0, 0.6).is_err());
+    assert!(PriorRange::with_quantile(20.0, 1.0, f32::NAN).is_err());
 }
 
 /// The obvious rule: for every hop, look at the next `stable` hops directly.

@@ -60,10 +60,12 @@ pub enum LevelRule {
     /// Fences with the IQR floored ([`min_iqr_st`]: a bass line's real octave leaps are no
     /// longer cut), the range from the 1st to the 99th percentile of the voiced hops that the
     /// fences keep ([`FOLLOW_RANGE_QUANTILE`]: a few octave errors no longer stretch it);
-    /// in streaming mode the running min and max of the kept pitch padded to a prior span
-    /// that fades ([`PriorRange`], [`prior_span_st`]), so the first notes do not sit on
-    /// level 1 or 8. (Running percentiles of the fences' 10 s window instead of min and max
-    /// were tried: vocals levels ±1 fell from 0.76 to 0.68 on the tuned songs.)
+    /// in streaming mode the same percentiles of every kept hop so far
+    /// ([`PriorRange::with_quantile`]: an early octave error no longer shifts every later
+    /// level), padded to a prior span that fades ([`prior_span_st`]), so the first notes do
+    /// not sit on level 1 or 8. (Running percentiles of the fences' 10 s window were tried
+    /// first: vocals levels ±1 fell from 0.76 to 0.68 on the tuned songs; the running min
+    /// and max were the streaming range until 2026-11-24.)
     #[default]
     Follow,
 }
@@ -439,7 +441,11 @@ impl PitchTrack {
                 tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
                     .with_min_iqr(min_iqr_st),
                 range: RunningRange::new(),
-                prior_range: PriorRange::new(prior_span_st(fmax_hz), FOLLOW_PRIOR_FADE_HOPS)?,
+                prior_range: PriorRange::with_quantile(
+                    prior_span_st(fmax_hz),
+                    FOLLOW_PRIOR_FADE_HOPS,
+                    FOLLOW_RANGE_QUANTILE,
+                )?,
                 rule: geo.level_rule,
                 disc: Discretizer::new(geo.levels, Scale::Semitones)?,
                 binner: LevelBinner::new(hop, geo.bin_samples)?,
