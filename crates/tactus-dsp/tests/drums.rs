@@ -367,7 +367,7 @@ fn forward_matches_naive(m: DrumModel) {
                 "input {k}: {got} vs {want}"
             );
         }
-        assert!(input.iter().any(|&v| v == m.floor));
+        assert!(input.contains(&m.floor));
         let fast = m.forward(&input, &mut a, &mut b);
         let slow = naive_forward(&m, &input);
         for c in 0..CLASSES {
