@@ -170,6 +170,7 @@ def sigmoid(z):
 SHIFT = 2  # mel bands, --shift
 WARP = 1.0  # --warp: largest retuning ratio (1: none)
 STRETCH = 1.0  # --stretch: largest time-scale ratio of the context (1: none)
+FLUX = False  # --flux: append the positive first difference of the normalised frames
 F_LO, F_HI = 20.0, 16_000.0  # MelConfig::drums
 
 
@@ -238,6 +239,16 @@ def augment(x, rng):
     return np.maximum(z - z.max(axis=1, keepdims=True), np.float32(FLOOR))
 
 
+def with_flux(x):
+    """Network input from normalised contexts x (n, win*BANDS): x itself and, with FLUX, the
+    positive first difference of consecutive frames (n, (win-1)*BANDS), as drums.rs does."""
+    if not FLUX:
+        return x
+    z = x.reshape(x.shape[0], -1, BANDS)
+    d = np.maximum(z[:, 1:] - z[:, :-1], 0).reshape(x.shape[0], -1)
+    return np.concatenate([x, d], axis=1)
+
+
 def near_onset(Y, reach=3):
     """Frames within +-reach hops of an onset of any class."""
     any_ = Y.max(axis=1) > 0
@@ -249,7 +260,7 @@ def near_onset(Y, reach=3):
 
 
 def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=None,
-          mean=None, std=None, aug=True, decay=1e-5, neg_keep=1.0):
+          mean=None, std=None, aug=True, decay=1e-5, neg_keep=1.0, in_drop=0.0):
     """Adam on weighted binary cross-entropy. neg_keep < 1: each epoch uses every frame
     near an onset (+-3 hops) and a fresh random fraction neg_keep of the others, weighted
     1 / neg_keep (the same expected loss, fewer frames per epoch)."""
@@ -275,7 +286,9 @@ def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=N
                 w = w * np.where(near[idx], 1.0, 1.0 / neg_keep).astype(np.float32)[:, None]
             if aug:
                 x = augment(x, rng)
-            x = (x - mean) / std
+            x = (with_flux(x) - mean) / std
+            if in_drop > 0:  # input dropout: a standardised input set to its mean
+                x = x * ((rng.random(x.shape, np.float32) >= in_drop) / np.float32(1 - in_drop))
             acts = forward(ps, x)
             p = sigmoid(acts[-1])
             ww = w * (1 + (pw - 1) * y)
@@ -294,7 +307,7 @@ def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=N
                     mh = m[li][k] / (1 - 0.9 ** t)
                     vh = v[li][k] / (1 - 0.999 ** t)
                     ps[li][k] -= (lr * mh / (np.sqrt(vh) + 1e-8)).astype(np.float32)
-        pv = sigmoid(forward(ps, (Xv - mean) / std)[-1])
+        pv = sigmoid(forward(ps, (with_flux(Xv) - mean) / std)[-1])
         ww = Wv * (1 + (pw - 1) * Yv)
         vl = float(-(ww * (Yv * np.log(pv + 1e-7) + (1 - Yv) * np.log(1 - pv + 1e-7))).sum() / len(Xv))
         print(f"epoch {ep + 1}: train {tot / n:.4f} val {vl:.4f}", flush=True)
@@ -383,8 +396,13 @@ def write_model(path, ps, mean, std, thr):
     layers = [(W0f, b0f)] + [(W, b) for W, b in ps[1:]]
     with open(path + ".tmp", "wb") as f:
         f.write(b"TACTUSDR")
-        f.write(struct.pack("<6I", 1, BANDS, PAST, FUTURE, 4, len(layers)))
-        f.write(struct.pack("<f", FLOOR))
+        if FLUX:  # version 2: a u32 input-feature set follows the floor (1: mel + flux)
+            f.write(struct.pack("<6I", 2, BANDS, PAST, FUTURE, 4, len(layers)))
+            f.write(struct.pack("<f", FLOOR))
+            f.write(struct.pack("<I", 1))
+        else:
+            f.write(struct.pack("<6I", 1, BANDS, PAST, FUTURE, 4, len(layers)))
+            f.write(struct.pack("<f", FLOOR))
         for W, b in layers:
             f.write(struct.pack("<2I", W.shape[1], W.shape[0]))
             f.write(np.ascontiguousarray(W, dtype="<f4").tobytes())
@@ -400,6 +418,12 @@ def read_model(path):
     ver, bands, past, fut, ncls, nl = struct.unpack_from("<6I", buf, 8)
     (floor,) = struct.unpack_from("<f", buf, 32)
     off = 36
+    global FLUX
+    FLUX = False
+    if ver == 2:
+        (feat,) = struct.unpack_from("<I", buf, off)
+        off += 4
+        FLUX = feat == 1
     ps = []
     for _ in range(nl):
         ni, no = struct.unpack_from("<2I", buf, off)
@@ -414,7 +438,7 @@ def read_model(path):
 
 
 def activations(ps, mel):
-    return sigmoid(forward(ps, context(mel))[-1])
+    return sigmoid(forward(ps, with_flux(context(mel)))[-1])
 
 
 def report(ps, thr, sets):
@@ -434,7 +458,7 @@ def report(ps, thr, sets):
 
 
 def main():
-    global PAST, FUTURE, SHIFT, WARP, STRETCH
+    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
     ap.add_argument("--epochs", type=int, default=20)
@@ -461,13 +485,17 @@ def main():
                     help="fraction of frames far from any onset used per epoch (1: all)")
     ap.add_argument("--hard-neg", type=float, default=1.0,
                     help="weight of a class's negative frames at another class's onset (1: plain)")
+    ap.add_argument("--in-drop", type=float, default=0.0, help="input dropout rate (0: none)")
+    ap.add_argument("--decay", type=float, default=1e-5, help="L2 weight decay")
+    ap.add_argument("--flux", action="store_true",
+                    help="input: also the positive first difference of the context's frames")
     ap.add_argument("--families", default=None,
                     help="only these families (comma-separated; default: every one under --data)")
     a = ap.parse_args()
     if not os.path.exists(dumper_path()):
         sys.exit("build the feature dumper first: cargo build --release -p tactus-engine --example drum_features")
     conds = a.conds.split(",")
-    PAST, FUTURE, SHIFT, WARP, STRETCH = a.past, a.future, a.shift, a.warp, a.stretch
+    PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX = a.past, a.future, a.shift, a.warp, a.stretch, a.flux
     HELD_OUT[:] = a.held_out.split(",")
     items = songs(a.data)
     if a.families:
@@ -495,15 +523,23 @@ def main():
 
         X, Y, W = stack(D_tr, conds, a.hard_neg)
         Xv, Yv, Wv = stack(D_va, conds)
-        mean = X.mean(0)
-        std = X.std(0) + 1e-3
+        if FLUX:  # in chunks: the flux inputs are made per batch, never stored
+            s1 = s2 = 0.0
+            for s in range(0, len(X), 65536):
+                xf = with_flux(X[s:s + 65536]).astype(np.float64)
+                s1, s2 = s1 + xf.sum(0), s2 + (xf * xf).sum(0)
+            mean = (s1 / len(X)).astype(np.float32)
+            std = (np.sqrt(np.maximum(s2 / len(X) - (s1 / len(X)) ** 2, 0)) + 1e-3).astype(np.float32)
+        else:
+            mean = X.mean(0)
+            std = X.std(0) + 1e-3
         print(f"frames: train {len(X)}, validation {len(Xv)}; positives per class {Y.sum(0)}", flush=True)
-        sizes = [X.shape[1]] + [int(h) for h in a.hidden.split(",")] + [4]
+        sizes = [with_flux(X[:1]).shape[1]] + [int(h) for h in a.hidden.split(",")] + [4]
         ps = init(sizes, rng)
         ps = train(ps, X, Y, W, Xv, Yv, Wv, a.epochs, rng, pos_weight=pos_weight, mean=mean, std=std,
-                   aug=not a.no_augment, neg_keep=a.neg_keep)
+                   aug=not a.no_augment, neg_keep=a.neg_keep, in_drop=a.in_drop, decay=a.decay)
         # Tune thresholds on validation, over every condition pooled.
-        acts = [sigmoid(forward(ps, (context(m) - mean) / std)[-1]) for (_, _, _, m, _) in D_va]
+        acts = [sigmoid(forward(ps, (with_flux(context(m)) - mean) / std)[-1]) for (_, _, _, m, _) in D_va]
         thr = tune(acts, [t for (*_, t) in D_va])
         print("thresholds", thr, flush=True)
         write_model(a.out, ps, mean, std, thr)

@@ -7,7 +7,7 @@
 //! implemented with `unsafe impl`. It forwards to `System` unchanged.
 #![deny(unsafe_code)]
 
-use tactus_dsp::drums::{DrumFrame, DrumModel, DrumTranscriber, CLASSES};
+use tactus_dsp::drums::{DrumFrame, DrumModel, DrumTranscriber, Layer, CLASSES};
 use tactus_dsp::melbank::{filters, MelBank, MelConfig, LOG_FLOOR};
 use tactus_dsp::HopStage;
 
@@ -289,10 +289,60 @@ fn naive_forward(m: &DrumModel, input: &[f32]) -> Vec<f64> {
     h.iter().map(|z| 1.0 / (1.0 + (-z).exp())).collect()
 }
 
+/// Step 3 of `drums.rs` written the obvious way: window minus its maximum, clipped at the
+/// floor; with flux, then `max(0, x[t][b] - x[t-1][b])` for t = 1.., b = 0.. .
+#[allow(clippy::needless_range_loop)]
+fn naive_assemble(m: &DrumModel, window: &[f32]) -> Vec<f64> {
+    let top = window
+        .iter()
+        .fold(f64::NEG_INFINITY, |a, &v| a.max(v as f64));
+    let x: Vec<f64> = window
+        .iter()
+        .map(|&v| (v as f64 - top).max(m.floor as f64))
+        .collect();
+    let mut out = x.clone();
+    if m.flux {
+        let frames = m.past + 1 + m.future;
+        for t in 1..frames {
+            for b in 0..m.bands {
+                out.push((x[t * m.bands + b] - x[(t - 1) * m.bands + b]).max(0.0));
+            }
+        }
+    }
+    out
+}
+
+/// A random model with the flux input, whatever the embedded files use, so the flux path
+/// is always checked against the oracle.
+fn random_flux_model() -> DrumModel {
+    let mut rng = Rng(11);
+    let (bands, past, future) = (48, 7, 4);
+    let n_in = bands * (past + 1 + future) + bands * (past + future);
+    let mut layers = Vec::new();
+    for (i, o) in [(n_in, 32), (32, 16), (16, CLASSES)] {
+        layers.push(Layer {
+            n_in: i,
+            n_out: o,
+            w: (0..i * o).map(|_| (rng.next_f32() - 0.5) * 0.2).collect(),
+            b: (0..o).map(|_| rng.next_f32() - 0.5).collect(),
+        });
+    }
+    DrumModel {
+        bands,
+        past,
+        future,
+        floor: -16.0,
+        flux: true,
+        layers,
+        thresholds: [0.5; CLASSES],
+    }
+}
+
 #[test]
 fn forward_matches_naive_f64() {
     forward_matches_naive(DrumModel::embedded());
     forward_matches_naive(DrumModel::embedded_live());
+    forward_matches_naive(random_flux_model());
 }
 
 fn forward_matches_naive(m: DrumModel) {
@@ -303,12 +353,21 @@ fn forward_matches_naive(m: DrumModel) {
     a.iter_mut().for_each(|v| *v = 1e6);
     b.iter_mut().for_each(|v| *v = -1e6);
     for _ in 0..50 {
-        let window: Vec<f32> = (0..m.input_len())
-            .map(|_| -10.0 + 10.0 * rng.next_f32())
+        // Values spread over 25 nepers, so some fall under the floor.
+        let window: Vec<f32> = (0..m.window_len())
+            .map(|_| -25.0 + 25.0 * rng.next_f32())
             .collect();
         let mut input = vec![0f32; m.input_len()];
         m.assemble(&window, &mut input);
-        assert!(input.iter().all(|&v| v <= 0.0 && v >= m.floor));
+        let want = naive_assemble(&m, &window);
+        assert_eq!(want.len(), input.len());
+        for (k, (&got, &want)) in input.iter().zip(&want).enumerate() {
+            assert!(
+                (got as f64 - want).abs() < 1e-5,
+                "input {k}: {got} vs {want}"
+            );
+        }
+        assert!(input.contains(&m.floor));
         let fast = m.forward(&input, &mut a, &mut b);
         let slow = naive_forward(&m, &input);
         for c in 0..CLASSES {
@@ -497,14 +556,16 @@ fn silence_and_hard_inputs() {
 fn no_allocation_while_processing() {
     let mut rng = Rng(13);
     let x = groove(&mut rng);
-    let mut t = DrumTranscriber::new(SR).unwrap();
-    t.process(&x[..4096], &mut |_, _| {});
-    let before = allocs();
-    let mut n = 0;
-    for c in x[4096..].chunks(512) {
-        t.process(c, &mut |_, _| n += 1);
+    for model in [DrumModel::embedded(), random_flux_model()] {
+        let mut t = DrumTranscriber::with_model(SR, model).unwrap();
+        t.process(&x[..4096], &mut |_, _| {});
+        let before = allocs();
+        let mut n = 0;
+        for c in x[4096..].chunks(512) {
+            t.process(c, &mut |_, _| n += 1);
+        }
+        t.finish(&mut |_, _| n += 1);
+        assert_eq!(allocs() - before, 0, "allocations after construction");
+        assert!(n > 300);
     }
-    t.finish(&mut |_, _| n += 1);
-    assert_eq!(allocs() - before, 0, "allocations after construction");
-    assert!(n > 300);
 }
