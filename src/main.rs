@@ -76,6 +76,13 @@ enum ProfileArg {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
+enum NoteOnsetsArg {
+    Attack,
+    Legato,
+    Pitch,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
 enum LevelRuleArg {
     Follow,
     Paper,
@@ -123,6 +130,12 @@ struct EngineArgs {
     /// paper's rule.
     #[arg(long, value_enum, default_value = "follow")]
     levels_rule: LevelRuleArg,
+    /// Note onsets of bass, vocals and other: attack (the pitch track and the stem's level:
+    /// re-attacks of a held note, onsets at the attack; on a mix the bass changes note only
+    /// with an attack), legato (the same, without that bass rule: legato bass lines) or
+    /// pitch (the pitch track alone).
+    #[arg(long, value_enum, default_value = "attack")]
+    note_onsets: NoteOnsetsArg,
     /// Latency profile: full (quality first) or live (under 40 ms to the rhythm pins;
     /// 10 ms bins). [default: live for live, full for render and play]
     #[arg(long, value_enum)]
@@ -149,6 +162,10 @@ impl EngineArgs {
         add(
             !matches!(self.levels_rule, LevelRuleArg::Follow),
             "--levels-rule",
+        );
+        add(
+            !matches!(self.note_onsets, NoteOnsetsArg::Attack),
+            "--note-onsets",
         );
         add(self.drums.is_some(), "--drums");
         add(self.drum_model.is_some(), "--drum-model");
@@ -191,6 +208,7 @@ impl EngineArgs {
             drums: self.drums.as_ref().and_then(name),
             drum_model: self.drum_model.clone(),
             levels_rule: name(&self.levels_rule),
+            note_onsets: name(&self.note_onsets),
             mode: name(&mode),
             stems: Vec::new(),
             threads: self.threads,

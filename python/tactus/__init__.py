@@ -43,6 +43,7 @@ OPTIONS: Tuple[str, ...] = (
     "drums",  # "classes" (default) | "bands" | "adtlib"
     "drum_model",  # ONNX model path for drums="adtlib"
     "levels_rule",  # "follow" (default) | "paper"
+    "note_onsets",  # "attack" (default) | "legato" | "pitch"
     "mode",  # "offline" (default) | "streaming"
     "stems",  # {"drums"|"bass"|"vocals"|"other": path}: supplied stems (render only)
     "threads",  # ONNX Runtime intra-op threads

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 use tactus_dsp::Stem;
 use tactus_engine::{
-    DrumMethod, EngineConfig, LevelRule, Mode, PitchMethod, Profile, SeparatorChoice,
+    DrumMethod, EngineConfig, LevelRule, Mode, NoteRule, PitchMethod, Profile, SeparatorChoice,
 };
 use tactus_glove::GloveMap;
 
@@ -41,6 +41,11 @@ pub struct RenderOptions {
     pub drum_model: Option<PathBuf>,
     /// `follow` (default) or `paper`.
     pub levels_rule: Option<String>,
+    /// Note onsets of the melodic stems: `attack` (default: pitch and the stem's level),
+    /// `legato` (the same, but the bass of a mix may change note without an attack) or
+    /// `pitch` (the pitch alone, the first implementation).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub note_onsets: Option<String>,
     /// `offline` (default) or `streaming`.
     pub mode: Option<String>,
     /// Stems supplied directly, `(name, path)`: drums, bass, vocals, other (single
@@ -192,6 +197,16 @@ impl RenderOptions {
             "follow",
             &[("follow", LevelRule::Follow), ("paper", LevelRule::Paper)],
         )?;
+        let note_rule = pick(
+            "note-onsets",
+            self.note_onsets.as_deref(),
+            "attack",
+            &[
+                ("attack", NoteRule::Attack),
+                ("legato", NoteRule::Legato),
+                ("pitch", NoteRule::Pitch),
+            ],
+        )?;
         let drums = match choice(
             "drums",
             self.drums.as_deref(),
@@ -238,6 +253,7 @@ impl RenderOptions {
             mode,
             pitch,
             level_rule,
+            note_rule,
             map,
             separator,
             drums,
@@ -274,6 +290,9 @@ impl RenderOptions {
         // profile was an option stay up to date.
         if cfg.profile != Profile::Full {
             key["profile"] = cfg.profile.name().into();
+        }
+        if cfg.note_rule != NoteRule::Attack {
+            key["note_onsets"] = self.note_onsets.as_deref().unwrap_or("attack").into();
         }
         Ok(key)
     }

@@ -263,7 +263,7 @@ fn melody() -> (Vec<f32>, Vec<usize>) {
 #[test]
 fn note_onsets_match_the_oracle_and_the_notes() {
     let (f, starts) = melody();
-    let c = NoteConfig::default();
+    let c = NoteConfig::pitch_only();
     let got = note_onsets_offline(&f, c).unwrap();
     assert_eq!(got, oracle(&f, c));
     let on: Vec<usize> = (0..f.len()).filter(|&i| got[i]).collect();
@@ -281,7 +281,7 @@ fn streaming_note_onsets_equal_offline_with_the_stated_latency() {
     let (f, _) = melody();
     let c = NoteConfig {
         stable_hops: 6,
-        ..NoteConfig::default()
+        ..NoteConfig::pitch_only()
     };
     let want = note_onsets_offline(&f, c).unwrap();
     let mut d = NoteOnsets::new(c).unwrap();

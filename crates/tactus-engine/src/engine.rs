@@ -17,7 +17,7 @@ use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
 use tactus_separate::{SegmentStats, Separator, StemOutput, StemSet};
 
 use crate::drums::{ClassTrack, DrumMethod};
-use crate::notes::{NoteTrack, PitchNotes};
+use crate::notes::{NoteRule, NoteTrack, PitchNotes};
 use crate::profile::{self, Profile};
 use crate::track::{Denoise, Geometry, LevelRule, Mode, OnsetTrack, PitchMethod, PitchTrack};
 use crate::EngineError;
@@ -59,6 +59,9 @@ pub struct EngineConfig {
     /// How voiced pitch becomes levels ([`LevelRule::Follow`] by default; `Paper` is the
     /// paper's rule as first implemented).
     pub level_rule: LevelRule,
+    /// How the melodic stems' note onsets are read from their pitch tracks
+    /// ([`NoteRule::Attack`] by default; `Pitch` is the first implementation).
+    pub note_rule: NoteRule,
     /// The glove map: decides which stems, bands and features exist.
     pub map: GloveMap,
     /// Separator for the stems not supplied directly.
@@ -93,6 +96,7 @@ impl Default for EngineConfig {
             mode: Mode::Offline,
             pitch: PitchMethod::default(),
             level_rule: LevelRule::default(),
+            note_rule: NoteRule::default(),
             map: GloveMap::default(),
             separator: SeparatorChoice::default(),
             drums: DrumMethod::default(),
@@ -146,7 +150,7 @@ impl StemChain {
         stem: Stem,
         geo: Geometry,
         pitch: Option<PitchMethod>,
-        notes: bool,
+        notes: Option<NoteRule>,
         bands: &[Band],
         drums: &DrumMethod,
         mixture: bool,
@@ -161,9 +165,19 @@ impl StemChain {
             _ => None,
         };
         let notes = match (notes, &pitch) {
-            (false, _) => None,
-            (true, Some(p)) => Some(NoteTrack::Pitch(PitchNotes::new(geo, p.hop())?)),
-            (true, None) => Some(NoteTrack::Flux(OnsetTrack::new(geo, None)?)),
+            (None, _) => None,
+            (Some(rule), Some(p)) => {
+                // A bass band of the mix: a change of note without an attack is mostly a
+                // chord tone (README, "Note onsets from the attack").
+                let plucked_mix = mixture && stem == Stem::Bass;
+                Some(NoteTrack::Pitch(PitchNotes::new(
+                    geo,
+                    p.hop(),
+                    rule,
+                    plucked_mix,
+                )?))
+            }
+            (Some(_), None) => Some(NoteTrack::Flux(OnsetTrack::new(geo, None)?)),
         };
         let mut chains = Vec::new();
         let (classes, class_bands) = match drums {
@@ -501,7 +515,7 @@ impl Engine {
                     (PitchMethod::Auto, _) => PitchMethod::Pyin,
                     (m, _) => m,
                 });
-            let notes = needs.note_onsets.contains(&stem);
+            let notes = needs.note_onsets.contains(&stem).then_some(cfg.note_rule);
             let bands: Vec<Band> = if stem == Stem::Drums {
                 needs.bands.clone()
             } else {

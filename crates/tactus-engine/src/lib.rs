@@ -49,6 +49,7 @@ pub use tactus_audio::{resample, source};
 
 pub use drums::DrumMethod;
 pub use engine::{Engine, EngineConfig, SeparatorChoice, ENGINE_RATE};
+pub use notes::NoteRule;
 pub use profile::Profile;
 pub use track::{LevelRule, Mode, PitchMethod};
 

@@ -2,24 +2,67 @@
 //!
 //! * [`NoteTrack::Pitch`] (default when the stem has a pitch track): note onsets from the
 //!   tracked pitch ([`tactus_dsp::notes`]): where voicing begins or the pitch settles on a new
-//!   note. Reads the pitch track's f0 after gate and fences, hop by hop in streaming mode and
-//!   once at the end offline, so both modes see the same values they level.
+//!   note; with [`NoteRule::Attack`] (the default) also where the stem's level attacks a held
+//!   pitch, each onset at its attack. Reads the pitch track's f0 after gate and fences and its
+//!   RMS per hop (`PitchTrack::level_db`, the same hops, advanced with the track), hop by hop
+//!   in streaming mode and once at the end offline, so both modes see the same values.
 //! * [`NoteTrack::Flux`]: spectral-flux onsets of the stem ([`OnsetTrack`]), the first
 //!   implementation; used when a map asks for note onsets of a stem without its pitch.
 //!
 //! Measured on the chorale corpus (`benches/bass_eval.py`, tuned songs, isolated stems,
 //! offline): bass note-onset F 0.40 with flux, 0.94 from pitch; merging the flux onsets that
 //! lie more than 80 ms from every pitch onset (to catch repeated notes) added at most 0.02 F
-//! there, so the pitch rule stands alone.
+//! there, so the pitch rule stood alone. Repeated notes on pop bass lines and sung leads
+//! needed the level instead (README, "Note onsets from the attack": held-out isolated bass
+//! note F 0.73 → 0.97 on the sung and drum corpora).
 
-use tactus_dsp::notes::{note_onsets_offline, NoteConfig, NoteOnsets};
+use tactus_dsp::notes::{note_onsets_offline_level, NoteConfig, NoteOnsets};
 use tactus_dsp::ConfigError;
 
+use crate::profile::Profile;
 use crate::track::{Beats, Geometry, Mode, OnsetTrack, PitchTrack};
+
+/// How note onsets are read from a pitch track. See the module docs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum NoteRule {
+    /// The pitch alone (the first implementation): voicing begins or the pitch settles on a
+    /// new note ([`NoteConfig::pitch_only`]).
+    Pitch,
+    /// The pitch and the stem's level: also re-attacks inside a held pitch, each onset
+    /// moved back to its attack, a minimum interval, dropouts that resume the same note
+    /// without an attack ignored ([`NoteConfig::default`]). The live profile keeps the
+    /// pitch rule's latency: no attack search, re-attacks and the interval only.
+    #[default]
+    Attack,
+    /// [`NoteRule::Attack`], but a change of note never needs an attack, also for the bass
+    /// of a mixture (for legato bass lines: bowed, blown, synth).
+    Legato,
+}
+
+impl NoteRule {
+    /// The detector's configuration for `profile`; `plucked_mix`: the stem is the bass of a
+    /// mixture, whose changes of note must be attacked ([`NoteConfig::pitch_needs_attack`]).
+    pub fn config(self, profile: Profile, plucked_mix: bool) -> NoteConfig {
+        match (self, profile) {
+            (NoteRule::Pitch, _) => NoteConfig::pitch_only(),
+            (NoteRule::Attack | NoteRule::Legato, Profile::Live) => NoteConfig {
+                attack_back_hops: 0,
+                resume_hops: 0,
+                ..NoteConfig::default()
+            },
+            (NoteRule::Attack, Profile::Full) => NoteConfig {
+                pitch_needs_attack: plucked_mix,
+                ..NoteConfig::default()
+            },
+            (NoteRule::Legato, Profile::Full) => NoteConfig::default(),
+        }
+    }
+}
 
 /// Note onsets from the pitch track. See the module docs.
 pub struct PitchNotes {
     det: NoteOnsets,
+    cfg: NoteConfig,
     geo: Geometry,
     hop: usize,
     /// Pitch hops consumed so far (streaming).
@@ -30,9 +73,17 @@ pub struct PitchNotes {
 
 impl PitchNotes {
     /// A detector for a pitch track with `hop` engine samples between hops.
-    pub fn new(geo: Geometry, hop: usize) -> Result<Self, ConfigError> {
+    /// `plucked_mix`: see [`NoteRule::config`].
+    pub fn new(
+        geo: Geometry,
+        hop: usize,
+        rule: NoteRule,
+        plucked_mix: bool,
+    ) -> Result<Self, ConfigError> {
+        let cfg = rule.config(geo.profile, plucked_mix);
         Ok(PitchNotes {
-            det: NoteOnsets::new(NoteConfig::default())?,
+            det: NoteOnsets::new(cfg)?,
+            cfg,
             geo,
             hop,
             consumed: 0,
@@ -46,8 +97,9 @@ impl PitchNotes {
             return;
         }
         let (det, beats) = (&mut self.det, &mut self.beats);
-        for &f in &pitch.f0[self.consumed..] {
-            det.push(f, &mut |j, o| beats.push(j, o));
+        for (k, &f) in pitch.f0.iter().enumerate().skip(self.consumed) {
+            let l = pitch.level_db.get(k).copied().unwrap_or(f32::NAN);
+            det.push_level(f, l, &mut |j, o| beats.push(j, o));
         }
         self.consumed = pitch.f0.len();
     }
@@ -61,7 +113,7 @@ impl PitchNotes {
             self.beats.finish();
         } else {
             // The config was validated in `new`, so this cannot fail; stay silent if it did.
-            let onsets = note_onsets_offline(&pitch.f0, NoteConfig::default())
+            let onsets = note_onsets_offline_level(&pitch.f0, &pitch.level_db, self.cfg)
                 .unwrap_or_else(|_| vec![false; pitch.f0.len()]);
             self.beats
                 .set_offline(onsets, self.hop, self.geo.bin_samples);
@@ -71,6 +123,11 @@ impl PitchNotes {
     /// Input samples of look-ahead beyond the pitch track's.
     pub fn latency_samples(&self) -> usize {
         self.det.latency_hops() * self.hop
+    }
+
+    /// Onset times in seconds (streaming: those decided so far).
+    pub fn onset_times(&self) -> Vec<f64> {
+        crate::track::onset_times(&self.beats.onsets, self.hop, self.geo.sample_rate)
     }
 
     /// Per-hop and per-bin values held.
@@ -115,9 +172,7 @@ impl NoteTrack {
     pub fn onset_times(&self) -> Vec<f64> {
         match self {
             NoteTrack::Flux(f) => f.onset_times(),
-            NoteTrack::Pitch(p) => {
-                crate::track::onset_times(&p.beats.onsets, p.hop, p.geo.sample_rate)
-            }
+            NoteTrack::Pitch(p) => p.onset_times(),
         }
     }
 

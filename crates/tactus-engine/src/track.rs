@@ -349,6 +349,9 @@ pub struct PitchTrack {
     min_iqr_st: f32,
     /// f0 per hop after gate and fences (streaming: filled as hops arrive; offline: at the end).
     pub f0: Vec<f32>,
+    /// The stem's RMS per hop in dBFS, beside `f0` (same hops, before the gate): what note
+    /// onsets read for re-attacks.
+    pub level_db: Vec<f32>,
     /// Level per hop.
     pub hop_levels: Vec<u8>,
     /// Level per bin.
@@ -452,6 +455,7 @@ impl PitchTrack {
             },
             min_iqr_st,
             f0: Vec::new(),
+            level_db: Vec::new(),
             hop_levels: Vec::new(),
             bins: Vec::new(),
             advance: 0,
@@ -546,6 +550,7 @@ impl PitchTrack {
                 self.chain
                     .push(self.next, self.raw_rms[j], self.raw_f0[j], &mut self.bins);
             self.f0.push(f0);
+            self.level_db.push(self.raw_rms[j]);
             self.hop_levels.push(level);
             self.next += 1;
         }
@@ -571,6 +576,7 @@ impl PitchTrack {
         };
         self.bins = bin_levels(&levels, self.hop, self.geo.bin_samples);
         self.f0 = f0;
+        self.level_db = self.raw_rms[..n].to_vec();
         self.hop_levels = levels;
     }
 
@@ -578,6 +584,7 @@ impl PitchTrack {
     pub fn retained(&self) -> usize {
         self.bins.len()
             + self.f0.len()
+            + self.level_db.len()
             + self.hop_levels.len()
             + self.raw_f0.len()
             + self.raw_rms.len()
@@ -588,6 +595,7 @@ impl PitchTrack {
     pub fn discard(&mut self, d: usize) {
         self.bins.drain(..d.min(self.bins.len()));
         self.f0.clear();
+        self.level_db.clear();
         self.hop_levels.clear();
     }
 
@@ -601,6 +609,7 @@ impl PitchTrack {
         self.next = 0;
         self.chain.reset();
         self.f0.clear();
+        self.level_db.clear();
         self.hop_levels.clear();
         self.bins.clear();
         self.skipped_f0 = 0;

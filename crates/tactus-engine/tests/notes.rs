@@ -1,0 +1,139 @@
+//! Note onsets of a melodic stem on audio (`tactus_engine::notes`): a bass line that repeats
+//! its notes, through the real pitch track and the note detector, offline and streaming in
+//! any chunking, against the notes' known start times.
+
+use tactus_engine::notes::{NoteRule, NoteTrack, PitchNotes};
+use tactus_engine::profile::Profile;
+use tactus_engine::track::{Geometry, PitchTrack};
+use tactus_engine::{LevelRule, Mode, PitchMethod};
+
+const SR: u32 = 44_100;
+
+fn geo(mode: Mode, profile: Profile) -> Geometry {
+    Geometry {
+        sample_rate: SR,
+        bin_samples: 4410,
+        levels: 8,
+        mode,
+        level_rule: LevelRule::Follow,
+        profile,
+    }
+}
+
+/// A plucked bass line: 0.3 s of silence, then notes of 0.35 s each (harmonic tone, 5 ms
+/// attack, exponential decay with 0.25 s time constant, cut to 25 % by the next pluck), most
+/// of them repeats of the note before. Returns the signal and the notes' start times.
+fn plucked_line() -> (Vec<f32>, Vec<f64>) {
+    let sr = SR as f32;
+    let pitches = [98.0f32, 98.0, 98.0, 110.0, 110.0, 98.0, 98.0, 73.4];
+    let note = (0.35 * sr) as usize;
+    let mut x = vec![0.0f32; (0.3 * sr) as usize];
+    let mut starts = Vec::new();
+    for &f in &pitches {
+        starts.push(x.len() as f64 / SR as f64);
+        let mut ph = 0.0f32;
+        for i in 0..note {
+            let t = i as f32 / sr;
+            let env = (t / 0.005).min(1.0) * (-t / 0.25).exp();
+            ph += std::f32::consts::TAU * f / sr;
+            x.push(0.3 * env * (ph.sin() + 0.5 * (2.0 * ph).sin() + 0.25 * (3.0 * ph).sin()));
+        }
+    }
+    x.extend(std::iter::repeat_n(0.0, (0.4 * sr) as usize));
+    (x, starts)
+}
+
+/// The bass chain's pitch track and note onsets over `x` in blocks of `chunk`.
+fn onsets(mode: Mode, profile: Profile, rule: NoteRule, x: &[f32], chunk: usize) -> Vec<f64> {
+    let g = geo(mode, profile);
+    let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
+    let mut n = PitchNotes::new(g, p.hop(), rule, false).unwrap();
+    for b in x.chunks(chunk) {
+        p.process(b);
+        n.update(&p);
+    }
+    p.finish();
+    n.finish(&p);
+    NoteTrack::Pitch(n).onset_times()
+}
+
+fn hits(got: &[f64], want: &[f64], tol: f64) -> usize {
+    want.iter()
+        .filter(|&&w| got.iter().any(|&g| (g - w).abs() <= tol))
+        .count()
+}
+
+#[test]
+fn repeated_plucks_are_notes_offline_and_streaming_in_any_chunking() {
+    let (x, starts) = plucked_line();
+    let off = onsets(Mode::Offline, Profile::Full, NoteRule::Attack, &x, x.len());
+    // Every note within 50 ms (the metric's window), nothing else.
+    assert_eq!(
+        hits(&off, &starts, 0.05),
+        starts.len(),
+        "{off:?} vs {starts:?}"
+    );
+    assert_eq!(off.len(), starts.len(), "{off:?}");
+    // The pitch alone finds only the pitch changes (98, 110, 98, 73.4 Hz).
+    let pitch = onsets(Mode::Offline, Profile::Full, NoteRule::Pitch, &x, x.len());
+    assert!(pitch.len() <= 4, "{pitch:?}");
+    let whole = onsets(
+        Mode::Streaming,
+        Profile::Full,
+        NoteRule::Attack,
+        &x,
+        x.len(),
+    );
+    assert_eq!(hits(&whole, &starts, 0.05), starts.len(), "{whole:?}");
+    for chunk in [1, 64, 97, 441, 4096] {
+        let c = onsets(Mode::Streaming, Profile::Full, NoteRule::Attack, &x, chunk);
+        assert_eq!(c, whole, "chunk {chunk}");
+    }
+}
+
+#[test]
+fn the_stated_latency_of_each_rule() {
+    let g = geo(Mode::Streaming, Profile::Full);
+    let p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
+    let hop = p.hop();
+    let lat = |profile, rule| {
+        PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, true)
+            .unwrap()
+            .latency_samples()
+    };
+    // Pitch: the stability window (4 hops) less one. Attack: the same, plus the 8 hops an
+    // onset may still move back to its attack. Live keeps the pitch rule's latency.
+    assert_eq!(lat(Profile::Full, NoteRule::Pitch), 3 * hop);
+    assert_eq!(lat(Profile::Full, NoteRule::Attack), 11 * hop);
+    assert_eq!(lat(Profile::Live, NoteRule::Attack), 3 * hop);
+    assert_eq!(lat(Profile::Live, NoteRule::Pitch), 3 * hop);
+}
+
+#[test]
+fn streaming_decides_no_onset_before_its_stated_latency() {
+    // Fed in 64-sample blocks: an onset at time t is in the output only once
+    // t + the pitch track's latency + the detector's has been fed.
+    let (x, starts) = plucked_line();
+    let g = geo(Mode::Streaming, Profile::Full);
+    let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
+    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, false).unwrap();
+    let lat = p.latency_samples() + n.latency_samples();
+    let dec = p.decimation();
+    let mut fed = 0usize;
+    let mut seen = 0usize;
+    for b in x.chunks(64) {
+        p.process(b);
+        n.update(&p);
+        fed += b.len();
+        let times = n.onset_times();
+        for &t in &times[seen..] {
+            let at = (t * SR as f64).round() as usize;
+            assert!(
+                at + lat <= fed + dec,
+                "onset {t} s out after {fed} samples, latency {lat}"
+            );
+        }
+        seen = times.len();
+    }
+    assert!(seen >= starts.len() - 1, "{seen} onsets before the end");
+}
