@@ -7,19 +7,13 @@
 
 use tactus_engine::profile::Profile;
 use tactus_engine::track::{Geometry, PitchTrack, SPECTRAL_PITCH_ADVANCE_HOPS};
-use tactus_engine::{Engine, EngineConfig, LevelRule, Mode, PitchMethod, SeparatorChoice};
+use tactus_engine::{Engine, EngineConfig, Mode, PitchMethod, SeparatorChoice};
 
-const SR: u32 = 44_100;
+mod common;
+use common::SR;
 
 fn geo(mode: Mode) -> Geometry {
-    Geometry {
-        sample_rate: SR,
-        bin_samples: 4410,
-        levels: 8,
-        mode,
-        level_rule: LevelRule::Follow,
-        profile: Profile::Full,
-    }
+    common::geo(mode, Profile::Full)
 }
 
 /// 0.5 s of silence, then a voice-like harmonic tone stepping 220 → 330 → 262 Hz (0.6 s

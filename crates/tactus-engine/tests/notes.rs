@@ -4,21 +4,11 @@
 
 use tactus_engine::notes::{NoteRule, NoteTrack, PitchNotes};
 use tactus_engine::profile::Profile;
-use tactus_engine::track::{Geometry, PitchTrack};
-use tactus_engine::{LevelRule, Mode, PitchMethod};
+use tactus_engine::track::PitchTrack;
+use tactus_engine::{Mode, PitchMethod};
 
-const SR: u32 = 44_100;
-
-fn geo(mode: Mode, profile: Profile) -> Geometry {
-    Geometry {
-        sample_rate: SR,
-        bin_samples: 4410,
-        levels: 8,
-        mode,
-        level_rule: LevelRule::Follow,
-        profile,
-    }
-}
+mod common;
+use common::{geo, SR};
 
 /// A plucked bass line: 0.3 s of silence, then notes of 0.35 s each (harmonic tone, 5 ms
 /// attack, exponential decay with 0.25 s time constant, cut to 25 % by the next pluck), most
