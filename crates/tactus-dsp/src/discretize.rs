@@ -284,18 +284,12 @@ impl QuantileRange {
     }
 }
 
-/// Where [`PriorRange`] takes its unpadded range from.
-#[derive(Debug, Clone, PartialEq)]
-enum Inner {
-    MinMax(RunningRange),
-    Quantile(QuantileRange),
-}
-
 /// Running range padded to a prior span that fades (module docs, "Streaming range with a
 /// prior"). Causal, allocation-free after construction.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PriorRange {
-    range: Inner,
+    /// The unpadded range: quantile 0 (exact min and max) for [`PriorRange::new`].
+    range: QuantileRange,
     span_st: f64,
     fade: f64,
     n: u64,
@@ -313,7 +307,7 @@ impl PriorRange {
             return Err(ConfigError::invalid("fade_hops", "must be > 0"));
         }
         Ok(PriorRange {
-            range: Inner::MinMax(RunningRange::new()),
+            range: QuantileRange::new(0.0),
             span_st: f64::from(span_st),
             fade: f64::from(fade_hops),
             n: 0,
@@ -327,7 +321,7 @@ impl PriorRange {
             return Err(ConfigError::invalid("p", "must be in [0, 0.5]"));
         }
         let mut r = Self::new(span_st, fade_hops)?;
-        r.range = Inner::Quantile(QuantileRange::new(p));
+        r.range = QuantileRange::new(p);
         Ok(r)
     }
 
@@ -338,20 +332,13 @@ impl PriorRange {
         if f0_hz.is_finite() && f0_hz > 0.0 {
             self.n += 1;
         }
-        let (lo, hi) = match &mut self.range {
-            Inner::MinMax(r) => r.update(f0_hz),
-            Inner::Quantile(r) => r.update(f0_hz),
-        }?;
+        let (lo, hi) = self.range.update(f0_hz)?;
         Some(self.padded(lo, hi))
     }
 
     /// The padded range so far.
     pub fn get(&self) -> Option<(f32, f32)> {
-        let r = match &self.range {
-            Inner::MinMax(r) => r.get(),
-            Inner::Quantile(r) => r.get(),
-        };
-        r.map(|(lo, hi)| self.padded(lo, hi))
+        self.range.get().map(|(lo, hi)| self.padded(lo, hi))
     }
 
     fn padded(&self, lo: f32, hi: f32) -> (f32, f32) {
@@ -372,10 +359,7 @@ impl PriorRange {
 
     /// Back to empty.
     pub fn reset(&mut self) {
-        match &mut self.range {
-            Inner::MinMax(r) => r.reset(),
-            Inner::Quantile(r) => r.reset(),
-        }
+        self.range.reset();
         self.n = 0;
     }
 }
