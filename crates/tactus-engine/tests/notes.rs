@@ -2,7 +2,7 @@
 //! its notes, through the real pitch track and the note detector, offline and streaming in
 //! any chunking, against the notes' known start times.
 
-use tactus_engine::notes::{NoteRule, NoteTrack, PitchNotes};
+use tactus_engine::notes::{NoteRole, NoteRule, NoteTrack, PitchNotes};
 use tactus_engine::profile::Profile;
 use tactus_engine::track::PitchTrack;
 use tactus_engine::{Mode, PitchMethod};
@@ -37,7 +37,7 @@ fn plucked_line() -> (Vec<f32>, Vec<f64>) {
 fn onsets(mode: Mode, profile: Profile, rule: NoteRule, x: &[f32], chunk: usize) -> Vec<f64> {
     let g = geo(mode, profile);
     let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
-    let mut n = PitchNotes::new(g, p.hop(), rule, false).unwrap();
+    let mut n = PitchNotes::new(g, p.hop(), rule, NoteRole::default()).unwrap();
     for b in x.chunks(chunk) {
         p.process(b);
         n.update(&p);
@@ -87,9 +87,23 @@ fn the_stated_latency_of_each_rule() {
     let p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
     let hop = p.hop();
     let lat = |profile, rule| {
-        PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, true)
+        let plucked = NoteRole {
+            plucked_mix: true,
+            clean_lead: false,
+        };
+        let lead = NoteRole {
+            plucked_mix: false,
+            clean_lead: true,
+        };
+        let a = PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, plucked)
             .unwrap()
-            .latency_samples()
+            .latency_samples();
+        // A clean lead's moves stay inside the attack search: the same latency.
+        let b = PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, lead)
+            .unwrap()
+            .latency_samples();
+        assert_eq!(a, b);
+        a
     };
     // Pitch: the stability window (4 hops) less one. Attack: the same, plus the 8 hops an
     // onset may still move back to its attack. Live keeps the pitch rule's latency.
@@ -106,7 +120,7 @@ fn streaming_decides_no_onset_before_its_stated_latency() {
     let (x, starts) = plucked_line();
     let g = geo(Mode::Streaming, Profile::Full);
     let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
-    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, false).unwrap();
+    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, NoteRole::default()).unwrap();
     let lat = p.latency_samples() + n.latency_samples();
     let dec = p.decimation();
     let mut fed = 0usize;
