@@ -493,7 +493,9 @@ impl NoteOnsets {
         if t == 0 {
             return h;
         }
-        let mut lo = j.saturating_sub(self.cfg.attack_back_hops).max(h.saturating_sub(t));
+        let mut lo = j
+            .saturating_sub(self.cfg.attack_back_hops)
+            .max(h.saturating_sub(t));
         if let Some(l) = self.last_onset {
             lo = lo.max(l + self.cfg.min_ioi_hops.max(1));
         }

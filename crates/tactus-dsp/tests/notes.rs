@@ -54,7 +54,9 @@ fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
         if c.backtrack_hops == 0 {
             return h;
         }
-        let mut lo = j.saturating_sub(c.attack_back_hops).max(h.saturating_sub(c.backtrack_hops));
+        let mut lo = j
+            .saturating_sub(c.attack_back_hops)
+            .max(h.saturating_sub(c.backtrack_hops));
         if let Some(l) = last {
             lo = lo.max(l + c.min_ioi_hops.max(1));
         }
@@ -426,7 +428,13 @@ fn a_clean_lead_starts_at_the_foot_of_the_rise() {
     };
     assert_eq!(on(lead), vec![0, 44], "moved back to the level's low point");
     // At most `backtrack_hops` back: with 1, one hop.
-    assert_eq!(on(NoteConfig { backtrack_hops: 1, ..lead }), vec![0, 45]);
+    assert_eq!(
+        on(NoteConfig {
+            backtrack_hops: 1,
+            ..lead
+        }),
+        vec![0, 45]
+    );
     // A legato change of note (no attack) moves `pitch_back_hops` back from where the pitch
     // settles (hop 45), never before the first note or inside the minimum interval.
     let mut f0 = f0.clone();
