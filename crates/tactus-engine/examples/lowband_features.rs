@@ -20,7 +20,11 @@ fn mono(path: &str) -> Result<Vec<f32>, Box<dyn std::error::Error>> {
     if d.info.sample_rate != 44_100 {
         return Err(format!("{path}: needs 44.1 kHz").into());
     }
-    Ok(d.left.iter().zip(&d.right).map(|(l, r)| 0.5 * (l + r)).collect())
+    Ok(d.left
+        .iter()
+        .zip(&d.right)
+        .map(|(l, r)| 0.5 * (l + r))
+        .collect())
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -31,8 +35,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mix = mono(&args[1])?;
     let drums = mono(&args[2])?;
     let n = mix.len().min(drums.len());
-    let rest: Vec<f32> = mix[..n].iter().zip(&drums[..n]).map(|(m, d)| m - d).collect();
-    let cfg = StftConfig { n_fft: 2048, hop: 1024 };
+    let rest: Vec<f32> = mix[..n]
+        .iter()
+        .zip(&drums[..n])
+        .map(|(m, d)| m - d)
+        .collect();
+    let cfg = StftConfig {
+        n_fft: 2048,
+        hop: 1024,
+    };
     let mut lb = LowBand::new(44_100, cfg.n_fft, cfg.hop).ok_or("low-band model: bin width")?;
     let per = lb.model().per_frame();
     let k_out = lb.out_bins();

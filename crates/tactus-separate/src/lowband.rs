@@ -173,7 +173,12 @@ impl LowBand {
     }
 
     /// [`LowBand::new`] with a given model.
-    pub fn with_model(model: LowBandModel, sample_rate: u32, n_fft: usize, hop: usize) -> Option<Self> {
+    pub fn with_model(
+        model: LowBandModel,
+        sample_rate: u32,
+        n_fft: usize,
+        hop: usize,
+    ) -> Option<Self> {
         let bin_hz = sample_rate as f32 / n_fft as f32;
         let bins = n_fft / 2 + 1;
         if (bin_hz / model.bin_hz - 1.0).abs() > 0.01 || model.low > bins {
@@ -240,7 +245,11 @@ impl LowBand {
         }
         for (o, &(lo, hi)) in out[low..].iter_mut().zip(&self.band_bins) {
             let mean = if hi > lo {
-                spectrum[lo..hi].iter().map(|x| x.norm_sqr().sqrt()).sum::<f32>() / (hi - lo) as f32
+                spectrum[lo..hi]
+                    .iter()
+                    .map(|x| x.norm_sqr().sqrt())
+                    .sum::<f32>()
+                    / (hi - lo) as f32
             } else {
                 0.0
             };

@@ -326,14 +326,13 @@ impl SpectralSeparator {
         } else {
             (0, 0)
         };
-        let lowband = if cfg.low_band_drums
-            && (stems.contains(Stem::Bass) || stems.contains(Stem::Drums))
-        {
-            LowBand::new(sample_rate, cfg.n_fft, cfg.hop)
-                .filter(|lb| lb.future() == cfg.lookahead_frames && lb.out_bins() <= hi)
-        } else {
-            None
-        };
+        let lowband =
+            if cfg.low_band_drums && (stems.contains(Stem::Bass) || stems.contains(Stem::Drums)) {
+                LowBand::new(sample_rate, cfg.n_fft, cfg.hop)
+                    .filter(|lb| lb.future() == cfg.lookahead_frames && lb.out_bins() <= hi)
+            } else {
+                None
+            };
         let share = vec![0.0; lowband.as_ref().map_or(0, |lb| lb.out_bins())];
         let zero = Complex::new(0.0, 0.0);
         let mut channel_stem = [Stem::Drums; 4];

@@ -167,9 +167,8 @@ fn the_low_band_mask_moves_kick_bodies_from_bass_to_drums() {
     // how much of the note it keeps (its projection on the note).
     let note = &note[half..];
     let err = |b: &[f32]| energy(&b.iter().zip(note).map(|(x, y)| x - y).collect::<Vec<_>>());
-    let kept = |b: &[f32]| {
-        b.iter().zip(note).map(|(x, y)| (x * y) as f64).sum::<f64>() / energy(note)
-    };
+    let kept =
+        |b: &[f32]| b.iter().zip(note).map(|(x, y)| (x * y) as f64).sum::<f64>() / energy(note);
     let (b_off, b_on) = (&off.get(Stem::Bass)[half..], &on.get(Stem::Bass)[half..]);
     println!(
         "kick energy in bass: {:.1} dB of the kicks without the mask, {:.1} dB with it; \
