@@ -2,9 +2,11 @@
 //! targets for `models/lowband/train.py`, computed by the very code the separator runs.
 //!
 //! ```text
-//! cargo run --release -p tactus-engine --example lowband_features -- MIX DRUMS OUT.f32
+//! cargo run --release -p tactus-engine --example lowband_features -- MIX DRUMS OUT.f32 [GAIN]
 //! ```
-//! MIX and DRUMS (44.1 kHz) are downmixed to mono like the separator's mid channel. For every
+//! MIX and DRUMS (44.1 kHz) are downmixed to mono like the separator's mid channel; with
+//! GAIN (default 1) the input is `MIX − DRUMS + GAIN·DRUMS` and its drums `GAIN·DRUMS`
+//! (0: the song without its kit, every target 0). For every
 //! STFT frame (2048-point periodic Hann, hop 1024, the separator's analysis) OUT gets, as
 //! little-endian f32: the frame's features (`per_frame` values), then per output bin the
 //! drums' share `|D|² / (|D|² + |M − D|²)`, then per output bin `|M|`.
@@ -29,9 +31,10 @@ fn mono(path: &str) -> Result<Vec<f32>, Box<dyn std::error::Error>> {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
-    if args.len() != 4 {
-        return Err("usage: lowband_features MIX DRUMS OUT.f32".into());
+    if !(4..=5).contains(&args.len()) {
+        return Err("usage: lowband_features MIX DRUMS OUT.f32 [GAIN]".into());
     }
+    let gain: f32 = args.get(4).map_or(Ok(1.0), |g| g.parse())?;
     let mix = mono(&args[1])?;
     let drums = mono(&args[2])?;
     let n = mix.len().min(drums.len());
@@ -40,6 +43,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .zip(&drums[..n])
         .map(|(m, d)| m - d)
         .collect();
+    let drums: Vec<f32> = drums[..n].iter().map(|d| gain * d).collect();
+    let mix: Vec<f32> = rest.iter().zip(&drums).map(|(r, d)| r + d).collect();
     let cfg = StftConfig {
         n_fft: 2048,
         hop: 1024,

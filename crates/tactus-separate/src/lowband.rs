@@ -11,14 +11,17 @@
 //! ## Model
 //! Per STFT frame `t` of the mono mix (the separator's own analysis, 2048-point periodic
 //! Hann, hop 1024 at 44.1 kHz), a feature vector of `LOW + BANDS` values:
-//! * `ln(|X_k| + 1e-6)` for the lowest `LOW` = 24 bins (0–495 Hz);
-//! * `ln(mean |X_k| + 1e-6)` over each of the `BANDS` = 5 octave bands between the
+//! * `ln(|X_k| + ε)` for the lowest `LOW` = 24 bins (0–495 Hz);
+//! * `ln(mean |X_k| + ε)` over each of the `BANDS` = 5 octave bands between the
 //!   weight file's edges (500 Hz … 16 kHz): the broadband context of an attack;
+//! * `ε = 10⁻³ · max_{k < LOW} |X_k| + 10⁻⁶` (a 60 dB floor under the frame's strongest low
+//!   bin, so a synthetic tone over digital silence reads like music over a noise floor);
 //! * all minus a running reference `r ← r + max(a, 1/(t+1))·(m_t − r)`, `m_t` the mean of
 //!   the 24 low values and `a = hop / (2 s · rate)` (a level-free input).
 //!
 //! The network sees the frames `t − PAST ..= t + FUTURE` (6 and 2; frames before the start
-//! and after the end read as `PAD` = −10 in every value), one hidden layer of ReLU units, and
+//! read as `PAD` = −10 in every value, frames after the end repeat the last one), one
+//! hidden layer of ReLU units, and
 //! gives per low output bin `k < OUT` (15 bins, 0–301 Hz) the drums' share
 //! `p_k = σ(…)` of that bin, trained against `|D_k|² / (|D_k|² + |X_k − D_k|²)` on corpus
 //! songs whose drum stem is known (`models/lowband/train.py`; the kits used and held out are
@@ -38,8 +41,10 @@ pub const WEIGHTS: &[u8] = include_bytes!("../weights/lowband.bin");
 /// Value of every feature of a frame before the start or after the end of the stream.
 pub const PAD: f32 = -10.0;
 
-/// Magnitude floor inside the logarithms.
+/// Magnitude floor inside the logarithms: `REL_FLOOR` times the frame's strongest low bin,
+/// plus `FLOOR`.
 const FLOOR: f32 = 1e-6;
+const REL_FLOOR: f32 = 1e-3;
 
 /// Time constant of the running reference, seconds.
 const REF_S: f32 = 2.0;
@@ -238,9 +243,17 @@ impl LowBand {
     /// running reference. Used by [`LowBand::push`] and by the training dump.
     pub fn frame_features(&mut self, spectrum: &[Complex<f32>], out: &mut [f32]) {
         let low = self.model.low;
-        let mut sum = 0.0f32;
+        let mut peak = 0.0f32;
         for (o, x) in out[..low].iter_mut().zip(spectrum) {
-            *o = (x.norm_sqr().sqrt() + FLOOR).ln();
+            *o = x.norm_sqr().sqrt();
+            peak = peak.max(*o);
+        }
+        // Floor: 60 dB under the frame's strongest low bin (a synthetic tone over digital
+        // silence then reads like music over a noise floor).
+        let eps = REL_FLOOR * peak + FLOOR;
+        let mut sum = 0.0f32;
+        for o in &mut out[..low] {
+            *o = (*o + eps).ln();
             sum += *o;
         }
         for (o, &(lo, hi)) in out[low..].iter_mut().zip(&self.band_bins) {
@@ -253,7 +266,7 @@ impl LowBand {
             } else {
                 0.0
             };
-            *o = (mean + FLOOR).ln();
+            *o = (mean + eps).ln();
         }
         let m = sum / low as f32;
         self.real += 1;
@@ -264,8 +277,8 @@ impl LowBand {
         }
     }
 
-    /// Pushes the next frame's spectrum (`None`: a frame after the end of the stream, read
-    /// as padding).
+    /// Pushes the next frame's spectrum (`None`: a frame after the end of the stream, which
+    /// repeats the newest frame's features).
     pub fn push(&mut self, spectrum: Option<&[Complex<f32>]>) {
         let per = self.model.per_frame();
         let ctx = self.model.past + 1 + self.model.future;
@@ -273,6 +286,12 @@ impl LowBand {
         let mut buf = std::mem::take(&mut self.ring);
         match spectrum {
             Some(s) => self.frame_features(s, &mut buf[slot * per..(slot + 1) * per]),
+            None if self.frames > 0 => {
+                // After the end: the newest frame again (a held sound, not a cut that
+                // would look like a decaying hit).
+                let prev = (self.frames - 1) % ctx;
+                buf.copy_within(prev * per..(prev + 1) * per, slot * per);
+            }
             None => buf[slot * per..(slot + 1) * per].fill(PAD),
         }
         self.ring = buf;
