@@ -22,19 +22,19 @@ import subprocess
 
 import numpy as np
 
-LOW, EDGES, PAST, FUTURE, OUT = 24, [500.0, 1000.0, 2000.0, 4000.0, 8000.0, 16000.0], 6, 2, 15
+LOW, EDGES, PAST, FUTURE, OUT, SLOW = 24, [500.0, 1000.0, 2000.0, 4000.0, 8000.0, 16000.0], 6, 2, 15, 24
 BIN_HZ = 44100.0 / 2048.0
 PAD = -10.0
 VAL_EVERY = 6
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 DEFAULT_OUT = os.path.join(ROOT, "crates", "tactus-separate", "weights", "lowband.bin")
-PER = LOW + len(EDGES) - 1
+PER = LOW + len(EDGES) - 1 + SLOW
 CTX = PAST + 1 + FUTURE
 
 
 def write(path, w1, b1, w2, b2):
     hidden = w1.shape[1]
-    head = b"TLBM" + struct.pack("<7I", 1, LOW, len(EDGES) - 1, PAST, FUTURE, hidden, OUT)
+    head = b"TLBM" + struct.pack("<8I", 2, LOW, len(EDGES) - 1, PAST, FUTURE, hidden, OUT, SLOW)
     body = np.concatenate([[BIN_HZ], EDGES, w1.ravel(), b1, w2.ravel(), b2]).astype("<f4")
     tmp = path + ".tmp"
     with open(tmp, "wb") as fh:

@@ -58,13 +58,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut emit = |_: usize, sp: &[Vec<realfft::num_complex::Complex<f32>>]| {
         lb.frame_features(&sp[0], &mut feat);
         let mut row: Vec<f32> = feat.clone();
-        for k in 0..k_out {
-            let (d, r) = (sp[1][k].norm_sqr(), sp[2][k].norm_sqr());
+        for (d, r) in sp[1][..k_out].iter().zip(&sp[2][..k_out]) {
+            let (d, r) = (d.norm_sqr(), r.norm_sqr());
             row.push(if d + r > 1e-30 { d / (d + r) } else { 0.0 });
         }
-        for k in 0..k_out {
-            row.push(sp[0][k].norm_sqr().sqrt());
-        }
+        row.extend(sp[0][..k_out].iter().map(|x| x.norm_sqr().sqrt()));
         for v in row {
             out.extend_from_slice(&v.to_le_bytes());
         }

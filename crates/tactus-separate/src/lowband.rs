@@ -17,7 +17,11 @@
 //! * `ε = 10⁻³ · max_{k < LOW} |X_k| + 10⁻⁶` (a 60 dB floor under the frame's strongest low
 //!   bin, so a synthetic tone over digital silence reads like music over a noise floor);
 //! * all minus a running reference `r ← r + max(a, 1/(t+1))·(m_t − r)`, `m_t` the mean of
-//!   the 24 low values and `a = hop / (2 s · rate)` (a level-free input).
+//!   the 24 low values and `a = hop / (2 s · rate)` (a level-free input);
+//! * (version 2) per low bin `k < SLOW` = 24, its steadiness `x_k − s_k`, where `x_k` is its
+//!   value above and `s_k ← s_k + max(b, 1/(t+1))·(x_k − s_k)`, `b = hop / (1 s · rate)`:
+//!   a held note sits near 0 while a kit's repeated decays swing (without it a steady pure
+//!   tone read as a drum body).
 //!
 //! The network sees the frames `t − PAST ..= t + FUTURE` (6 and 2; frames before the start
 //! read as `PAD` = −10 in every value, frames after the end repeat the last one), one
@@ -49,11 +53,16 @@ const REL_FLOOR: f32 = 1e-3;
 /// Time constant of the running reference, seconds.
 const REF_S: f32 = 2.0;
 
+/// Time constant of the steadiness features' running means, seconds.
+const SLOW_S: f32 = 1.0;
+
 /// A parsed weight file.
 #[derive(Clone, Debug)]
 pub struct LowBandModel {
     /// Low bins in the features.
     pub low: usize,
+    /// Low bins that also get a steadiness feature (version 2 files; 0 in version 1).
+    pub slow: usize,
     /// Band edges in Hz (`bands + 1` values).
     pub edges: Vec<f32>,
     /// Context frames before and after the frame.
@@ -75,7 +84,7 @@ pub struct LowBandModel {
 impl LowBandModel {
     /// Features per frame.
     pub fn per_frame(&self) -> usize {
-        self.low + self.edges.len() - 1
+        self.low + self.edges.len() - 1 + self.slow
     }
 
     /// Network inputs (`per_frame · (past + 1 + future)`).
@@ -83,8 +92,9 @@ impl LowBandModel {
         self.per_frame() * (self.past + 1 + self.future)
     }
 
-    /// Parses a weight file: `b"TLBM"`, u32 version 1, u32 low, bands, past, future, hidden,
-    /// out, f32 bin width, `bands + 1` f32 edges, then W1, b1, W2, b2 as little-endian f32.
+    /// Parses a weight file: `b"TLBM"`, u32 version (1 or 2), u32 low, bands, past, future,
+    /// hidden, out, (version 2) u32 slow, f32 bin width, `bands + 1` f32 edges, then W1, b1,
+    /// W2, b2 as little-endian f32.
     pub fn parse(bytes: &[u8]) -> Result<Self, String> {
         let mut pos = 0usize;
         let mut take = |n: usize| -> Result<&[u8], String> {
@@ -102,17 +112,21 @@ impl LowBandModel {
             Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
         };
         let version = u()?;
-        if version != 1 {
+        if !(1..=2).contains(&version) {
             return Err(format!("low-band weights: version {version} unsupported"));
         }
         let (low, bands, past, future, hidden, out) = (u()?, u()?, u()?, u()?, u()?, u()?);
+        let slow = if version >= 2 { u()? } else { 0 };
         if low == 0 || bands == 0 || hidden == 0 || out == 0 || out > low || low > 4096 {
+            return Err("low-band weights: bad shape".into());
+        }
+        if slow > low {
             return Err("low-band weights: bad shape".into());
         }
         if past > 64 || future > 64 || hidden > 4096 || bands > 64 {
             return Err("low-band weights: bad shape".into());
         }
-        let n_in = (low + bands) * (past + 1 + future);
+        let n_in = (low + bands + slow) * (past + 1 + future);
         let want = 4 * (1 + bands + 1 + n_in * hidden + hidden + hidden * out + out);
         let rest = &bytes[pos..];
         if rest.len() != want {
@@ -137,6 +151,7 @@ impl LowBandModel {
         }
         Ok(LowBandModel {
             low,
+            slow,
             edges,
             past,
             future,
@@ -165,6 +180,9 @@ pub struct LowBand {
     real: usize,
     reference: f32,
     rate_a: f32,
+    /// Per steadiness bin: the running mean of its normalised log magnitude.
+    slow_mean: Vec<f32>,
+    slow_a: f32,
     x: Vec<f32>,
     h: Vec<f32>,
 }
@@ -208,6 +226,8 @@ impl LowBand {
             real: 0,
             reference: 0.0,
             rate_a: hop as f32 / (REF_S * sample_rate as f32),
+            slow_mean: vec![0.0; model.slow],
+            slow_a: hop as f32 / (SLOW_S * sample_rate as f32),
             x: vec![0.0; n_in],
             h: vec![0.0; hidden],
             model,
@@ -237,6 +257,7 @@ impl LowBand {
         self.frames = 0;
         self.real = 0;
         self.reference = 0.0;
+        self.slow_mean.fill(0.0);
     }
 
     /// Computes frame features of `spectrum` into `out` (`per_frame` values), updating the
@@ -272,8 +293,21 @@ impl LowBand {
         self.real += 1;
         let w = self.rate_a.max(1.0 / self.real as f32);
         self.reference += w * (m - self.reference);
-        for o in out.iter_mut() {
+        let head = low + self.band_bins.len();
+        for o in out[..head].iter_mut() {
             *o -= self.reference;
+        }
+        // Steadiness: each low bin against its own running mean (a held note sits near 0,
+        // a kit's repeated decays swing).
+        let ws = self.slow_a.max(1.0 / self.real as f32);
+        let (feats, steady) = out.split_at_mut(head);
+        for ((s, mean), &x) in steady
+            .iter_mut()
+            .zip(&mut self.slow_mean)
+            .zip(&feats[..low])
+        {
+            *mean += ws * (x - *mean);
+            *s = x - *mean;
         }
     }
 

@@ -66,7 +66,9 @@ fn reference(
 ) -> Vec<Vec<f64>> {
     // Normalised features of every frame.
     let a = HOP as f64 / (2.0 * SR as f64);
+    let b = HOP as f64 / (1.0 * SR as f64);
     let mut r = 0.0f64;
+    let mut slow = vec![0.0f64; m.slow];
     let feats: Vec<Vec<f64>> = frames
         .iter()
         .enumerate()
@@ -75,7 +77,13 @@ fn reference(
             let mean = raw[..m.low].iter().sum::<f64>() / m.low as f64;
             let w = a.max(1.0 / (t + 1) as f64);
             r += w * (mean - r);
-            raw.iter().map(|v| v - r).collect()
+            let mut f: Vec<f64> = raw.iter().map(|v| v - r).collect();
+            let ws = b.max(1.0 / (t + 1) as f64);
+            for k in 0..m.slow {
+                slow[k] += ws * (f[k] - slow[k]);
+                f.push(f[k] - slow[k]);
+            }
+            f
         })
         .collect();
     let per = m.per_frame();
@@ -204,7 +212,7 @@ fn damaged_weight_files_are_errors() {
     bad[0] = b'X';
     assert!(LowBandModel::parse(&bad).is_err());
     let mut bad = WEIGHTS.to_vec();
-    bad[4] = 2; // version
+    bad[4] = 3; // version
     assert!(LowBandModel::parse(&bad).is_err());
     let mut bad = WEIGHTS.to_vec();
     let last = bad.len() - 4;
