@@ -41,6 +41,19 @@
 //! converges to the offline range as the song goes on. O(cells) per hop, no allocation after
 //! construction.
 //!
+//! **Range from held notes** ([`HeldRange`], [`range_quantiles_held`], our addition, issue 16).
+//! A hop counts towards the range only when it sits inside a held note: it and the `k` hops on
+//! each side are voiced and within `tol_st` semitones of it ([`held_mask`]). A tracker's
+//! errors where one note gives way to the next (the bass harmonic-sum tracker's 200 ms frame
+//! straddles both and reports their common subharmonic for up to ~100 ms), or a brief
+//! spurious island in a rest, then do not widen the range. When fewer than `min_share` of
+//! the voiced hops are held (a line of very short notes), every voiced hop counts as before.
+//! Offline: the quantiles of the held hops of the whole track. Streaming: hop `i` enters
+//! its own [`PriorRange`] once hop `i + k` has arrived (its padding fading with the voiced
+//! hops, as the plain one's), beside a [`PriorRange`] of every voiced hop; the held one is used while the held hops seen so far are at least `min_share`
+//! of the voiced hops seen so far. No added latency (the range lags by `k` hops); no
+//! allocation after construction; `k = 0` is the plain [`PriorRange`].
+//!
 //! **Defaults.** [`DEFAULT_LEVELS`] = 8 (paper), semitone scale (docs/design.md). **Latency:** none.
 
 use crate::ConfigError;
@@ -155,6 +168,162 @@ pub fn range_quantiles(f0_hz: &[f32], p: f32) -> Option<(f32, f32)> {
     };
     let k = ((v.len() - 1) as f32 * p).round() as usize;
     Some((v[k], v[v.len() - 1 - k]))
+}
+
+/// Longest `k` of [`HeldRange`] and [`held_mask`].
+pub const MAX_HELD_HOPS: usize = 16;
+
+fn semitones(f0_hz: f32) -> Option<f32> {
+    (f0_hz.is_finite() && f0_hz > 0.0).then(|| crate::hz_to_semitones(f0_hz))
+}
+
+/// Whether each hop sits inside a held note: it and the `k` hops on each side are voiced and
+/// within `tol_st` semitones of it (module docs, "Range from held notes"). Hops within `k`
+/// of either end are not held (for `k > 0`). Allocates the result.
+pub fn held_mask(f0_hz: &[f32], k: usize, tol_st: f32) -> Vec<bool> {
+    let n = f0_hz.len();
+    (0..n)
+        .map(|i| {
+            let Some(c) = semitones(f0_hz[i]) else {
+                return false;
+            };
+            if i < k || i + k >= n {
+                return k == 0;
+            }
+            f0_hz[i - k..=i + k]
+                .iter()
+                .all(|&f| semitones(f).is_some_and(|x| (x - c).abs() <= tol_st))
+        })
+        .collect()
+}
+
+/// [`range_quantiles`] of the held hops ([`held_mask`]) when there are at least `min_hops`
+/// (and one) of them and they are at least `min_share` of the voiced hops, else of every
+/// voiced hop. Allocates.
+pub fn range_quantiles_held(
+    f0_hz: &[f32],
+    p: f32,
+    k: usize,
+    tol_st: f32,
+    min_share: f32,
+    min_hops: u64,
+) -> Option<(f32, f32)> {
+    let mask = held_mask(f0_hz, k, tol_st);
+    let held: Vec<f32> = f0_hz
+        .iter()
+        .zip(&mask)
+        .filter(|(_, &m)| m)
+        .map(|(&f, _)| f)
+        .collect();
+    let voiced = f0_hz.iter().filter(|f| semitones(**f).is_some()).count();
+    if held.len() as u64 >= min_hops.max(1) && held.len() as f32 >= min_share * voiced as f32 {
+        range_quantiles(&held, p)
+    } else {
+        range_quantiles(f0_hz, p)
+    }
+}
+
+/// Streaming range from held notes (module docs, "Range from held notes"): a [`PriorRange`]
+/// of the held hops beside one of every voiced hop. Causal, allocation-free after
+/// construction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeldRange {
+    all: PriorRange,
+    held: PriorRange,
+    /// Semitones (NaN = unvoiced) and Hz of the last `2k + 1` hops, hop `i` at `i % len`.
+    ring: [(f32, f32); 2 * MAX_HELD_HOPS + 1],
+    k: usize,
+    tol_st: f32,
+    min_share: f32,
+    min_hops: u64,
+    n_in: usize,
+    n_voiced: u64,
+    n_held: u64,
+}
+
+impl HeldRange {
+    /// Module docs, "Range from held notes"; `k = 0`: the plain [`PriorRange::with_quantile`].
+    /// Errors as that does, and unless
+    /// `k ≤` [`MAX_HELD_HOPS`], `tol_st ≥ 0` and `min_share` in `[0, 1]`.
+    pub fn new(
+        span_st: f32,
+        fade_hops: f32,
+        p: f32,
+        k: usize,
+        tol_st: f32,
+        min_share: f32,
+        min_hops: u64,
+    ) -> Result<Self, ConfigError> {
+        if k > MAX_HELD_HOPS {
+            return Err(ConfigError::invalid(
+                "k",
+                format!("must be ≤ {MAX_HELD_HOPS}"),
+            ));
+        }
+        if !(tol_st.is_finite() && tol_st >= 0.0) {
+            return Err(ConfigError::invalid("tol_st", "must be finite and ≥ 0"));
+        }
+        if !(0.0..=1.0).contains(&min_share) {
+            return Err(ConfigError::invalid("min_share", "must be in [0, 1]"));
+        }
+        Ok(HeldRange {
+            all: PriorRange::with_quantile(span_st, fade_hops, p)?,
+            held: PriorRange::with_quantile(span_st, fade_hops, p)?,
+            ring: [(f32::NAN, 0.0); 2 * MAX_HELD_HOPS + 1],
+            k,
+            tol_st,
+            min_share,
+            min_hops,
+            n_in: 0,
+            n_voiced: 0,
+            n_held: 0,
+        })
+    }
+
+    /// Feeds one hop's pitch; returns the range so far (module docs), `None` until a voiced
+    /// value has arrived.
+    pub fn update(&mut self, f0_hz: f32) -> Option<(f32, f32)> {
+        let all = self.all.update(f0_hz);
+        if self.k == 0 {
+            return all;
+        }
+        let st = semitones(f0_hz);
+        self.n_voiced += u64::from(st.is_some());
+        // The held range's padding fades with every voiced hop, as the plain range's does.
+        self.held.n += u64::from(st.is_some());
+        let len = 2 * self.k + 1;
+        self.ring[self.n_in % len] = (st.unwrap_or(f32::NAN), f0_hz);
+        self.n_in += 1;
+        if self.n_in >= len {
+            // The centre of the last 2k + 1 hops.
+            let (c, f) = self.ring[(self.n_in - 1 - self.k) % len];
+            if !c.is_nan()
+                && self.ring[..len]
+                    .iter()
+                    .all(|&(x, _)| (x - c).abs() <= self.tol_st)
+            {
+                self.held.range.update(f);
+                self.n_held += 1;
+            }
+        }
+        if self.n_held >= self.min_hops.max(1)
+            && self.n_held as f32 >= self.min_share * self.n_voiced as f32
+        {
+            self.held.get()
+        } else {
+            all
+        }
+    }
+
+    /// Back to empty.
+    pub fn reset(&mut self) {
+        self.all.reset();
+        self.held.reset();
+        self.ring = [(f32::NAN, 0.0); 2 * MAX_HELD_HOPS + 1];
+        self.n_in = 0;
+        self.n_voiced = 0;
+        self.n_held = 0;
+    }
 }
 
 /// Running min and max of the voiced pitches seen so far. Causal, allocation-free.

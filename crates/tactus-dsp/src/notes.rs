@@ -107,6 +107,15 @@ pub struct NoteConfig {
     /// finds an attack (`attack_back_hops` must be > 0): for a plucked bass in a mixture,
     /// where a pitch change without an attack is mostly a chord tone the tracker took.
     pub pitch_needs_attack: bool,
+    /// An onset placed at an attack (rules 1 and 2) moves back to the foot of its rise: the
+    /// hop before the run of rising level steps that ends at the attack, at most this many
+    /// hops back, never before the attack window's start (`j − attack_back_hops` for the hop
+    /// `j` being decided) nor within `min_ioi_hops` of the previous onset. 0 = off.
+    pub backtrack_hops: usize,
+    /// A pitch onset that no attack moved (rule 2 found none) is placed this many hops
+    /// before the hop where the pitch settled, never before `j − attack_back_hops` nor within
+    /// `min_ioi_hops` of the previous onset (a release or reverb holds the old pitch). 0 = off.
+    pub pitch_back_hops: usize,
 }
 
 impl NoteConfig {
@@ -124,6 +133,8 @@ impl NoteConfig {
             min_ioi_hops: 0,
             resume_hops: 0,
             pitch_needs_attack: false,
+            backtrack_hops: 0,
+            pitch_back_hops: 0,
         }
     }
 
@@ -201,6 +212,18 @@ impl NoteOnsets {
         if cfg.attack_back_hops > MAX_BACK_HOPS {
             return Err(ConfigError::invalid(
                 "attack_back_hops",
+                format!("must be ≤ {MAX_BACK_HOPS}"),
+            ));
+        }
+        if cfg.pitch_back_hops > MAX_BACK_HOPS {
+            return Err(ConfigError::invalid(
+                "pitch_back_hops",
+                format!("must be ≤ {MAX_BACK_HOPS}"),
+            ));
+        }
+        if cfg.backtrack_hops > MAX_BACK_HOPS {
+            return Err(ConfigError::invalid(
+                "backtrack_hops",
                 format!("must be ≤ {MAX_BACK_HOPS}"),
             ));
         }
@@ -412,7 +435,8 @@ impl NoteOnsets {
                     && self.rise(j) >= self.cfg.reattack_db
                     && self.steepest(j)
                 {
-                    self.mark(j);
+                    let h = self.foot(j, j);
+                    self.mark(h);
                 }
             }
         }
@@ -441,6 +465,7 @@ impl NoteOnsets {
                 }
             }
             if let Some((h, _)) = best {
+                let h = self.foot(h, j);
                 self.mark(h);
                 return;
             }
@@ -449,7 +474,40 @@ impl NoteOnsets {
             }
         }
         if self.spaced(j) {
-            self.mark(j);
+            let mut h = j.saturating_sub(self.cfg.pitch_back_hops);
+            if self.cfg.pitch_back_hops > 0 {
+                h = h.max(j.saturating_sub(back));
+                if let Some(l) = self.last_onset {
+                    h = h.max(l + self.cfg.min_ioi_hops.max(1));
+                }
+            }
+            self.mark(h);
+        }
+    }
+
+    /// The foot of the rise that attacks at hop `h` (decided at hop `j`): walks back over
+    /// rising steps, at most `backtrack_hops`, not before `j − attack_back_hops` nor within
+    /// the minimum interval of the last onset.
+    fn foot(&self, h: usize, j: usize) -> usize {
+        let t = self.cfg.backtrack_hops;
+        if t == 0 {
+            return h;
+        }
+        let mut lo = j
+            .saturating_sub(self.cfg.attack_back_hops)
+            .max(h.saturating_sub(t));
+        if let Some(l) = self.last_onset {
+            lo = lo.max(l + self.cfg.min_ioi_hops.max(1));
+        }
+        let mut x = h;
+        // Hop x − 1 is the foot while the step into it is not a rise.
+        while x > lo && x >= 2 && self.step(x - 1) > 0.0 {
+            x -= 1;
+        }
+        if x > lo {
+            x - 1
+        } else {
+            x
         }
     }
 

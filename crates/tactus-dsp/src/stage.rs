@@ -60,6 +60,7 @@ per_hop! {
     crate::tukey::SlidingTukey: f32 => f32 = process;
     crate::discretize::RunningRange: f32 => Option<(f32, f32)> = update;
     crate::discretize::PriorRange: f32 => Option<(f32, f32)> = update;
+    crate::discretize::HeldRange: f32 => Option<(f32, f32)> = update;
 }
 
 /// A pitch and the range to place it in → its level (0 without a range).

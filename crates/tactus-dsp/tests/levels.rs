@@ -2,10 +2,16 @@
 //! with an IQR floor, the streaming range prior, the quantile range, and note onsets from a
 //! pitch track (against an obvious offline oracle, streaming = offline, stated latency).
 
-use tactus_dsp::discretize::{range_offline, range_quantiles, PriorRange, QuantileRange};
+use tactus_dsp::discretize::{
+    held_mask, range_offline, range_quantiles, range_quantiles_held, HeldRange, PriorRange,
+    QuantileRange,
+};
 use tactus_dsp::notes::{note_onsets_offline, NoteConfig, NoteOnsets};
 use tactus_dsp::tukey::{reject_outliers_offline, reject_outliers_offline_min_iqr, SlidingTukey};
 use tactus_dsp::{hz_to_semitones, semitones_to_hz};
+
+#[global_allocator]
+static A: tactus_testkit::Counting = tactus_testkit::Counting;
 
 fn hz(st: f32) -> f32 {
     semitones_to_hz(st)
@@ -310,4 +316,209 @@ fn streaming_note_onsets_equal_offline_with_the_stated_latency() {
 
 fn d_lat(c: NoteConfig) -> usize {
     c.stable_hops - 1
+}
+
+/// Held hops of `f` by the module docs' words, written out: hop `i` is held when hops
+/// `i − k ..= i + k` all exist, are voiced and lie within `tol` semitones of hop `i`.
+fn held_by_hand(f: &[f32], k: usize, tol: f32) -> Vec<bool> {
+    let st = |x: f32| (x.is_finite() && x > 0.0).then(|| hz_to_semitones(x));
+    (0..f.len())
+        .map(|i| {
+            let Some(c) = st(f[i]) else { return false };
+            if k == 0 {
+                return true;
+            }
+            if i < k || i + k >= f.len() {
+                return false;
+            }
+            let mut ok = true;
+            for x in &f[i - k..=i + k] {
+                match st(*x) {
+                    Some(v) if (v - c).abs() <= tol => {}
+                    _ => ok = false,
+                }
+            }
+            ok
+        })
+        .collect()
+}
+
+/// A bass line of notes (10–40 hops) whose changes carry, now and then, a run of 4–12 hops
+/// at the common subharmonic (19 semitones below) as the harmonic-sum tracker reports it,
+/// with rests and the wandering line's junk values.
+fn line_with_transition_errors(n: usize, seed: u64) -> Vec<f32> {
+    let junk = wandering_line(n, seed ^ 0x5eed);
+    let mut x = seed | 1;
+    let mut next = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut f = Vec::with_capacity(n);
+    while f.len() < n {
+        let note = 40.0 + (next() * 14.0).floor() as f32;
+        if next() < 0.4 {
+            let len = 4 + (next() * 9.0) as usize;
+            f.extend((0..len).map(|_| hz(note - 19.0 + 0.3 * next() as f32)));
+        }
+        let len = 10 + (next() * 30.0) as usize;
+        f.extend((0..len).map(|_| hz(note + 0.4 * (next() as f32 - 0.5))));
+        if next() < 0.3 {
+            f.extend(std::iter::repeat_n(0.0, (next() * 10.0) as usize));
+        }
+    }
+    f.truncate(n);
+    for (i, v) in f.iter_mut().enumerate() {
+        if i % 37 == 5 {
+            *v = junk[i];
+        }
+    }
+    f
+}
+
+#[test]
+fn held_mask_and_the_offline_held_range_follow_the_definition() {
+    for seed in 1..6u64 {
+        let f = line_with_transition_errors(2000, seed);
+        for (k, tol) in [(0usize, 1.0f32), (1, 0.5), (5, 1.0), (16, 2.0)] {
+            let want = held_by_hand(&f, k, tol);
+            assert_eq!(held_mask(&f, k, tol), want, "seed {seed} k {k}");
+            let held: Vec<f32> = f
+                .iter()
+                .zip(&want)
+                .filter(|(_, &m)| m)
+                .map(|(&x, _)| x)
+                .collect();
+            let voiced = f.iter().filter(|x| x.is_finite() && **x > 0.0).count();
+            for (share, min_hops) in [(0.25f32, 300u64), (0.99, 1), (0.0, 5000)] {
+                let use_held = !held.is_empty()
+                    && held.len() as u64 >= min_hops
+                    && held.len() as f32 >= share * voiced as f32;
+                let want = if use_held {
+                    range_quantiles(&held, 0.01)
+                } else {
+                    range_quantiles(&f, 0.01)
+                };
+                assert_eq!(
+                    range_quantiles_held(&f, 0.01, k, tol, share, min_hops),
+                    want,
+                    "seed {seed} k {k} share {share} min {min_hops}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn streaming_held_range_is_the_padded_quantile_range_of_the_held_prefix_within_one_cell() {
+    // Oracle at every hop j: the held hops of the prefix (their windows inside it), their
+    // exact quantiles, padded by the prior's formula with n = the prefix's voiced hops; the
+    // plain quantiles of every voiced hop when the held ones are fewer than `min_hops` or
+    // `share` of the voiced. The running range is within one 1/8-semitone cell of it.
+    let (span, fade, p) = (20.0f32, 300.0f32, 0.01f32);
+    let padded = |r: Option<(f32, f32)>, n: usize| {
+        r.map(|(lo, hi)| {
+            let (lo, hi) = (hz_to_semitones(lo) as f64, hz_to_semitones(hi) as f64);
+            let w = fade as f64 / (fade as f64 + n as f64);
+            let pad = (span as f64 - (hi - lo)).max(0.0) * w / 2.0;
+            (lo - pad, hi + pad)
+        })
+    };
+    for seed in 1..5u64 {
+        let f = line_with_transition_errors(1500, seed);
+        for (k, tol, share, min_hops) in [
+            (5usize, 1.0f32, 0.25f32, 300u64),
+            (2, 0.5, 0.5, 1),
+            (0, 1.0, 0.25, 300),
+        ] {
+            let mut r = HeldRange::new(span, fade, p, k, tol, share, min_hops).unwrap();
+            let mut plain = PriorRange::with_quantile(span, fade, p).unwrap();
+            let mut used_held = false;
+            for j in 0..f.len() {
+                let got = r.update(f[j]);
+                let pl = plain.update(f[j]);
+                if k == 0 {
+                    assert_eq!(got, pl, "k = 0 is the plain prior range");
+                    continue;
+                }
+                let pre = &f[..=j];
+                let m = held_by_hand(pre, k, tol);
+                let held: Vec<f32> = pre
+                    .iter()
+                    .zip(&m)
+                    .filter(|(_, &h)| h)
+                    .map(|(&x, _)| x)
+                    .collect();
+                let voiced = pre.iter().filter(|x| x.is_finite() && **x > 0.0).count();
+                let use_held = !held.is_empty()
+                    && held.len() as u64 >= min_hops
+                    && held.len() as f32 >= share * voiced as f32;
+                used_held |= use_held;
+                let want = if use_held {
+                    padded(range_quantiles(&held, p), voiced)
+                } else {
+                    padded(range_quantiles(pre, p), voiced)
+                };
+                match (got, want) {
+                    (None, None) => {}
+                    (Some((lo, hi)), Some((wlo, whi))) => {
+                        let (lo, hi) = (hz_to_semitones(lo) as f64, hz_to_semitones(hi) as f64);
+                        let cell = 1.0 / 8.0 + 1e-3;
+                        assert!(
+                            (lo - wlo).abs() < cell && (hi - whi).abs() < cell,
+                            "seed {seed} k {k} hop {j}: {lo}..{hi} vs {wlo}..{whi}"
+                        );
+                    }
+                    (g, w) => panic!("seed {seed} k {k} hop {j}: {g:?} vs {w:?}"),
+                }
+            }
+            if k > 0 {
+                assert!(
+                    used_held,
+                    "seed {seed} k {k}: the held range was never used"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn held_range_ignores_the_subharmonic_at_note_changes_without_allocating() {
+    // The line spans 40–53 semitones; every change starts with 8 hops 19 semitones low (the
+    // common subharmonic of the two notes): 8 of 38 hops, far beyond the 1 % quantile.
+    let mut f = Vec::new();
+    for i in 0..60 {
+        let note = 40.0 + [0.0, 7.0, 13.0, 5.0][i % 4];
+        f.extend(std::iter::repeat_n(hz(note - 19.0), 8));
+        f.extend(std::iter::repeat_n(hz(note), 30));
+    }
+    let (lo, _) = range_quantiles(&f, 0.01).unwrap();
+    assert!(
+        (hz_to_semitones(lo) - 21.0).abs() < 0.01,
+        "the plain range reaches the errors"
+    );
+    let (lo, hi) = range_quantiles_held(&f, 0.01, 5, 1.0, 0.25, 300).unwrap();
+    assert!(
+        (hz_to_semitones(lo) - 40.0).abs() < 0.01 && (hz_to_semitones(hi) - 53.0).abs() < 0.01,
+        "{lo}..{hi}"
+    );
+    let mut r = HeldRange::new(20.0, 1.0, 0.01, 5, 1.0, 0.25, 300).unwrap();
+    let mut last = None;
+    let allocs = tactus_testkit::allocations_during(|| {
+        for &x in &f {
+            last = r.update(x);
+        }
+    });
+    assert_eq!(allocs, 0);
+    let (lo, hi) = last.unwrap();
+    assert!(
+        (hz_to_semitones(lo) - 40.0).abs() < 0.2 && (hz_to_semitones(hi) - 53.0).abs() < 0.2,
+        "{lo}..{hi}"
+    );
+    r.reset();
+    assert_eq!(r.update(0.0), None);
+    assert!(HeldRange::new(20.0, 1.0, 0.01, 17, 1.0, 0.25, 1).is_err());
+    assert!(HeldRange::new(20.0, 1.0, 0.01, 5, -1.0, 0.25, 1).is_err());
+    assert!(HeldRange::new(20.0, 1.0, 0.01, 5, 1.0, 1.5, 1).is_err());
 }

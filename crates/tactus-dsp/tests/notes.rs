@@ -47,6 +47,30 @@ fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
         }
         (h + 1..=h + RISE_AHEAD_HOPS as isize).all(|a| step(a).is_none_or(|t| s >= t))
     };
+    // The foot of the rise attacking at h, decided at hop j: the hop before the run of
+    // rising steps that ends at h, at most `backtrack_hops` back, not before
+    // j − attack_back_hops nor within the minimum interval of the last onset.
+    let foot = |h: usize, j: usize, last: Option<usize>| -> usize {
+        if c.backtrack_hops == 0 {
+            return h;
+        }
+        let mut lo = j
+            .saturating_sub(c.attack_back_hops)
+            .max(h.saturating_sub(c.backtrack_hops));
+        if let Some(l) = last {
+            lo = lo.max(l + c.min_ioi_hops.max(1));
+        }
+        // Candidates from h down to lo: the first hop x−1 whose step into it is not a rise.
+        let mut x = h;
+        while x > lo && x >= 2 && step(x as isize - 1).is_some_and(|s| s > 0.0) {
+            x -= 1;
+        }
+        if x > lo {
+            x - 1
+        } else {
+            x
+        }
+    };
     let mut out = vec![false; n];
     let mut cur: Option<f32> = None;
     let mut ended: Option<f32> = None;
@@ -106,6 +130,7 @@ fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
                     }
                 }
                 if let Some((h, _)) = best {
+                    let h = foot(h, j, last);
                     out[h] = true;
                     last = Some(h);
                     continue;
@@ -115,8 +140,19 @@ fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
                 }
             }
             if spaced(last, j) {
-                out[j] = true;
-                last = Some(j);
+                // No attack: the pitch onset moves `pitch_back_hops` back, not before the
+                // attack window nor within the minimum interval.
+                let mut h = j;
+                if c.pitch_back_hops > 0 {
+                    h = j
+                        .saturating_sub(c.pitch_back_hops)
+                        .max(j.saturating_sub(c.attack_back_hops));
+                    if let Some(l) = last {
+                        h = h.max(l + c.min_ioi_hops.max(1));
+                    }
+                }
+                out[h] = true;
+                last = Some(h);
             }
             continue;
         }
@@ -131,8 +167,9 @@ fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
                     && rise(ji).is_some_and(|r| r >= c.reattack_db)
                     && steepest(ji)
                 {
-                    out[j] = true;
-                    last = Some(j);
+                    let h = foot(j, j, last);
+                    out[h] = true;
+                    last = Some(h);
                 }
             }
         }
@@ -225,6 +262,24 @@ fn configs() -> Vec<NoteConfig> {
         },
         NoteConfig {
             pitch_needs_attack: true,
+            ..d
+        },
+        // The clean lead's moves (tactus-engine's `NoteRole::clean_lead`).
+        NoteConfig {
+            backtrack_hops: 3,
+            pitch_back_hops: 2,
+            ..d
+        },
+        NoteConfig {
+            backtrack_hops: 16,
+            pitch_back_hops: 16,
+            min_ioi_hops: 0,
+            ..d
+        },
+        NoteConfig {
+            backtrack_hops: 5,
+            pitch_back_hops: 3,
+            attack_back_hops: 2,
             ..d
         },
     ]
@@ -349,6 +404,51 @@ fn a_pitch_onset_moves_back_to_its_attack() {
 }
 
 #[test]
+fn a_clean_lead_starts_at_the_foot_of_the_rise() {
+    // A syllable sung on the previous note's pitch: the level dips for the consonant
+    // (hops 40–44, lowest at 44) and the vowel rises over hops 45–47, steepest at 46.
+    let f0: Vec<f32> = vec![semitones_to_hz(64.0); 90];
+    let mut db: Vec<f32> = (0..90).map(|i| -20.0 - 0.05 * i as f32).collect();
+    for (i, v) in [-23.0, -26.0, -28.0, -30.0, -31.0, -28.0, -22.0, -20.0]
+        .iter()
+        .enumerate()
+    {
+        db[40 + i] = *v;
+    }
+    let on = |c| -> Vec<usize> {
+        let o = note_onsets_offline_level(&f0, &db, c).unwrap();
+        (0..90).filter(|&i| o[i]).collect()
+    };
+    let d = NoteConfig::default();
+    assert_eq!(on(d), vec![0, 46], "the re-attack at its steepest step");
+    let lead = NoteConfig {
+        backtrack_hops: 3,
+        pitch_back_hops: 2,
+        ..d
+    };
+    assert_eq!(on(lead), vec![0, 44], "moved back to the level's low point");
+    // At most `backtrack_hops` back: with 1, one hop.
+    assert_eq!(
+        on(NoteConfig {
+            backtrack_hops: 1,
+            ..lead
+        }),
+        vec![0, 45]
+    );
+    // A legato change of note (no attack) moves `pitch_back_hops` back from where the pitch
+    // settles (hop 45), never before the first note or inside the minimum interval.
+    let mut f0 = f0.clone();
+    for v in &mut f0[45..] {
+        *v = semitones_to_hz(67.0);
+    }
+    let flat: Vec<f32> = (0..90).map(|i| -15.0 - 0.1 * i as f32).collect();
+    let o = note_onsets_offline_level(&f0, &flat, lead).unwrap();
+    assert_eq!((0..90).filter(|&i| o[i]).collect::<Vec<_>>(), vec![0, 43]);
+    let o = note_onsets_offline_level(&f0, &flat, d).unwrap();
+    assert_eq!((0..90).filter(|&i| o[i]).collect::<Vec<_>>(), vec![0, 45]);
+}
+
+#[test]
 fn a_dropout_that_resumes_the_note_is_not_a_new_note() {
     // A held note whose track drops out for 5 hops (the gate, a chord tone), level falling.
     let mut f0: Vec<f32> = vec![semitones_to_hz(52.0); 100];
@@ -432,6 +532,14 @@ fn bad_configs_are_refused() {
         NoteConfig {
             attack_db: f32::INFINITY,
             ..d
+        },
+        NoteConfig {
+            backtrack_hops: 17,
+            ..NoteConfig::default()
+        },
+        NoteConfig {
+            pitch_back_hops: 17,
+            ..NoteConfig::default()
         },
         NoteConfig {
             attack_back_hops: 17,

@@ -17,7 +17,7 @@ use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
 use tactus_separate::{SegmentStats, Separator, StemOutput, StemSet};
 
 use crate::drums::{ClassTrack, DrumMethod};
-use crate::notes::{NoteRule, NoteTrack, PitchNotes};
+use crate::notes::{NoteRole, NoteRule, NoteTrack, PitchNotes};
 use crate::profile::{self, Profile};
 use crate::track::{Denoise, Geometry, LevelRule, Mode, OnsetTrack, PitchMethod, PitchTrack};
 use crate::EngineError;
@@ -175,11 +175,17 @@ impl StemChain {
                 // A bass band of the mix: a change of note without an attack is mostly a
                 // chord tone (README, "Note onsets from the attack").
                 let plucked_mix = mixture && stem == Stem::Bass;
+                // A lead on its own stem: onsets at the foot of the attack, and pitch onsets
+                // a little earlier (README, "Note onsets of a clean lead").
+                let clean_lead = !mixture && stem == Stem::Vocals;
                 Some(NoteTrack::Pitch(PitchNotes::new(
                     geo,
                     p.hop(),
                     rule,
-                    plucked_mix,
+                    NoteRole {
+                        plucked_mix,
+                        clean_lead,
+                    },
                 )?))
             }
             (Some(_), None) => Some(NoteTrack::Flux(OnsetTrack::new(geo, None)?)),

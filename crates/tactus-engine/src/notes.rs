@@ -39,10 +39,43 @@ pub enum NoteRule {
     Legato,
 }
 
+/// What the stem is, for the note-onset rule's stem-specific parts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct NoteRole {
+    /// The bass of a mixture: a change of note must be attacked
+    /// ([`NoteConfig::pitch_needs_attack`]).
+    pub plucked_mix: bool,
+    /// The lead (vocals) on its own stem, not a band of a mixture: an onset at an attack
+    /// moves back to the foot of its rise ([`NoteConfig::backtrack_hops`],
+    /// [`CLEAN_LEAD_BACKTRACK_HOPS`]) and a pitch onset without an attack moves
+    /// [`CLEAN_LEAD_PITCH_BACK_HOPS`] back ([`NoteConfig::pitch_back_hops`]): a sung
+    /// syllable starts with its consonant before the vowel's rise, and a voice patch's
+    /// release holds the old pitch into the new note.
+    pub clean_lead: bool,
+}
+
+/// [`NoteConfig::backtrack_hops`] of a clean lead (README, "Note onsets of a clean lead").
+pub const CLEAN_LEAD_BACKTRACK_HOPS: usize = 3;
+
+/// [`NoteConfig::pitch_back_hops`] of a clean lead (README, "Note onsets of a clean lead").
+pub const CLEAN_LEAD_PITCH_BACK_HOPS: usize = 2;
+
 impl NoteRule {
-    /// The detector's configuration for `profile`; `plucked_mix`: the stem is the bass of a
-    /// mixture, whose changes of note must be attacked ([`NoteConfig::pitch_needs_attack`]).
-    pub fn config(self, profile: Profile, plucked_mix: bool) -> NoteConfig {
+    /// The detector's configuration for `profile` and the stem's `role`. The clean lead's
+    /// moves need the attack search (the full profile): they never reach before it, so
+    /// the latency is unchanged.
+    pub fn config(self, profile: Profile, role: NoteRole) -> NoteConfig {
+        let lead = |c: NoteConfig| {
+            if role.clean_lead {
+                NoteConfig {
+                    backtrack_hops: CLEAN_LEAD_BACKTRACK_HOPS,
+                    pitch_back_hops: CLEAN_LEAD_PITCH_BACK_HOPS,
+                    ..c
+                }
+            } else {
+                c
+            }
+        };
         match (self, profile) {
             (NoteRule::Pitch, _) => NoteConfig::pitch_only(),
             (NoteRule::Attack | NoteRule::Legato, Profile::Live) => NoteConfig {
@@ -50,11 +83,11 @@ impl NoteRule {
                 resume_hops: 0,
                 ..NoteConfig::default()
             },
-            (NoteRule::Attack, Profile::Full) => NoteConfig {
-                pitch_needs_attack: plucked_mix,
+            (NoteRule::Attack, Profile::Full) => lead(NoteConfig {
+                pitch_needs_attack: role.plucked_mix,
                 ..NoteConfig::default()
-            },
-            (NoteRule::Legato, Profile::Full) => NoteConfig::default(),
+            }),
+            (NoteRule::Legato, Profile::Full) => lead(NoteConfig::default()),
         }
     }
 }
@@ -73,14 +106,14 @@ pub struct PitchNotes {
 
 impl PitchNotes {
     /// A detector for a pitch track with `hop` engine samples between hops.
-    /// `plucked_mix`: see [`NoteRule::config`].
+    /// `role`: see [`NoteRule::config`].
     pub fn new(
         geo: Geometry,
         hop: usize,
         rule: NoteRule,
-        plucked_mix: bool,
+        role: NoteRole,
     ) -> Result<Self, ConfigError> {
-        let cfg = rule.config(geo.profile, plucked_mix);
+        let cfg = rule.config(geo.profile, role);
         Ok(PitchNotes {
             det: NoteOnsets::new(cfg)?,
             cfg,

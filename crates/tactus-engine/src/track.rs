@@ -12,7 +12,7 @@
 
 use tactus_dsp::binner::{bin_beats, bin_levels, BeatBinner, LevelBinner};
 use tactus_dsp::discretize::{
-    range_offline, range_quantiles, Discretizer, PriorRange, RunningRange, Scale,
+    range_offline, range_quantiles_held, Discretizer, HeldRange, RunningRange, Scale,
 };
 use tactus_dsp::flux::{OnsetConfig, OnsetDetector, OnsetFrame};
 use tactus_dsp::median::MedianFilter;
@@ -74,6 +74,24 @@ pub enum LevelRule {
 pub const FOLLOW_RANGE_QUANTILE: f32 = 0.01;
 /// Voiced hops after which the streaming prior's padding has halved (30 s of voiced hops).
 pub const FOLLOW_PRIOR_FADE_HOPS: f32 = 3000.0;
+
+/// `--levels-rule follow` on a clean bass stem (not a band of a mixture): the range comes
+/// from hops inside held notes, this many hops on each side within [`HELD_TOL_ST`]
+/// (`tactus_dsp::discretize::HeldRange`; README, "Bass levels from held notes"). Chosen on
+/// the tuning songs: 8 hops lost the short lowest notes of a line (`timgm/brush40_s04`).
+pub const CLEAN_BASS_HELD_HOPS: usize = 5;
+
+/// Semitones a held note's hops stay within ([`CLEAN_BASS_HELD_HOPS`]).
+pub const HELD_TOL_ST: f32 = 1.0;
+
+/// Below this share of held hops among the voiced ones every voiced hop sets the range.
+pub const HELD_MIN_SHARE: f32 = 0.25;
+
+/// The held range is used once it holds this many hops (3 s of held notes); before, every
+/// voiced hop sets it. Chosen on the tuning songs' streaming rows (1 / 50 / 300 hops: chorale
+/// bass levels ±1 0.927 / 0.932 / 0.941, 0.941 without the held range; sung and `timgm`
+/// gain 0.033–0.037 with each).
+pub const HELD_MIN_HOPS: u64 = 300;
 
 /// A bass line (a tracker whose fmax ≤ 500 Hz) or a higher one.
 fn is_bass_range(fmax_hz: f32) -> bool {
@@ -273,7 +291,7 @@ struct LevelChain {
     gate: StreamingGate,
     tukey: SlidingTukey,
     range: RunningRange,
-    prior_range: PriorRange,
+    prior_range: HeldRange,
     rule: LevelRule,
     disc: Discretizer,
     binner: LevelBinner,
@@ -347,6 +365,8 @@ pub struct PitchTrack {
     next: usize,
     chain: LevelChain,
     min_iqr_st: f32,
+    /// Hops on each side a pitch must hold to count towards the range (0 = every voiced hop).
+    held_hops: usize,
     /// f0 per hop after gate and fences (streaming: filled as hops arrive; offline: at the end).
     pub f0: Vec<f32>,
     /// The stem's RMS per hop in dBFS, beside `f0` (same hops, before the gate): what note
@@ -426,6 +446,12 @@ impl PitchTrack {
             }
         };
         let hop_s = hop as f32 / geo.sample_rate as f32;
+        // A clean bass stem: the range from held notes (README, "Bass levels from held notes").
+        let held_hops = if !mixture && fmax_hz <= BASS_MAX_HZ {
+            CLEAN_BASS_HELD_HOPS
+        } else {
+            0
+        };
         let min_iqr_st = match geo.level_rule {
             LevelRule::Paper => 0.0,
             LevelRule::Follow => min_iqr_st(fmax_hz),
@@ -444,16 +470,21 @@ impl PitchTrack {
                 tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
                     .with_min_iqr(min_iqr_st),
                 range: RunningRange::new(),
-                prior_range: PriorRange::with_quantile(
+                prior_range: HeldRange::new(
                     prior_span_st(fmax_hz),
                     FOLLOW_PRIOR_FADE_HOPS,
                     FOLLOW_RANGE_QUANTILE,
+                    held_hops,
+                    HELD_TOL_ST,
+                    HELD_MIN_SHARE,
+                    HELD_MIN_HOPS,
                 )?,
                 rule: geo.level_rule,
                 disc: Discretizer::new(geo.levels, Scale::Semitones)?,
                 binner: LevelBinner::new(hop, geo.bin_samples)?,
             },
             min_iqr_st,
+            held_hops,
             f0: Vec::new(),
             level_db: Vec::new(),
             hop_levels: Vec::new(),
@@ -568,7 +599,14 @@ impl PitchTrack {
         reject_outliers_offline_min_iqr(&mut f0, TUKEY_K, self.min_iqr_st);
         let r = match self.geo.level_rule {
             LevelRule::Paper => range_offline(&f0),
-            LevelRule::Follow => range_quantiles(&f0, FOLLOW_RANGE_QUANTILE),
+            LevelRule::Follow => range_quantiles_held(
+                &f0,
+                FOLLOW_RANGE_QUANTILE,
+                self.held_hops,
+                HELD_TOL_ST,
+                HELD_MIN_SHARE,
+                HELD_MIN_HOPS,
+            ),
         };
         let levels: Vec<u8> = match r {
             Some(r) => f0.iter().map(|&f| self.chain.disc.level(f, r)).collect(),

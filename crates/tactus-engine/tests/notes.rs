@@ -2,7 +2,7 @@
 //! its notes, through the real pitch track and the note detector, offline and streaming in
 //! any chunking, against the notes' known start times.
 
-use tactus_engine::notes::{NoteRule, NoteTrack, PitchNotes};
+use tactus_engine::notes::{NoteRole, NoteRule, NoteTrack, PitchNotes};
 use tactus_engine::profile::Profile;
 use tactus_engine::track::PitchTrack;
 use tactus_engine::{Mode, PitchMethod};
@@ -37,7 +37,7 @@ fn plucked_line() -> (Vec<f32>, Vec<f64>) {
 fn onsets(mode: Mode, profile: Profile, rule: NoteRule, x: &[f32], chunk: usize) -> Vec<f64> {
     let g = geo(mode, profile);
     let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
-    let mut n = PitchNotes::new(g, p.hop(), rule, false).unwrap();
+    let mut n = PitchNotes::new(g, p.hop(), rule, NoteRole::default()).unwrap();
     for b in x.chunks(chunk) {
         p.process(b);
         n.update(&p);
@@ -45,6 +45,88 @@ fn onsets(mode: Mode, profile: Profile, rule: NoteRule, x: &[f32], chunk: usize)
     p.finish();
     n.finish(&p);
     NoteTrack::Pitch(n).onset_times()
+}
+
+/// A sung-like line for the vocals range: notes of 0.4 s with a 40 ms attack, each after a
+/// 60 ms "consonant" (the level dips to a tenth, the pitch stays), most of them repeats.
+fn sung_line() -> (Vec<f32>, Vec<f64>) {
+    let sr = SR as f32;
+    let pitches = [220.0f32, 220.0, 247.0, 247.0, 247.0, 220.0, 196.0, 196.0];
+    let note = (0.4 * sr) as usize;
+    let dip = (0.06 * sr) as usize;
+    let mut x = vec![0.0f32; (0.3 * sr) as usize];
+    let mut starts = Vec::new();
+    let mut ph = 0.0f32;
+    for &f in &pitches {
+        starts.push(x.len() as f64 / SR as f64);
+        for i in 0..dip + note {
+            let env = if i < dip {
+                0.1
+            } else {
+                0.1 + 0.9 * ((i - dip) as f32 / sr / 0.04).min(1.0)
+            };
+            ph += std::f32::consts::TAU * f / sr;
+            x.push(0.2 * env * (ph.sin() + 0.5 * (2.0 * ph).sin() + 0.3 * (3.0 * ph).sin()));
+        }
+    }
+    x.extend(std::iter::repeat_n(0.0, (0.4 * sr) as usize));
+    (x, starts)
+}
+
+/// The vocals chain on a clean stem (the melody tracker) and its note onsets.
+fn lead_onsets(mode: Mode, role: NoteRole, x: &[f32], chunk: usize) -> Vec<f64> {
+    let g = geo(mode, Profile::Full);
+    let mut p = PitchTrack::new(g, 80.0, 1000.0, PitchMethod::Shs, false).unwrap();
+    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, role).unwrap();
+    for b in x.chunks(chunk) {
+        p.process(b);
+        n.update(&p);
+    }
+    p.finish();
+    n.finish(&p);
+    NoteTrack::Pitch(n).onset_times()
+}
+
+#[test]
+fn a_clean_lead_is_early_not_late_offline_and_streaming_in_any_chunking() {
+    let (x, starts) = sung_line();
+    let lead = NoteRole {
+        plucked_mix: false,
+        clean_lead: true,
+    };
+    let off = lead_onsets(Mode::Offline, lead, &x, x.len());
+    assert_eq!(
+        hits(&off, &starts, 0.05),
+        starts.len(),
+        "{off:?} vs {starts:?}"
+    );
+    assert_eq!(off.len(), starts.len(), "{off:?}");
+    // The default role finds the same notes, each at or after the clean lead's onset (the
+    // moves only go back, at most 3 hops).
+    let plain = lead_onsets(Mode::Offline, NoteRole::default(), &x, x.len());
+    assert_eq!(plain.len(), off.len(), "{plain:?} vs {off:?}");
+    for (p, o) in plain.iter().zip(&off) {
+        assert!(*p >= *o - 1e-9 && *p - *o <= 0.0301, "{plain:?} vs {off:?}");
+    }
+    // Here every re-attack sits 20–30 ms after its consonant's start: the moves bring the
+    // onsets closer to the notes' starts.
+    let moved = plain.iter().zip(&off).filter(|(p, o)| **p > **o).count();
+    assert!(moved >= starts.len() / 2, "{plain:?} vs {off:?}");
+    let err = |v: &[f64]| -> f64 { v.iter().zip(&starts).map(|(a, b)| (a - b).abs()).sum() };
+    assert!(
+        err(&off) < err(&plain),
+        "{plain:?} vs {off:?} vs {starts:?}"
+    );
+    // Streaming: the same onsets (same hops, same rule), in any chunking.
+    let whole = lead_onsets(Mode::Streaming, lead, &x, x.len());
+    assert_eq!(whole, off);
+    for chunk in [1, 64, 441, 4096] {
+        assert_eq!(
+            lead_onsets(Mode::Streaming, lead, &x, chunk),
+            whole,
+            "chunk {chunk}"
+        );
+    }
 }
 
 fn hits(got: &[f64], want: &[f64], tol: f64) -> usize {
@@ -87,9 +169,23 @@ fn the_stated_latency_of_each_rule() {
     let p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
     let hop = p.hop();
     let lat = |profile, rule| {
-        PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, true)
+        let plucked = NoteRole {
+            plucked_mix: true,
+            clean_lead: false,
+        };
+        let lead = NoteRole {
+            plucked_mix: false,
+            clean_lead: true,
+        };
+        let a = PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, plucked)
             .unwrap()
-            .latency_samples()
+            .latency_samples();
+        // A clean lead's moves stay inside the attack search: the same latency.
+        let b = PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, lead)
+            .unwrap()
+            .latency_samples();
+        assert_eq!(a, b);
+        a
     };
     // Pitch: the stability window (4 hops) less one. Attack: the same, plus the 8 hops an
     // onset may still move back to its attack. Live keeps the pitch rule's latency.
@@ -106,7 +202,7 @@ fn streaming_decides_no_onset_before_its_stated_latency() {
     let (x, starts) = plucked_line();
     let g = geo(Mode::Streaming, Profile::Full);
     let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
-    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, false).unwrap();
+    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, NoteRole::default()).unwrap();
     let lat = p.latency_samples() + n.latency_samples();
     let dec = p.decimation();
     let mut fed = 0usize;
