@@ -11,6 +11,11 @@ and statistics mode, runs
 and prints the mean over songs, per group (tuned / held-out), of RPA, levels ±1 and
 note-onset F for bass and vocals. Raw per-song rows go to OUT/rows.json.
 
+Inputs: `isolated` (every stem given with --stem), `mix` (the mix through the default
+separator) and `nodrums`, a diagnosis: the mix minus its drum stem (16-bit PCM WAV songs,
+written to OUT), through the default separator, i.e. what the melodic stems would score if
+the kit were not there.
+
     python3 benches/bass_eval.py --bin target/release/tactus --out /tmp/be \\
         --tuned /work/data/chorales/bwv66-6_96bpm ... --held-out /work/data/chorales/bwv7-7_84bpm ... \\
         [--extra "--pitch yin"] [--label before]
@@ -22,6 +27,10 @@ import os
 import shlex
 import subprocess
 import sys
+import threading
+import wave
+
+import numpy as np
 
 STEMS = ("drums", "bass", "vocals", "other")
 METRICS = (("bass", "rpa"), ("bass", "level_within_1"), ("bass", "note_f_measure"),
@@ -37,12 +46,43 @@ def audio(song, name):
     return None
 
 
+def read_pcm16(path):
+    with wave.open(path, "rb") as w:
+        if w.getsampwidth() != 2:
+            raise SystemExit(f"{path}: nodrums needs 16-bit PCM WAV")
+        return w.getparams(), np.frombuffer(w.readframes(w.getnframes()), dtype="<i2")
+
+
+def without_drums(song, dst):
+    """Writes the song's mix minus its drum stem to `dst` (16-bit PCM), once."""
+    if os.path.exists(dst):
+        return dst
+    mp, mix = read_pcm16(audio(song, "mix"))
+    dp, drums = read_pcm16(audio(song, "drums"))
+    if (mp.nchannels, mp.framerate) != (dp.nchannels, dp.framerate):
+        raise SystemExit(f"{song}: mix and drums differ in channels or rate")
+    n = min(len(mix), len(drums))
+    y = np.clip(mix[:n].astype(np.int32) - drums[:n], -32768, 32767).astype("<i2")
+    tmp = f"{dst}.{os.getpid()}.{threading.get_ident()}.tmp"
+    with wave.open(tmp, "wb") as w:
+        w.setnchannels(mp.nchannels)
+        w.setsampwidth(2)
+        w.setframerate(mp.framerate)
+        w.writeframes(y.tobytes())
+    os.replace(tmp, dst)
+    return dst
+
+
 def run_one(binary, song, inp, mode, extra, out, eval_bin=None):
     parent = os.path.basename(os.path.dirname(song.rstrip("/")))
-    tag = f"{parent}_{os.path.basename(song.rstrip('/'))}.{inp}.{mode}"
+    name = f"{parent}_{os.path.basename(song.rstrip('/'))}"
+    tag = f"{name}.{inp}.{mode}"
     feat = os.path.join(out, tag + ".features.json")
     rep = os.path.join(out, tag + ".report.json")
-    cmd = [binary, "render", audio(song, "mix"), "-o", os.path.join(out, tag + ".pattern.json"),
+    src = audio(song, "mix")
+    if inp == "nodrums":
+        src = without_drums(song, os.path.join(out, name + ".nodrums.wav"))
+    cmd = [binary, "render", src, "-o", os.path.join(out, tag + ".pattern.json"),
            "--features", feat, "--mode", mode] + extra
     if inp == "isolated":
         for s in STEMS:
@@ -81,6 +121,9 @@ def main():
     ap.add_argument("--per-song", action="store_true")
     ap.add_argument("--jobs", type=int, default=1, help="renders run in parallel")
     a = ap.parse_args()
+    bad = set(a.inputs.split(",")) - {"isolated", "mix", "nodrums"}
+    if bad:
+        ap.error(f"unknown --inputs {','.join(sorted(bad))} (isolated, mix, nodrums)")
     os.makedirs(a.out, exist_ok=True)
     extra = shlex.split(a.extra)
     rows = []

@@ -32,6 +32,7 @@
 //! ```
 #![forbid(unsafe_code)]
 
+pub mod lowband;
 pub mod none;
 #[cfg(feature = "onnx")]
 pub mod onnx;

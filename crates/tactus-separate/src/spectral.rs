@@ -65,6 +65,7 @@ use realfft::num_complex::Complex;
 use tactus_dsp::sanitize::sanitize_sample;
 use tactus_dsp::ConfigError;
 
+use crate::lowband::LowBand;
 use crate::stft::{OverlapAdd, StftAnalysis, StftConfig};
 use crate::{stem_index, SeparateError, Separator, Stem, StemOutput, StemSet};
 
@@ -94,6 +95,10 @@ pub struct SpectralConfig {
     pub centre_full_db: f32,
     /// Sources panned more than this many dB off-centre are not "centre" at all.
     pub centre_zero_db: f32,
+    /// Move the drum kit's learned share of the lowest bins from the bass mask to the drums
+    /// ([`crate::lowband`]). Active only where the model's bin width and look-ahead match
+    /// (44.1 kHz, `n_fft` 2048, 2 look-ahead frames: the defaults).
+    pub low_band_drums: bool,
 }
 
 impl Default for SpectralConfig {
@@ -109,6 +114,7 @@ impl Default for SpectralConfig {
             vocal_band_hz: (120.0, 5000.0),
             centre_full_db: 3.0,
             centre_zero_db: 10.0,
+            low_band_drums: true,
         }
     }
 }
@@ -191,6 +197,10 @@ struct Core {
     c_hi: f32,
     /// Per stem (index = `stem_index`): the masked spectrum (empty when not requested).
     stem_spec: [Vec<Complex<f32>>; 4],
+    /// The learned low-band drum share ([`crate::lowband`]), when active.
+    lowband: Option<LowBand>,
+    /// Its output for the frame being synthesised.
+    share: Vec<f32>,
     /// Synthesis channel -> stem.
     channel_stem: [Stem; 4],
     /// Stem index -> synthesis channel.
@@ -316,6 +326,15 @@ impl SpectralSeparator {
         } else {
             (0, 0)
         };
+        let lowband = if cfg.low_band_drums
+            && (stems.contains(Stem::Bass) || stems.contains(Stem::Drums))
+        {
+            LowBand::new(sample_rate, cfg.n_fft, cfg.hop)
+                .filter(|lb| lb.future() == cfg.lookahead_frames && lb.out_bins() <= hi)
+        } else {
+            None
+        };
+        let share = vec![0.0; lowband.as_ref().map_or(0, |lb| lb.out_bins())];
         let zero = Complex::new(0.0, 0.0);
         let mut channel_stem = [Stem::Drums; 4];
         let mut stem_channel = [usize::MAX; 4];
@@ -359,6 +378,8 @@ impl SpectralSeparator {
                 spec_for(Stem::Vocals),
                 spec_for(Stem::Other),
             ],
+            lowband,
+            share,
             channel_stem,
             stem_channel,
             synthesis: OverlapAdd::new(stft, stems.len())?,
@@ -402,6 +423,9 @@ impl Core {
         let mid = &spectra[0];
         self.mids[slot].copy_from_slice(mid);
         self.store_mags(t, Some(mid));
+        if let Some(lb) = &mut self.lowband {
+            lb.push(Some(mid));
+        }
         if self.stereo {
             let side = &spectra[1];
             let (c_lo, span) = (self.c_lo, self.c_hi - self.c_lo);
@@ -423,6 +447,9 @@ impl Core {
     /// A silent frame `t` after the end of the stream (completes the look-ahead).
     fn on_virtual_frame(&mut self, t: usize, out: &mut StemOutput) {
         self.store_mags(t, None);
+        if let Some(lb) = &mut self.lowband {
+            lb.push(None);
+        }
         if t >= self.lookahead {
             self.synthesise(t - self.lookahead, out);
         }
@@ -464,6 +491,10 @@ impl Core {
             want(Stem::Vocals),
             want(Stem::Other),
         );
+        if let Some(lb) = &mut self.lowband {
+            lb.drum_share(&mut self.share);
+        }
+        let n_share = self.share.len();
         let [sd, sb, sv, so] = &mut self.stem_spec;
         let mid = &self.mids[slot];
         let frame = &self.mags[cur];
@@ -498,8 +529,16 @@ impl Core {
             } else {
                 harm
             };
-            let bass = bass_harm * self.bass_w[k];
-            let rest = harm - bass;
+            let bass_all = bass_harm * self.bass_w[k];
+            let rest = harm - bass_all;
+            // The drum kit's learned share of the lowest bins goes from bass to drums.
+            let moved = if k < n_share {
+                bass_all * self.share[k]
+            } else {
+                0.0
+            };
+            let bass = bass_all - moved;
+            let perc = perc + moved;
             let centre = if self.stereo {
                 self.centres[slot][k]
             } else {
@@ -550,6 +589,9 @@ impl Core {
             m.fill(0.0);
         }
         self.bass_sorted.fill(0.0);
+        if let Some(lb) = &mut self.lowband {
+            lb.reset();
+        }
         self.synthesis.reset();
     }
 }
