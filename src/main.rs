@@ -83,6 +83,12 @@ enum NoteOnsetsArg {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
+enum KitMaskArg {
+    On,
+    Off,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
 enum LevelRuleArg {
     Follow,
     Paper,
@@ -136,6 +142,10 @@ struct EngineArgs {
     /// pitch (the pitch track alone).
     #[arg(long, value_enum, default_value = "attack")]
     note_onsets: NoteOnsetsArg,
+    /// The spectral separator's learned kit mask: on (kick and tom bodies leave the bass
+    /// stem for the drums) or off (the median filter alone, as before 2026-11-24).
+    #[arg(long, value_enum, default_value = "on")]
+    kit_mask: KitMaskArg,
     /// Latency profile: full (quality first) or live (under 40 ms to the rhythm pins;
     /// 10 ms bins). [default: live for live, full for render and play]
     #[arg(long, value_enum)]
@@ -167,6 +177,7 @@ impl EngineArgs {
             !matches!(self.note_onsets, NoteOnsetsArg::Attack),
             "--note-onsets",
         );
+        add(!matches!(self.kit_mask, KitMaskArg::On), "--kit-mask");
         add(self.drums.is_some(), "--drums");
         add(self.drum_model.is_some(), "--drum-model");
         add(self.profile.is_some(), "--profile");
@@ -209,6 +220,7 @@ impl EngineArgs {
             drum_model: self.drum_model.clone(),
             levels_rule: name(&self.levels_rule),
             note_onsets: name(&self.note_onsets),
+            kit_mask: name(&self.kit_mask),
             mode: name(&mode),
             stems: Vec::new(),
             threads: self.threads,

@@ -3,7 +3,9 @@
 and writes crates/tactus-separate/weights/lowband.bin.
 
 Data: corpus songs with a known drum stem (DIR/<family>/<song>/{mix,drums}.wav, written by
-corpus/drums.py). Features and targets come from the separator's own front end, dumped by
+corpus/drums.py), each in three variants: as mixed, with its kit 6 dB down, and without its
+kit (every target 0, so a held low note alone is not a drum). Features and targets come
+from the separator's own front end, dumped by
 `cargo run --release -p tactus-engine --example lowband_features` (so training and inference
 see the same numbers). Every VAL_EVERY-th song is kept for validation (early stopping).
 Seeded: the same data and packages give the same weights (up to BLAS summation order).
@@ -20,19 +22,19 @@ import subprocess
 
 import numpy as np
 
-LOW, EDGES, PAST, FUTURE, OUT = 24, [500.0, 1000.0, 2000.0, 4000.0, 8000.0, 16000.0], 6, 2, 15
+LOW, EDGES, PAST, FUTURE, OUT, SLOW = 24, [500.0, 1000.0, 2000.0, 4000.0, 8000.0, 16000.0], 6, 2, 15, 24
 BIN_HZ = 44100.0 / 2048.0
 PAD = -10.0
 VAL_EVERY = 6
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 DEFAULT_OUT = os.path.join(ROOT, "crates", "tactus-separate", "weights", "lowband.bin")
-PER = LOW + len(EDGES) - 1
+PER = LOW + len(EDGES) - 1 + SLOW
 CTX = PAST + 1 + FUTURE
 
 
 def write(path, w1, b1, w2, b2):
     hidden = w1.shape[1]
-    head = b"TLBM" + struct.pack("<7I", 1, LOW, len(EDGES) - 1, PAST, FUTURE, hidden, OUT)
+    head = b"TLBM" + struct.pack("<8I", 2, LOW, len(EDGES) - 1, PAST, FUTURE, hidden, OUT, SLOW)
     body = np.concatenate([[BIN_HZ], EDGES, w1.ravel(), b1, w2.ravel(), b2]).astype("<f4")
     tmp = path + ".tmp"
     with open(tmp, "wb") as fh:
@@ -40,18 +42,19 @@ def write(path, w1, b1, w2, b2):
     os.replace(tmp, path)
 
 
-def dump(song, cache):
+def dump(song, cache, gain):
     name = song.rstrip("/").split("/")[-2] + "_" + song.rstrip("/").split("/")[-1]
-    p = os.path.join(cache, name + ".f32")
+    p = os.path.join(cache, f"{name}.g{gain:g}.f32")
     if not os.path.exists(p):
         exe = os.path.join(ROOT, "target", "release", "examples", "lowband_features")
-        subprocess.run([exe, os.path.join(song, "mix.wav"), os.path.join(song, "drums.wav"), p],
-                       check=True)
+        subprocess.run([exe, os.path.join(song, "mix.wav"), os.path.join(song, "drums.wav"), p,
+                        f"{gain:g}"], check=True)
     a = np.fromfile(p, dtype="<f4").reshape(-1, PER + 2 * OUT)
     f, y, m = a[:, :PER], a[:, PER:PER + OUT], a[:, PER + OUT:]
     t = len(f)
+    # Before the start: PAD; after the end: the last frame repeated (as the separator does).
     fp = np.concatenate([np.full((PAST, PER), PAD, np.float32), f,
-                         np.full((FUTURE, PER), PAD, np.float32)])
+                         np.repeat(f[-1:], FUTURE, 0)])
     x = np.concatenate([fp[i:i + t] for i in range(CTX)], 1)  # oldest first
     w = np.sqrt(m / (m.max(1, keepdims=True) + 1e-9)) + 0.05
     return x, y, w
@@ -66,6 +69,8 @@ def main():
     ap.add_argument("--epochs", type=int, default=40)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--out", default=DEFAULT_OUT)
+    ap.add_argument("--gains", default="1,0.5,0",
+                    help="drum gains of each song's variants (0: the song without its kit)")
     ap.add_argument("--init", action="store_true", help="write a zero model and stop")
     a = ap.parse_args()
     h = a.hidden
@@ -78,8 +83,10 @@ def main():
     val = songs[::VAL_EVERY]
     tr = [s for s in songs if s not in val]
 
+    gains = [float(g) for g in a.gains.split(",")]
+
     def load(ss):
-        parts = [dump(s, a.cache) for s in ss]
+        parts = [dump(s, a.cache, g) for s in ss for g in gains]
         return [np.concatenate([p[i] for p in parts]) for i in range(3)]
 
     xt, yt, wt = load(tr)

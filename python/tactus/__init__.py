@@ -44,6 +44,7 @@ OPTIONS: Tuple[str, ...] = (
     "drum_model",  # ONNX model path for drums="adtlib"
     "levels_rule",  # "follow" (default) | "paper"
     "note_onsets",  # "attack" (default) | "legato" | "pitch"
+    "kit_mask",  # "on" (default) | "off": the separator's learned kit mask
     "mode",  # "offline" (default) | "streaming"
     "stems",  # {"drums"|"bass"|"vocals"|"other": path}: supplied stems (render only)
     "threads",  # ONNX Runtime intra-op threads

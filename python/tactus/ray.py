@@ -137,13 +137,13 @@ def main(argv: Optional[List[str]] = None) -> int:
     p.add_argument("--job-threads", type=int, default=1)
     p.add_argument("--with-features", action="store_true")
     for flag in ("separator", "model", "map", "pitch", "drums", "drum-model",
-                 "levels-rule", "note-onsets", "mode"):
+                 "levels-rule", "note-onsets", "kit-mask", "mode"):
         p.add_argument(f"--{flag}")
     p.add_argument("--bin-ms", type=int)
     p.add_argument("--levels", type=int)
     a = p.parse_args(argv)
     options = {k: getattr(a, k) for k in ("separator", "model", "map", "pitch", "drums",
-                                           "drum_model", "levels_rule", "note_onsets", "mode", "bin_ms",
+                                           "drum_model", "levels_rule", "note_onsets", "kit_mask", "mode", "bin_ms",
                                            "levels")}
     init: Dict[str, Any] = {}
     if not a.address:

@@ -35,7 +35,7 @@ def frames_of(pattern_text: str) -> np.ndarray:
     return np.array([list(bytes.fromhex(h)) for h in hexes], dtype=np.uint8).reshape(-1, 10)
 
 
-@pytest.mark.parametrize("opts", [{}, {"bin_ms": 50, "levels": 4, "drums": "bands"}])
+@pytest.mark.parametrize("opts", [{}, {"bin_ms": 50, "levels": 4, "drums": "bands"}, {"kit_mask": "off"}])
 def test_frames_and_features_equal_the_cli(tactus_bin, wav, opts):
     flags = []
     for k, v in opts.items():

@@ -46,6 +46,11 @@ pub struct RenderOptions {
     /// `pitch` (the pitch alone, the first implementation).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub note_onsets: Option<String>,
+    /// The spectral separator's learned kit mask, which moves kick and tom bodies out of
+    /// the bass stem: `on` (default) or `off` (the median filter alone, as before
+    /// 2026-11-24).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kit_mask: Option<String>,
     /// `offline` (default) or `streaming`.
     pub mode: Option<String>,
     /// Stems supplied directly, `(name, path)`: drums, bass, vocals, other (single
@@ -207,6 +212,12 @@ impl RenderOptions {
                 ("pitch", NoteRule::Pitch),
             ],
         )?;
+        let kit_mask = pick(
+            "kit-mask",
+            self.kit_mask.as_deref(),
+            "on",
+            &[("on", true), ("off", false)],
+        )?;
         let drums = match choice(
             "drums",
             self.drums.as_deref(),
@@ -254,6 +265,7 @@ impl RenderOptions {
             pitch,
             level_rule,
             note_rule,
+            kit_mask,
             map,
             separator,
             drums,
@@ -293,6 +305,9 @@ impl RenderOptions {
         }
         if cfg.note_rule != NoteRule::Attack {
             key["note_onsets"] = self.note_onsets.as_deref().unwrap_or("attack").into();
+        }
+        if !cfg.kit_mask {
+            key["kit_mask"] = "off".into();
         }
         Ok(key)
     }

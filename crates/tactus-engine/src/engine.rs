@@ -62,6 +62,10 @@ pub struct EngineConfig {
     /// How the melodic stems' note onsets are read from their pitch tracks
     /// ([`NoteRule::Attack`] by default; `Pitch` is the first implementation).
     pub note_rule: NoteRule,
+    /// The spectral separator's learned kit mask
+    /// ([`tactus_separate::spectral::SpectralConfig::low_band_drums`]): kick and tom bodies
+    /// leave the bass stem for the drums (full profile; on by default).
+    pub kit_mask: bool,
     /// The glove map: decides which stems, bands and features exist.
     pub map: GloveMap,
     /// Separator for the stems not supplied directly.
@@ -97,6 +101,7 @@ impl Default for EngineConfig {
             pitch: PitchMethod::default(),
             level_rule: LevelRule::default(),
             note_rule: NoteRule::default(),
+            kit_mask: true,
             map: GloveMap::default(),
             separator: SeparatorChoice::default(),
             drums: DrumMethod::default(),
@@ -555,7 +560,10 @@ impl Engine {
                         cfg.sample_rate,
                         separated,
                         match cfg.profile {
-                            Profile::Full => SpectralConfig::default(),
+                            Profile::Full => SpectralConfig {
+                                low_band_drums: cfg.kit_mask,
+                                ..SpectralConfig::default()
+                            },
                             Profile::Live => profile::separator(),
                         },
                     )

@@ -112,6 +112,8 @@ pub fn separator() -> SpectralConfig {
         bass_past_frames: 4,
         lookahead_frames: 0,
         percussive_half_bins: 4,
+        // The learned low-band drum mask needs the full profile's bins and look-ahead.
+        low_band_drums: false,
         ..SpectralConfig::default()
     }
 }

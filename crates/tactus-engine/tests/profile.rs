@@ -260,5 +260,7 @@ fn full_profile_keeps_one_bin_beats_and_aligned_frames() {
     for k in 0..n {
         assert_eq!(e.live_frame(k), e.frame(k));
     }
-    assert!((1..=3).contains(&ups), "{ups} beat bins for one hit");
+    // At most 4 bins: the live profile's pulse holds at least 5. (3 before the kit mask put
+    // the hit's 70 Hz body into the drum stem, where a second band can fire a bin later.)
+    assert!((1..=4).contains(&ups), "{ups} beat bins for one hit");
 }

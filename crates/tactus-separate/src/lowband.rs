@@ -11,14 +11,21 @@
 //! ## Model
 //! Per STFT frame `t` of the mono mix (the separator's own analysis, 2048-point periodic
 //! Hann, hop 1024 at 44.1 kHz), a feature vector of `LOW + BANDS` values:
-//! * `ln(|X_k| + 1e-6)` for the lowest `LOW` = 24 bins (0–495 Hz);
-//! * `ln(mean |X_k| + 1e-6)` over each of the `BANDS` = 5 octave bands between the
+//! * `ln(|X_k| + ε)` for the lowest `LOW` = 24 bins (0–495 Hz);
+//! * `ln(mean |X_k| + ε)` over each of the `BANDS` = 5 octave bands between the
 //!   weight file's edges (500 Hz … 16 kHz): the broadband context of an attack;
+//! * `ε = 10⁻³ · max_{k < LOW} |X_k| + 10⁻⁶` (a 60 dB floor under the frame's strongest low
+//!   bin, so a synthetic tone over digital silence reads like music over a noise floor);
 //! * all minus a running reference `r ← r + max(a, 1/(t+1))·(m_t − r)`, `m_t` the mean of
-//!   the 24 low values and `a = hop / (2 s · rate)` (a level-free input).
+//!   the 24 low values and `a = hop / (2 s · rate)` (a level-free input);
+//! * (version 2) per low bin `k < SLOW` = 24, its steadiness `x_k − s_k`, where `x_k` is its
+//!   value above and `s_k ← s_k + max(b, 1/(t+1))·(x_k − s_k)`, `b = hop / (1 s · rate)`:
+//!   a held note sits near 0 while a kit's repeated decays swing (without it a steady pure
+//!   tone read as a drum body).
 //!
 //! The network sees the frames `t − PAST ..= t + FUTURE` (6 and 2; frames before the start
-//! and after the end read as `PAD` = −10 in every value), one hidden layer of ReLU units, and
+//! read as `PAD` = −10 in every value, frames after the end repeat the last one), one
+//! hidden layer of ReLU units, and
 //! gives per low output bin `k < OUT` (15 bins, 0–301 Hz) the drums' share
 //! `p_k = σ(…)` of that bin, trained against `|D_k|² / (|D_k|² + |X_k − D_k|²)` on corpus
 //! songs whose drum stem is known (`models/lowband/train.py`; the kits used and held out are
@@ -38,17 +45,24 @@ pub const WEIGHTS: &[u8] = include_bytes!("../weights/lowband.bin");
 /// Value of every feature of a frame before the start or after the end of the stream.
 pub const PAD: f32 = -10.0;
 
-/// Magnitude floor inside the logarithms.
+/// Magnitude floor inside the logarithms: `REL_FLOOR` times the frame's strongest low bin,
+/// plus `FLOOR`.
 const FLOOR: f32 = 1e-6;
+const REL_FLOOR: f32 = 1e-3;
 
 /// Time constant of the running reference, seconds.
 const REF_S: f32 = 2.0;
+
+/// Time constant of the steadiness features' running means, seconds.
+const SLOW_S: f32 = 1.0;
 
 /// A parsed weight file.
 #[derive(Clone, Debug)]
 pub struct LowBandModel {
     /// Low bins in the features.
     pub low: usize,
+    /// Low bins that also get a steadiness feature (version 2 files; 0 in version 1).
+    pub slow: usize,
     /// Band edges in Hz (`bands + 1` values).
     pub edges: Vec<f32>,
     /// Context frames before and after the frame.
@@ -70,7 +84,7 @@ pub struct LowBandModel {
 impl LowBandModel {
     /// Features per frame.
     pub fn per_frame(&self) -> usize {
-        self.low + self.edges.len() - 1
+        self.low + self.edges.len() - 1 + self.slow
     }
 
     /// Network inputs (`per_frame · (past + 1 + future)`).
@@ -78,8 +92,9 @@ impl LowBandModel {
         self.per_frame() * (self.past + 1 + self.future)
     }
 
-    /// Parses a weight file: `b"TLBM"`, u32 version 1, u32 low, bands, past, future, hidden,
-    /// out, f32 bin width, `bands + 1` f32 edges, then W1, b1, W2, b2 as little-endian f32.
+    /// Parses a weight file: `b"TLBM"`, u32 version (1 or 2), u32 low, bands, past, future,
+    /// hidden, out, (version 2) u32 slow, f32 bin width, `bands + 1` f32 edges, then W1, b1,
+    /// W2, b2 as little-endian f32.
     pub fn parse(bytes: &[u8]) -> Result<Self, String> {
         let mut pos = 0usize;
         let mut take = |n: usize| -> Result<&[u8], String> {
@@ -97,17 +112,21 @@ impl LowBandModel {
             Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
         };
         let version = u()?;
-        if version != 1 {
+        if !(1..=2).contains(&version) {
             return Err(format!("low-band weights: version {version} unsupported"));
         }
         let (low, bands, past, future, hidden, out) = (u()?, u()?, u()?, u()?, u()?, u()?);
+        let slow = if version >= 2 { u()? } else { 0 };
         if low == 0 || bands == 0 || hidden == 0 || out == 0 || out > low || low > 4096 {
+            return Err("low-band weights: bad shape".into());
+        }
+        if slow > low {
             return Err("low-band weights: bad shape".into());
         }
         if past > 64 || future > 64 || hidden > 4096 || bands > 64 {
             return Err("low-band weights: bad shape".into());
         }
-        let n_in = (low + bands) * (past + 1 + future);
+        let n_in = (low + bands + slow) * (past + 1 + future);
         let want = 4 * (1 + bands + 1 + n_in * hidden + hidden + hidden * out + out);
         let rest = &bytes[pos..];
         if rest.len() != want {
@@ -132,6 +151,7 @@ impl LowBandModel {
         }
         Ok(LowBandModel {
             low,
+            slow,
             edges,
             past,
             future,
@@ -160,6 +180,9 @@ pub struct LowBand {
     real: usize,
     reference: f32,
     rate_a: f32,
+    /// Per steadiness bin: the running mean of its normalised log magnitude.
+    slow_mean: Vec<f32>,
+    slow_a: f32,
     x: Vec<f32>,
     h: Vec<f32>,
 }
@@ -173,7 +196,12 @@ impl LowBand {
     }
 
     /// [`LowBand::new`] with a given model.
-    pub fn with_model(model: LowBandModel, sample_rate: u32, n_fft: usize, hop: usize) -> Option<Self> {
+    pub fn with_model(
+        model: LowBandModel,
+        sample_rate: u32,
+        n_fft: usize,
+        hop: usize,
+    ) -> Option<Self> {
         let bin_hz = sample_rate as f32 / n_fft as f32;
         let bins = n_fft / 2 + 1;
         if (bin_hz / model.bin_hz - 1.0).abs() > 0.01 || model.low > bins {
@@ -198,6 +226,8 @@ impl LowBand {
             real: 0,
             reference: 0.0,
             rate_a: hop as f32 / (REF_S * sample_rate as f32),
+            slow_mean: vec![0.0; model.slow],
+            slow_a: hop as f32 / (SLOW_S * sample_rate as f32),
             x: vec![0.0; n_in],
             h: vec![0.0; hidden],
             model,
@@ -227,36 +257,62 @@ impl LowBand {
         self.frames = 0;
         self.real = 0;
         self.reference = 0.0;
+        self.slow_mean.fill(0.0);
     }
 
     /// Computes frame features of `spectrum` into `out` (`per_frame` values), updating the
     /// running reference. Used by [`LowBand::push`] and by the training dump.
     pub fn frame_features(&mut self, spectrum: &[Complex<f32>], out: &mut [f32]) {
         let low = self.model.low;
-        let mut sum = 0.0f32;
+        let mut peak = 0.0f32;
         for (o, x) in out[..low].iter_mut().zip(spectrum) {
-            *o = (x.norm_sqr().sqrt() + FLOOR).ln();
+            *o = x.norm_sqr().sqrt();
+            peak = peak.max(*o);
+        }
+        // Floor: 60 dB under the frame's strongest low bin (a synthetic tone over digital
+        // silence then reads like music over a noise floor).
+        let eps = REL_FLOOR * peak + FLOOR;
+        let mut sum = 0.0f32;
+        for o in &mut out[..low] {
+            *o = (*o + eps).ln();
             sum += *o;
         }
         for (o, &(lo, hi)) in out[low..].iter_mut().zip(&self.band_bins) {
             let mean = if hi > lo {
-                spectrum[lo..hi].iter().map(|x| x.norm_sqr().sqrt()).sum::<f32>() / (hi - lo) as f32
+                spectrum[lo..hi]
+                    .iter()
+                    .map(|x| x.norm_sqr().sqrt())
+                    .sum::<f32>()
+                    / (hi - lo) as f32
             } else {
                 0.0
             };
-            *o = (mean + FLOOR).ln();
+            *o = (mean + eps).ln();
         }
         let m = sum / low as f32;
         self.real += 1;
         let w = self.rate_a.max(1.0 / self.real as f32);
         self.reference += w * (m - self.reference);
-        for o in out.iter_mut() {
+        let head = low + self.band_bins.len();
+        for o in out[..head].iter_mut() {
             *o -= self.reference;
+        }
+        // Steadiness: each low bin against its own running mean (a held note sits near 0,
+        // a kit's repeated decays swing).
+        let ws = self.slow_a.max(1.0 / self.real as f32);
+        let (feats, steady) = out.split_at_mut(head);
+        for ((s, mean), &x) in steady
+            .iter_mut()
+            .zip(&mut self.slow_mean)
+            .zip(&feats[..low])
+        {
+            *mean += ws * (x - *mean);
+            *s = x - *mean;
         }
     }
 
-    /// Pushes the next frame's spectrum (`None`: a frame after the end of the stream, read
-    /// as padding).
+    /// Pushes the next frame's spectrum (`None`: a frame after the end of the stream, which
+    /// repeats the newest frame's features).
     pub fn push(&mut self, spectrum: Option<&[Complex<f32>]>) {
         let per = self.model.per_frame();
         let ctx = self.model.past + 1 + self.model.future;
@@ -264,6 +320,12 @@ impl LowBand {
         let mut buf = std::mem::take(&mut self.ring);
         match spectrum {
             Some(s) => self.frame_features(s, &mut buf[slot * per..(slot + 1) * per]),
+            None if self.frames > 0 => {
+                // After the end: the newest frame again (a held sound, not a cut that
+                // would look like a decaying hit).
+                let prev = (self.frames - 1) % ctx;
+                buf.copy_within(prev * per..(prev + 1) * per, slot * per);
+            }
             None => buf[slot * per..(slot + 1) * per].fill(PAD),
         }
         self.ring = buf;
