@@ -61,6 +61,42 @@ def features(song_dir, cond, cache):
     return np.fromfile(cache, dtype="<f4").reshape(-1, BANDS)
 
 
+WHITEN = 0.0  # --whiten: time constant of the per-band running mean, in hops (0: none)
+WHITEN_EPS = 1e-20  # power floor of the running mean (the front end's LOG_FLOOR)
+
+
+def whiten(mel):
+    """Adaptive whitening, causal, as drums.rs does (file version 3): every log mel band
+    minus the log of a running mean of that band's power (exp of the log mel value),
+    m[j] = a m[j-1] + (1 - a) p[j] with a = exp(-1 / WHITEN), started at m[-1] = 0 and
+    divided by 1 - a^(j+1) (the plain mean of the frames so far until the exponential
+    window fills), in f64:  out[j] = mel[j] - ln(m[j] / (1 - a^(j+1)) + WHITEN_EPS).
+    A kit's fixed colouring and the backing's steady spectrum drop out; the window
+    normalisation of context() follows."""
+    if WHITEN <= 0:
+        return mel
+    a = np.exp(-1.0 / WHITEN)
+    p = np.exp(mel.astype(np.float64))
+    n = p.shape[0]
+    out = np.empty_like(p)
+    state = np.zeros(p.shape[1])
+    blk = 256  # a^-k stays far from overflow within a block
+    for s in range(0, n, blk):
+        q = p[s:s + blk]
+        k = np.arange(q.shape[0], dtype=np.float64)[:, None]
+        acc = np.cumsum(q * a ** (-k), axis=0) * a ** k * (1 - a)
+        m = a ** (k + 1) * state + acc
+        state = m[-1]
+        corr = 1.0 - a ** (s + k + 1)
+        out[s:s + blk] = m / corr
+    return (mel.astype(np.float64) - np.log(out + WHITEN_EPS)).astype(np.float32)
+
+
+def prep(mel):
+    """Network inputs before standardisation: whitening (if any), then the context."""
+    return context(whiten(mel))
+
+
 def context(mel):
     """Network inputs for every hop: frames i-PAST..i+FUTURE, normalised as in drums.rs."""
     n = mel.shape[0]
@@ -396,7 +432,12 @@ def write_model(path, ps, mean, std, thr):
     layers = [(W0f, b0f)] + [(W, b) for W, b in ps[1:]]
     with open(path + ".tmp", "wb") as f:
         f.write(b"TACTUSDR")
-        if FLUX:  # version 2: a u32 input-feature set follows the floor (1: mel + flux)
+        if WHITEN > 0:  # version 3: the feature set, then the whitening time constant (hops)
+            f.write(struct.pack("<6I", 3, BANDS, PAST, FUTURE, 4, len(layers)))
+            f.write(struct.pack("<f", FLOOR))
+            f.write(struct.pack("<I", 1 if FLUX else 0))
+            f.write(struct.pack("<f", WHITEN))
+        elif FLUX:  # version 2: a u32 input-feature set follows the floor (1: mel + flux)
             f.write(struct.pack("<6I", 2, BANDS, PAST, FUTURE, 4, len(layers)))
             f.write(struct.pack("<f", FLOOR))
             f.write(struct.pack("<I", 1))
@@ -418,12 +459,15 @@ def read_model(path):
     ver, bands, past, fut, ncls, nl = struct.unpack_from("<6I", buf, 8)
     (floor,) = struct.unpack_from("<f", buf, 32)
     off = 36
-    global FLUX
-    FLUX = False
-    if ver == 2:
+    global FLUX, WHITEN, PAST, FUTURE
+    FLUX, WHITEN, PAST, FUTURE = False, 0.0, past, fut
+    if ver >= 2:
         (feat,) = struct.unpack_from("<I", buf, off)
         off += 4
         FLUX = feat == 1
+    if ver >= 3:
+        (WHITEN,) = struct.unpack_from("<f", buf, off)
+        off += 4
     ps = []
     for _ in range(nl):
         ni, no = struct.unpack_from("<2I", buf, off)
@@ -438,7 +482,7 @@ def read_model(path):
 
 
 def activations(ps, mel):
-    return sigmoid(forward(ps, with_flux(context(mel)))[-1])
+    return sigmoid(forward(ps, with_flux(prep(mel)))[-1])
 
 
 def report(ps, thr, sets):
@@ -458,7 +502,7 @@ def report(ps, thr, sets):
 
 
 def main():
-    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX
+    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX, WHITEN
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
     ap.add_argument("--epochs", type=int, default=20)
@@ -491,11 +535,15 @@ def main():
                     help="input: also the positive first difference of the context's frames")
     ap.add_argument("--families", default=None,
                     help="only these families (comma-separated; default: every one under --data)")
+    ap.add_argument("--whiten", type=float, default=0.0,
+                    help="input: subtract each band's running mean power over this many seconds "
+                         "(adaptive whitening; 0: none)")
     a = ap.parse_args()
     if not os.path.exists(dumper_path()):
         sys.exit("build the feature dumper first: cargo build --release -p tactus-engine --example drum_features")
     conds = a.conds.split(",")
     PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX = a.past, a.future, a.shift, a.warp, a.stretch, a.flux
+    WHITEN = a.whiten / HOP_S
     HELD_OUT[:] = a.held_out.split(",")
     items = songs(a.data)
     if a.families:
@@ -515,7 +563,7 @@ def main():
             for (_, _, c, mel, truth) in D:
                 if c not in cs:
                     continue
-                X.append(context(mel))
+                X.append(prep(mel))
                 y, w = labels(truth, mel.shape[0], hard_neg)
                 Y.append(y)
                 W.append(w)
@@ -539,7 +587,7 @@ def main():
         ps = train(ps, X, Y, W, Xv, Yv, Wv, a.epochs, rng, pos_weight=pos_weight, mean=mean, std=std,
                    aug=not a.no_augment, neg_keep=a.neg_keep, in_drop=a.in_drop, decay=a.decay)
         # Tune thresholds on validation, over every condition pooled.
-        acts = [sigmoid(forward(ps, (with_flux(context(m)) - mean) / std)[-1]) for (_, _, _, m, _) in D_va]
+        acts = [sigmoid(forward(ps, (with_flux(prep(m)) - mean) / std)[-1]) for (_, _, _, m, _) in D_va]
         thr = tune(acts, [t for (*_, t) in D_va])
         print("thresholds", thr, flush=True)
         write_model(a.out, ps, mean, std, thr)
