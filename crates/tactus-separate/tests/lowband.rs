@@ -121,17 +121,22 @@ fn reference(
         .collect()
 }
 
-#[test]
-fn streaming_mask_equals_the_f64_reference() {
-    let x = signal(4.0);
+/// The separator's analysis frames of `x` (all of them, the stream ended).
+fn frames_of(x: &[f32]) -> Vec<Vec<realfft::num_complex::Complex<f32>>> {
     let cfg = StftConfig {
         n_fft: N_FFT,
         hop: HOP,
     };
     let mut an = StftAnalysis::new(cfg, 1).unwrap();
     let mut frames = Vec::new();
-    an.push(&[&x], |_, s| frames.push(s[0].clone()));
+    an.push(&[x], |_, s| frames.push(s[0].clone()));
     an.finish(|_, s| frames.push(s[0].clone()));
+    frames
+}
+
+#[test]
+fn streaming_mask_equals_the_f64_reference() {
+    let frames = frames_of(&signal(4.0));
     let mut lb = LowBand::new(SR, N_FFT, HOP).expect("model for 44.1 kHz / 2048");
     let m = lb.model().clone();
     let want = reference(&m, &frames);
@@ -171,14 +176,7 @@ fn streaming_mask_equals_the_f64_reference() {
 
 #[test]
 fn reset_reproduces_the_first_run() {
-    let x = signal(2.0);
-    let cfg = StftConfig {
-        n_fft: N_FFT,
-        hop: HOP,
-    };
-    let mut an = StftAnalysis::new(cfg, 1).unwrap();
-    let mut frames = Vec::new();
-    an.push(&[&x], |_, s| frames.push(s[0].clone()));
+    let frames = frames_of(&signal(2.0));
     let mut lb = LowBand::new(SR, N_FFT, HOP).unwrap();
     let run = |lb: &mut LowBand| {
         let mut out = Vec::new();
