@@ -29,12 +29,11 @@ VAL_EVERY = 6
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 DEFAULT_OUT = os.path.join(ROOT, "crates", "tactus-separate", "weights", "lowband.bin")
 PER = LOW + len(EDGES) - 1 + SLOW
-CTX = PAST + 1 + FUTURE
 
 
-def write(path, w1, b1, w2, b2):
+def write(path, w1, b1, w2, b2, past=PAST):
     hidden = w1.shape[1]
-    head = b"TLBM" + struct.pack("<8I", 2, LOW, len(EDGES) - 1, PAST, FUTURE, hidden, OUT, SLOW)
+    head = b"TLBM" + struct.pack("<8I", 2, LOW, len(EDGES) - 1, past, FUTURE, hidden, OUT, SLOW)
     body = np.concatenate([[BIN_HZ], EDGES, w1.ravel(), b1, w2.ravel(), b2]).astype("<f4")
     tmp = path + ".tmp"
     with open(tmp, "wb") as fh:
@@ -42,7 +41,7 @@ def write(path, w1, b1, w2, b2):
     os.replace(tmp, path)
 
 
-def dump(song, cache, gain):
+def dump(song, cache, gain, past=PAST):
     name = song.rstrip("/").split("/")[-2] + "_" + song.rstrip("/").split("/")[-1]
     p = os.path.join(cache, f"{name}.g{gain:g}.f32")
     if not os.path.exists(p):
@@ -53,9 +52,9 @@ def dump(song, cache, gain):
     f, y, m = a[:, :PER], a[:, PER:PER + OUT], a[:, PER + OUT:]
     t = len(f)
     # Before the start: PAD; after the end: the last frame repeated (as the separator does).
-    fp = np.concatenate([np.full((PAST, PER), PAD, np.float32), f,
+    fp = np.concatenate([np.full((past, PER), PAD, np.float32), f,
                          np.repeat(f[-1:], FUTURE, 0)])
-    x = np.concatenate([fp[i:i + t] for i in range(CTX)], 1)  # oldest first
+    x = np.concatenate([fp[i:i + t] for i in range(past + 1 + FUTURE)], 1)  # oldest first
     w = np.sqrt(m / (m.max(1, keepdims=True) + 1e-9)) + 0.05
     return x, y, w
 
@@ -66,6 +65,7 @@ def main():
     ap.add_argument("--families", default="timgm,csound,sonicpi,synth")
     ap.add_argument("--cache", default="/tmp/lowband-cache")
     ap.add_argument("--hidden", type=int, default=128)
+    ap.add_argument("--past", type=int, default=PAST, help="context frames before the frame")
     ap.add_argument("--epochs", type=int, default=40)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--out", default=DEFAULT_OUT)
@@ -75,7 +75,9 @@ def main():
     a = ap.parse_args()
     h = a.hidden
     if a.init:
-        write(a.out, np.zeros((PER * CTX, h)), np.zeros(h), np.zeros((h, OUT)), np.full(OUT, -20.0))
+        ctx = a.past + 1 + FUTURE
+        write(a.out, np.zeros((PER * ctx, h)), np.zeros(h), np.zeros((h, OUT)), np.full(OUT, -20.0),
+              a.past)
         return
     os.makedirs(a.cache, exist_ok=True)
     songs = sorted(d for fam in a.families.split(",")
@@ -86,7 +88,7 @@ def main():
     gains = [float(g) for g in a.gains.split(",")]
 
     def load(ss):
-        parts = [dump(s, a.cache, g) for s in ss for g in gains]
+        parts = [dump(s, a.cache, g, a.past) for s in ss for g in gains]
         return [np.concatenate([p[i] for p in parts]) for i in range(3)]
 
     xt, yt, wt = load(tr)
@@ -137,7 +139,7 @@ def main():
     # Fold the standardisation into the first layer: (x - mu) / sd @ W1 + b1.
     fw1 = bw1 / sd[:, None]
     fb1 = bb1 - (mu / sd) @ bw1
-    write(a.out, fw1, fb1, bw2, bb2)
+    write(a.out, fw1, fb1, bw2, bb2, a.past)
     print(f"best epoch {best[2]} (validation BCE {best[0]:.4f}) -> {a.out}")
 
 
