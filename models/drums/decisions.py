@@ -8,7 +8,7 @@ scored on the held-out family (the stand-in in trials).
   python3 models/drums/decisions.py --data DIR --families timgm,csound,sonicpi,synth \
       --held-out sonicpi MODEL.bin [MODEL2.bin ...]    # several: their activations averaged
 
-Needs numpy only; imports train.py.
+Needs numpy only; imports train.py and ensemble.py.
 """
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import train as T  # noqa: E402
+import ensemble as E  # noqa: E402
 
 
 def running_mean(a, tau):
@@ -63,26 +64,12 @@ def score_class(acts, bases, truths, c, thr, k):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--data", required=True)
-    ap.add_argument("--families", default=None)
-    ap.add_argument("--held-out", default=",".join(T.HELD_OUT))
+    E.add_common_args(ap)
     ap.add_argument("--ks", default="0,0.5,1,2")
     ap.add_argument("--taus", default="50,200")
-    ap.add_argument("models", nargs="+")
     a = ap.parse_args()
-    T.HELD_OUT[:] = a.held_out.split(",")
-    items = T.songs(a.data)
-    if a.families:
-        items = [it for it in items if it[0] in a.families.split(",")]
-    _, va, ho = T.split(items)
-    D_va, D_ho = T.load(va, a.data, T.CONDS), T.load(ho, a.data, T.CONDS)
+    D_va, D_ho, acts = E.averaged_activations(a)
     D = D_va + D_ho
-    acts = None
-    for path in a.models:
-        ps, _ = T.read_model(path)
-        one = [T.activations(ps, m) for (_, _, _, m, _) in D]
-        acts = one if acts is None else [x + y for x, y in zip(acts, one)]
-    acts = [x / len(a.models) for x in acts]
     nv = len(D_va)
     truths = [d[4] for d in D]
     ks = [float(v) for v in a.ks.split(",")]

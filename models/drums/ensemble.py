@@ -20,27 +20,38 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import train as T  # noqa: E402
 
 
-def main():
-    ap = argparse.ArgumentParser()
+def add_common_args(ap):
+    """The data, split and model arguments shared with decisions.py."""
     ap.add_argument("--data", required=True)
     ap.add_argument("--families", default=None)
     ap.add_argument("--held-out", default=",".join(T.HELD_OUT))
-    ap.add_argument("--report-md", default=None)
     ap.add_argument("models", nargs="+")
-    a = ap.parse_args()
+
+
+def averaged_activations(a):
+    """train.py's validation and held-out songs for `a` (see add_common_args) and the
+    models' activations on them, averaged: (D_va, D_ho, activations of D_va + D_ho)."""
     T.HELD_OUT[:] = a.held_out.split(",")
     items = T.songs(a.data)
     if a.families:
         items = [it for it in items if it[0] in a.families.split(",")]
     _, va, ho = T.split(items)
     D_va, D_ho = T.load(va, a.data, T.CONDS), T.load(ho, a.data, T.CONDS)
-    D = D_va + D_ho
     acts = None
     for path in a.models:
         ps, _ = T.read_model(path)  # sets PAST, FUTURE, FLUX, WHITEN for this model
-        one = [T.activations(ps, m) for (_, _, _, m, _) in D]
+        one = [T.activations(ps, m) for (_, _, _, m, _) in D_va + D_ho]
         acts = one if acts is None else [x + y for x, y in zip(acts, one)]
-    acts = [x / len(a.models) for x in acts]
+    return D_va, D_ho, [x / len(a.models) for x in acts]
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    add_common_args(ap)
+    ap.add_argument("--report-md", default=None)
+    a = ap.parse_args()
+    D_va, D_ho, acts = averaged_activations(a)
+    D = D_va + D_ho
     thr = T.tune(acts[:len(D_va)], [t for (*_, t) in D_va])
     print("thresholds", thr, flush=True)
     lines = []
