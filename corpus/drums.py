@@ -13,6 +13,12 @@ one of five families:
 * sonicpi   one-shot samples from sonic-pi-samples mixed with numpy (velocity as gain)
 * synth     every drum synthesised with numpy from random parameters per song (sine kicks with and
             without pitch sweeps, tuned snares, toms from 60 to 400 Hz, metallic or noise cymbals)
+* synth2    the synth family widened (issue 10): snares of every body tuning and wire colour and
+            decay, three velocity layers (ghost notes darker and wire-dominated), rim shots,
+            cross-stick, brushes; toms with stick noise and snare-wire buzz; hats and cymbals
+            reaching down into the snare's range; two round-robin variants per layer
+* remix     each class (kick, snare, toms, cymbals) from a different training source per song:
+            a TimGM6mb or sf_GMbank preset, or a synth2 kit (never fluid, musescore or sonicpi)
 * musescore MuseScore_General_Full bank 128: the HELD-OUT family (evaluate only, never train)
 
 FluidR3_GS.sf2 has only an SFX kit in bank 128, so it contributes no drum kit.
@@ -58,7 +64,11 @@ FAMILY_SF2 = {
     "csound": "sf_GMbank.sf2",
     "musescore": "MuseScore_General_Full.sf2",
 }
-FAMILIES = ["fluid", "timgm", "csound", "sonicpi", "musescore", "synth"]
+FAMILIES = ["fluid", "timgm", "csound", "sonicpi", "musescore", "synth", "synth2", "remix"]
+# "remix" songs take each class (kick, snare, toms, cymbals) from a different training source
+REMIX_SOURCES = ["timgm", "csound", "synth2"]
+REMIX_PRESETS = [0, 8, 16, 24, 25, 32, 40]
+REMIX_LEVELS = {"kick": 1.0, "snare": 0.8, "toms": 0.7, "cymbals": 0.45}
 HELD_OUT = {"musescore"}
 # Kit order per song index: the acoustic kits cycle; Electronic (24) and TR-808 (25) once each.
 KIT_ORDER = [0, 8, 16, 32, 40, 24, 0, 8, 16, 32, 40, 25]
@@ -737,6 +747,304 @@ def synth_render(hits_s, kit, levels, n_samples):
     return _mix_hits(hits_s, levels, n_samples, sample_of)
 
 
+# ---------------------------------------------------------------------------------------
+# The "synth2" family (2026-11-24, issue 10): the synth family widened where the transcriber
+# fails on unseen kits: snares (body tuning 110-500 Hz with 1-4 modes, wire noise of every
+# colour and decay, delayed or buzzing wires, stick clicks, rim shots, cross-stick, brushes,
+# three velocity layers so ghost notes are darker and wire-dominated), toms with stick noise
+# and snare-wire buzz, snares with long tonal bodies, and hats / cymbals whose noise reaches
+# down into the snare's range with stick attacks. Every hit picks one of two round-robin
+# variants. `synth` is unchanged, so its songs stay reproducible.
+
+SYNTH2_LAYERS = (45, 90, 127)  # velocity upper bounds of the ghost, medium and hard layers
+SNARE_MODE_RATIOS = (1.59, 2.14, 2.30, 2.65, 2.92, 3.16)
+
+
+def _logu(rng, lo, hi):
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def _tilt(x, db_per_oct, pivot=2000.0):
+    """Spectral tilt of `db_per_oct` around `pivot` Hz, unit peak."""
+    X = np.fft.rfft(x)
+    f = np.maximum(np.fft.rfftfreq(len(x), 1.0 / SR), 20.0)
+    y = np.fft.irfft(X * (f / pivot) ** (db_per_oct / 6.02), len(x))
+    return y / max(1e-9, float(np.max(np.abs(y))))
+
+
+def _resonate(x, freqs, q):
+    """x through a sum of resonant peaks (Gaussian on a log axis, width 1/q octave), unit peak."""
+    X = np.fft.rfft(x)
+    f = np.maximum(np.fft.rfftfreq(len(x), 1.0 / SR), 1.0)
+    h = sum(np.exp(-0.5 * (np.log2(f / fr) * q) ** 2) for fr in freqs)
+    y = np.fft.irfft(X * h, len(x))
+    return y / max(1e-9, float(np.max(np.abs(y))))
+
+
+def _coloured_noise(rng, n, p):
+    """Wire / brush noise of colour `p` (drawn once per kit by `_noise_colour`)."""
+    x = rng.standard_normal(n)
+    if p["kind"] == "band":
+        return _band(x, p["lo"], p["hi"])
+    if p["kind"] == "tilt":
+        return _band(_tilt(x, p["tilt"]), p["lo"], p["hi"])
+    return _resonate(_band(x, p["lo"], p["hi"]), p["peaks"], p["q"])
+
+
+def _noise_colour(rng, lo_range=(250, 4500)):
+    kind = str(rng.choice(["band", "tilt", "res"]))
+    p = {"kind": kind, "lo": _logu(rng, *lo_range), "hi": rng.uniform(5000, 16000)}
+    p["tilt"] = rng.uniform(-6, 3)
+    p["peaks"] = [_logu(rng, 800, 9000) for _ in range(int(rng.integers(2, 5)))]
+    p["q"] = rng.uniform(1.5, 5)
+    return p
+
+
+def _click(rng, n, lo, hi, dur):
+    k = max(8, int(dur * SR))
+    c = np.zeros(n)
+    c[:k] = _band_noise(rng, k, lo, hi) * np.exp(-np.arange(k) / (0.3 * k))
+    return c
+
+
+def synth2_snare_params(rng, brush):
+    f0 = _logu(rng, 110, 500)
+    nm = int(rng.integers(0, 4))
+    return {
+        "brush": brush,
+        "len": rng.uniform(0.25, 0.6),
+        "f0": f0,
+        "sweep": rng.uniform(1.0, 1.5),
+        "modes": [(1.0, 1.0)] + [(float(r), rng.uniform(0.15, 0.8))
+                                 for r in rng.choice(SNARE_MODE_RATIOS, nm, replace=False)],
+        # tonal snares (long body: piccolo, ringing, tuned electronic) half the time
+        "tau_body": _logu(rng, 0.015, 0.08) if rng.random() < 0.5 else _logu(rng, 0.08, 0.3),
+        "wires": _noise_colour(rng),
+        "tau_wire": _logu(rng, 0.03, 0.45),
+        "wire_level": _logu(rng, 0.15, 4.0),
+        "wire_delay": rng.uniform(0, 0.006) if rng.random() < 0.5 else 0.0,
+        "buzz": rng.uniform(0, 1) if rng.random() < 0.4 else 0.0,  # wires modulated by the body
+        "click": rng.uniform(0, 0.8),
+        "click_band": (rng.uniform(1500, 4000), rng.uniform(6000, 14000)),
+        "swish_attack": rng.uniform(0.004, 0.03),
+        "ghost_body": rng.uniform(0.15, 0.8),  # soft hits: less body relative to the wires
+    }
+
+
+def synth2_snare(rng, p, layer):
+    """One snare hit of velocity layer 0 (ghost), 1 (medium) or 2 (hard)."""
+    n = int(p["len"] * SR)
+    t = np.arange(n) / SR
+    if p["brush"]:
+        a = min(n - 1, int(p["swish_attack"] * (1.5 if layer == 0 else 1.0) * SR))
+        env = np.exp(-t / (p["tau_wire"] * (1.4 if layer == 0 else 1.0)))
+        env[:a] *= np.linspace(0, 1, a) ** 2
+        x = _coloured_noise(rng, n, p["wires"]) * env
+        body = _sweep(p["f0"], p["f0"], 0.01, n) * np.exp(-t / p["tau_body"])
+        x += rng.uniform(0.0, 0.3) * body
+        return _finish(x)
+    body = sum(g * _sweep(p["f0"] * r * p["sweep"], p["f0"] * r, 0.01, n) * np.exp(-t / (p["tau_body"] / r ** 0.5))
+               for r, g in p["modes"])
+    body = body / max(1e-9, float(np.max(np.abs(body))))
+    d = int(p["wire_delay"] * SR)
+    wires = np.zeros(n)
+    wires[d:] = _coloured_noise(rng, n - d, p["wires"]) * np.exp(-np.arange(n - d) / SR / p["tau_wire"])
+    if p["buzz"]:
+        wires *= 1 + p["buzz"] * np.abs(body)
+    bl = {0: p["ghost_body"], 1: 0.5 * (1 + p["ghost_body"]), 2: 1.0}[layer]
+    x = bl * body + p["wire_level"] * wires / max(1e-9, float(np.max(np.abs(wires))))
+    x += p["click"] * (0.3 if layer == 0 else 1.0) * _click(rng, n, *p["click_band"], rng.uniform(0.0005, 0.003))
+    x = _finish(x)
+    if layer == 0:
+        x = _darken(x, rng.uniform(1500, 4000))
+    elif layer == 1:
+        x = _darken(x, rng.uniform(4000, 9000))
+    return x
+
+
+def synth2_rimshot(rng, p):
+    """Stick on head and rim at once: the hard snare plus a ringing rim ping and a crack."""
+    x = synth2_snare(rng, {**p, "brush": False}, 2)
+    n = len(x)
+    t = np.arange(n) / SR
+    fp = rng.uniform(500, 1400)
+    ping = sum(np.sin(2 * np.pi * fp * r * t) for r in (1.0, rng.uniform(1.4, 2.6))) * np.exp(-t / rng.uniform(0.01, 0.06))
+    x = x + rng.uniform(0.3, 1.2) * ping / 2 + rng.uniform(0.5, 1.5) * _click(rng, n, 2000, 12000, 0.002)
+    return _finish(x)
+
+
+def synth2_cross_stick(rng):
+    """Side stick: a woody knock (two or three short modes) and a click, no wires."""
+    n = int(0.15 * SR)
+    t = np.arange(n) / SR
+    fs = [_logu(rng, 300, 2500) for _ in range(int(rng.integers(2, 4)))]
+    tau = _logu(rng, 0.003, 0.03)
+    x = sum(rng.uniform(0.3, 1.0) * np.sin(2 * np.pi * f * t) * np.exp(-t / tau) for f in fs)
+    x += rng.uniform(0.2, 1.0) * _click(rng, n, 1500, 10000, rng.uniform(0.0005, 0.003))
+    return _finish(x)
+
+
+def synth2_tom_params(rng, electronic, brush):
+    return {
+        "electronic": electronic,
+        "brush": brush,
+        "tau": _logu(rng, 0.1, 0.8),
+        "sweep": rng.uniform(1.0, 1.8 if electronic else 1.35),
+        "tau_sweep": rng.uniform(0.01, 0.12),
+        "modes": [(rng.uniform(1.45, 1.75), rng.uniform(0.05, 0.5)), (rng.uniform(1.95, 2.4), rng.uniform(0.0, 0.3))],
+        "stick": _logu(rng, 0.02, 0.7),  # stick attack noise (toms with a bright attack)
+        "stick_band": (rng.uniform(600, 3000), rng.uniform(5000, 12000)),
+        "buzz": rng.uniform(0.05, 0.35) if rng.random() < 0.5 else 0.0,  # sympathetic snare wires
+        "buzz_colour": _noise_colour(rng),
+        "noise_body": rng.uniform(0.1, 0.6) if electronic and rng.random() < 0.5 else 0.0,
+    }
+
+
+def synth2_tom(rng, f0, p, layer):
+    n = int(min(1.0, 4 * p["tau"] + 0.1) * SR)
+    t = np.arange(n) / SR
+    x = _sweep(f0 * p["sweep"], f0, p["tau_sweep"], n) * np.exp(-t / p["tau"])
+    for r, g in p["modes"]:
+        x += g * _sweep(f0 * r * 1.05, f0 * r, 0.03, n) * np.exp(-t / (0.4 * p["tau"]))
+    x = x / max(1e-9, float(np.max(np.abs(x))))
+    stick = p["stick"] * (0.4 if layer == 0 else 1.0) * (0.3 if p["brush"] else 1.0)
+    x += stick * _click(rng, n, *p["stick_band"], rng.uniform(0.002, 0.01))
+    if p["buzz"]:
+        x += p["buzz"] * _coloured_noise(rng, n, p["buzz_colour"]) * np.exp(-t / rng.uniform(0.04, 0.2))
+    if p["noise_body"]:
+        x += p["noise_body"] * _band_noise(rng, n, f0 * 2, f0 * 20) * np.exp(-t / (0.3 * p["tau"]))
+    x = _finish(x)
+    return _darken(x, rng.uniform(1500, 4000)) if layer == 0 else x
+
+
+def synth2_cymbal(rng, kind, metal_scale, metallic, low):
+    """Like synth_cymbal with wider colours: `low` kits let the noise reach down to 700 Hz
+    (hats and crashes with energy in the snare's range), with a stick attack."""
+    length = {"closed": 0.25, "pedal": 0.2, "open": 1.0, "ride": 2.0, "bell": 2.0, "crash": 2.5,
+              "splash": 1.0, "china": 2.0}[kind]
+    n = int(length * SR)
+    t = np.arange(n) / SR
+    lo_hat = (_logu(rng, 700, 4000) if low else _logu(rng, 3000, 10000))
+    lo, hi, tau = {
+        "closed": (lo_hat, rng.uniform(10000, 17000), _logu(rng, 0.01, 0.09)),
+        "pedal": (lo_hat, rng.uniform(9000, 15000), _logu(rng, 0.01, 0.05)),
+        "open": (lo_hat, rng.uniform(10000, 17000), _logu(rng, 0.15, 0.8)),
+        "ride": (_logu(rng, 1200, 6000), 15000, _logu(rng, 0.5, 2.0)),
+        "bell": (_logu(rng, 1000, 3000), 12000, _logu(rng, 0.5, 1.8)),
+        "crash": (_logu(rng, 600 if low else 1500, 4500), 16000, _logu(rng, 0.5, 2.5)),
+        "splash": (_logu(rng, 1000, 5000), 16000, _logu(rng, 0.15, 0.7)),
+        "china": (_logu(rng, 500, 2000), 12000, _logu(rng, 0.4, 1.6)),
+    }[kind]
+    src = rng.uniform(0.3, 1.0) * rng.standard_normal(n)
+    if metallic:
+        m = _metal(rng, n, metal_scale)
+        src = src + m / np.max(np.abs(m))
+    x = _band(src, lo, hi) * np.exp(-t / tau)
+    if rng.random() < 0.5:
+        x = _resonate(x, [_logu(rng, 2000, 12000) for _ in range(3)], rng.uniform(1, 3))
+    if kind in ("ride", "bell"):
+        fb = rng.uniform(500, 1300)
+        x += (0.6 if kind == "bell" else 0.15) * sum(
+            np.sin(2 * np.pi * fb * r * t) for r in (1.0, 2.76, 5.4)) / 3 * np.exp(-t / rng.uniform(0.4, 1.0))
+    if kind in ("closed", "pedal", "ride") and rng.random() < 0.6:  # stick tip / chick
+        x = x / max(1e-9, float(np.max(np.abs(x)))) + rng.uniform(0.1, 0.8) * _click(rng, n, 1000, 12000, 0.002)
+    k = int(0.002 * SR)
+    x[:k] *= np.linspace(0, 1, k)  # no DC step
+    return _finish(x)
+
+
+def synth2_kit(rng):
+    """note -> {"layers": [[variant, variant] per velocity layer], "pan": p}, levels, name."""
+    electronic = bool(rng.random() < 0.3)
+    brush = bool(not electronic and rng.random() < 0.2)
+    metallic = bool(rng.random() < 0.5)
+    low = bool(rng.random() < 0.5)
+    mscale = _logu(rng, 0.6, 2.5)
+
+    def const(x):
+        return [[x, x] for _ in SYNTH2_LAYERS]
+
+    def layered(make):
+        return [[make(l), make(l)] for l in range(len(SYNTH2_LAYERS))]
+
+    kick, kick2 = synth_kick(rng), synth_kick(rng)
+    dk = rng.uniform(1500, 5000)
+    kit = {36: (layered(lambda l: _darken(kick, dk) if l == 0 else kick), 0.0),
+           35: (layered(lambda l: _darken(kick2, dk) if l == 0 else kick2) if rng.random() < 0.3 else None, 0.0)}
+    if kit[35][0] is None:
+        kit[35] = kit[36]
+    sp = synth2_snare_params(rng, brush)
+    kit[38] = (layered(lambda l: synth2_snare(rng, sp, l)), -0.1)
+    if rng.random() < 0.5:  # 40 as a rim shot
+        kit[40] = ([[synth2_snare(rng, sp, 0)] * 2, [synth2_snare(rng, sp, 1)] * 2,
+                    [synth2_rimshot(rng, sp), synth2_rimshot(rng, sp)]], -0.1)
+    elif rng.random() < 0.5:  # 40 a second snare
+        sp2 = synth2_snare_params(rng, brush)
+        kit[40] = (layered(lambda l: synth2_snare(rng, sp2, l)), -0.1)
+    else:
+        kit[40] = kit[38]
+    kit[37] = (const(synth2_cross_stick(rng)) if rng.random() < 0.7 else const(synth_rim(rng)), -0.05)
+    tp = synth2_tom_params(rng, electronic, brush)
+    base = _logu(rng, 55, 170)
+    step = rng.uniform(1.1, 1.45)
+    for k, (note, pan) in enumerate(zip((41, 43, 45, 47, 48, 50), (-0.5, -0.35, -0.1, 0.1, 0.3, 0.45))):
+        f0 = base * step ** k
+        kit[note] = (layered(lambda l: synth2_tom(rng, f0, tp, l)), pan)
+    for note, kind, pan in ((42, "closed", 0.4), (44, "pedal", 0.4), (46, "open", 0.4), (51, "ride", -0.4),
+                            (53, "bell", -0.4), (59, "ride", -0.4), (49, "crash", 0.3), (57, "crash", -0.3),
+                            (55, "splash", 0.2), (52, "china", -0.2)):
+        a, b = synth2_cymbal(rng, kind, mscale, metallic, low), synth2_cymbal(rng, kind, mscale, metallic, low)
+        dc = rng.uniform(2000, 6000)
+        kit[note] = ([[_darken(a, dc), _darken(b, dc)], [a, b], [a, b]], pan)
+    levels = {35: 1.0, 36: 1.0, 37: 0.6, 38: 0.9, 40: 0.9, 42: 0.35, 44: 0.3, 46: 0.4, 51: 0.35, 53: 0.4,
+              59: 0.35, 49: 0.55, 57: 0.55, 55: 0.45, 52: 0.5}
+    for n in levels:
+        levels[n] *= 10 ** (rng.uniform(-5, 5) / 20)
+    if brush:
+        levels[38] *= 0.7
+        levels[40] *= 0.7
+    name = ("elec" if electronic else "brush" if brush else "acou") + ("-metal" if metallic else "-noise") + \
+        ("-low" if low else "")
+    return kit, levels, name
+
+
+def synth2_render(hits_s, kit, levels, n_samples, seed):
+    rr = np.random.default_rng(seed ^ 0x5EED)
+
+    def sample_of(n, v):
+        layers, pan = kit[n]
+        l = next(i for i, top in enumerate(SYNTH2_LAYERS) if v <= top)
+        return layers[l][int(rr.integers(0, 2))], pan
+
+    return _mix_hits(hits_s, levels, n_samples, sample_of)
+
+
+def remix_render(rng, hits_s, remix, remix_db, sy_kit, sy_levels, n_samples, bpm, reverb, seed, tmp):
+    """A kit of pieces from different training sources: each class's hits rendered by its
+    source (a TimGM6mb or sf_GMbank preset through fluidsynth, or the synth2 kit), peak
+    normalised, set to the class's level +-4 dB and summed."""
+    y = np.zeros((n_samples, 2))
+    exact = []
+    for c, (src, preset) in remix.items():
+        hs = [h for h in hits_s if DRUM_BANDS.get(h[1]) == c]
+        if not hs:
+            continue
+        if src == "synth2":
+            part, ex = synth2_render(hs, sy_kit, sy_levels, n_samples, seed + len(c))
+            if reverb:
+                part = simple_reverb(rng, part)
+        else:
+            mp_ = os.path.join(tmp, f"drums_{c}.mid")
+            ex = write_drum_midi(mp_, hs, bpm, preset)
+            x = fluid_render(os.path.join(SF2_DIR, FAMILY_SF2[src]), mp_, os.path.join(tmp, f"drums_{c}.wav"), reverb)
+            part = np.zeros((n_samples, 2))
+            part[: min(n_samples, len(x))] = x[:n_samples]
+        part = part / max(1e-9, float(np.max(np.abs(part)))) * REMIX_LEVELS[c] * 10 ** (remix_db[c] / 20)
+        y += part
+        exact += ex
+    return y, sorted(exact)
+
+
 def simple_reverb(rng, y):
     """Exponentially decaying noise IR (stereo, decorrelated), wet -18..-12 dB."""
     tau = rng.uniform(0.12, 0.35)
@@ -764,7 +1072,7 @@ def rms(x):
 def song_plan(family, index):
     """Kit, style, seed for song `index` of `family` (deterministic)."""
     seed = seed_of("tactus-drums-v1", family, index)
-    if family in ("sonicpi", "synth"):
+    if family in ("sonicpi", "synth", "synth2", "remix"):
         kit = None
     else:
         kit = KIT_ORDER[index] if index < len(KIT_ORDER) else ACOUSTIC_KITS[index % len(ACOUSTIC_KITS)]
@@ -805,6 +1113,15 @@ def build_song(args):
     elif family == "synth":
         sy_kit, sy_levels, kit_name = synth_kit(rng)
         song = f"{kit_name}_s{index:02d}"
+    elif family == "synth2":
+        sy_kit, sy_levels, kit_name = synth2_kit(rng)
+        song = f"{kit_name}_s{index:02d}"
+    elif family == "remix":
+        sy_kit, sy_levels, _ = synth2_kit(rng)
+        remix = {c: (str(rng.choice(REMIX_SOURCES)), int(rng.choice(REMIX_PRESETS))) for c in CLASSES}
+        remix_db = {c: float(rng.uniform(-4, 4)) for c in CLASSES}
+        kit_name = "-".join(s[0][:2] + ("" if s[0] == "synth2" else str(s[1])) for s in remix.values())
+        song = f"{kit_name}_s{index:02d}"
     else:
         kit_name = f"{KIT_ABBR[kit]}{kit:02d}"
         song = f"{kit_name}_s{index:02d}"
@@ -842,6 +1159,19 @@ def build_song(args):
                 y = simple_reverb(rng, y)
             audio["drums"] = y
             kit_desc = {"synthesised": kit_name, "seed": seed}
+        elif family == "synth2":
+            y, exact = synth2_render(hits_s, sy_kit, sy_levels, n_samples, seed)
+            if reverb:
+                y = simple_reverb(rng, y)
+            audio["drums"] = y
+            kit_desc = {"synthesised2": kit_name, "seed": seed}
+        elif family == "remix":
+            y, exact = remix_render(rng, hits_s, remix, remix_db, sy_kit, sy_levels, n_samples, bpm, reverb,
+                                    seed, tmp)
+            audio["drums"] = y
+            kit_desc = {"remix": {c: {"source": s, "preset": k if s != "synth2" else None,
+                                      "level_db": round(remix_db[c], 2)} for c, (s, k) in remix.items()},
+                        "seed": seed}
         else:
             sf2 = os.path.join(SF2_DIR, FAMILY_SF2[family])
             mp_ = os.path.join(tmp, "drums.mid")
