@@ -166,7 +166,20 @@ impl StemChain {
             60.0
         };
         let pitch = match (pitch, profile::pitch_range_hz(geo.profile, stem)) {
-            (Some(m), Some((lo, hi))) => Some(PitchTrack::new(geo, lo, hi, m, mixture)?),
+            (Some(m), Some((lo, hi))) => {
+                let mut t = PitchTrack::new(geo, lo, hi, m, mixture)?;
+                // A clean bass or lead stem: the streaming range leans on the instrument's
+                // register (README, "Streaming levels from a register prior").
+                let register = match stem {
+                    Stem::Bass => Some(crate::track::CLEAN_BASS_REGISTER_HZ),
+                    Stem::Vocals => Some(crate::track::CLEAN_LEAD_REGISTER_HZ),
+                    _ => None,
+                };
+                if let (false, LevelRule::Follow, Some(r)) = (mixture, geo.level_rule, register) {
+                    t.set_register_prior(r)?;
+                }
+                Some(t)
+            }
             _ => None,
         };
         let notes = match (notes, &pitch) {

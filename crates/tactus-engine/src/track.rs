@@ -12,7 +12,7 @@
 
 use tactus_dsp::binner::{bin_beats, bin_levels, BeatBinner, LevelBinner};
 use tactus_dsp::discretize::{
-    range_offline, range_quantiles_held, Discretizer, HeldRange, RunningRange, Scale,
+    range_offline, range_quantiles_held, Discretizer, HeldRange, RangePrior, RunningRange, Scale,
 };
 use tactus_dsp::flux::{OnsetConfig, OnsetDetector, OnsetFrame};
 use tactus_dsp::median::MedianFilter;
@@ -119,6 +119,22 @@ pub fn prior_span_st(fmax_hz: f32) -> f32 {
         16.0
     }
 }
+
+/// Register prior of a clean bass stem's streaming range ([`RangePrior::Register`]), Hz:
+/// E1 (the lowest open string of a four-string bass) to D4, the top of a bass line's usual
+/// compass. Chosen on the tuning songs' isolated streaming rows (`benches/bass_eval.py`,
+/// README "Streaming levels from a register prior") over E1–G3, E1–C4, C1–C4, D1–C4.
+pub const CLEAN_BASS_REGISTER_HZ: (f32, f32) = (41.203, 293.66);
+
+/// Register prior of a clean lead (vocals) stem's streaming range, Hz: A3 to G5, where sung
+/// and played melodies mostly lie. Chosen like [`CLEAN_BASS_REGISTER_HZ`] (over G3–G5,
+/// C4–G5, C4–C6, G2–C6).
+pub const CLEAN_LEAD_REGISTER_HZ: (f32, f32) = (220.0, 783.99);
+
+/// Voiced hops after which a register prior's pull has halved (2 s of voiced hops): a short
+/// song's line shows most of its compass within its first phrases. Chosen with the registers
+/// (100 / 150 / 200 / 300 / 500 / 1000 hops).
+pub const REGISTER_FADE_HOPS: f32 = 200.0;
 
 /// Streaming gate reference decay (dB per second). Slow enough that a held note does not
 /// re-open the gate on its own tail, fast enough that a quiet verse after a loud chorus
@@ -493,6 +509,22 @@ impl PitchTrack {
             skipped_f0: 0,
             skipped_rms: 0,
         })
+    }
+
+    /// Leans the streaming range ([`LevelRule::Follow`]) on an instrument's register
+    /// `(lo_hz, hi_hz)` instead of the prior span ([`RangePrior::Register`], fading over
+    /// [`REGISTER_FADE_HOPS`]). Offline output is unchanged. Call before the first block.
+    pub fn set_register_prior(&mut self, register_hz: (f32, f32)) -> Result<(), ConfigError> {
+        self.chain.prior_range = HeldRange::with_prior(
+            RangePrior::Register(register_hz.0, register_hz.1),
+            REGISTER_FADE_HOPS,
+            FOLLOW_RANGE_QUANTILE,
+            self.held_hops,
+            HELD_TOL_ST,
+            HELD_MIN_SHARE,
+            HELD_MIN_HOPS,
+        )?;
+        Ok(())
     }
 
     /// Moves the whole track `hops` hops earlier: what the tracker reports for hop
