@@ -120,16 +120,17 @@ pub fn prior_span_st(fmax_hz: f32) -> f32 {
     }
 }
 
-/// Register prior of a clean bass stem's streaming range ([`RangePrior::Register`]), Hz:
-/// E1 (the lowest open string of a four-string bass) to D4, the top of a bass line's usual
+/// Register prior of the bass stem's streaming range ([`RangePrior::Register`]), Hz: E1
+/// (the lowest open string of a four-string bass) to D4, the top of a bass line's usual
 /// compass. Chosen on the tuning songs' isolated streaming rows (`benches/bass_eval.py`,
-/// README "Streaming levels from a register prior") over E1–G3, E1–C4, C1–C4, D1–C4.
-pub const CLEAN_BASS_REGISTER_HZ: (f32, f32) = (41.203, 293.66);
+/// README "Streaming levels from a register prior") over E1–G3, E1–C4, C1–C4, D1–C4; it
+/// also lifts the tuning mixes' streaming levels, so the mix's bass band uses it too.
+pub const BASS_REGISTER_HZ: (f32, f32) = (41.203, 293.66);
 
-/// Register prior of a clean lead (vocals) stem's streaming range, Hz: A3 to G5, where sung
-/// and played melodies mostly lie. Chosen like [`CLEAN_BASS_REGISTER_HZ`] (over G3–G5,
+/// Register prior of the lead (vocals) stem's streaming range, Hz: A3 to G5, where sung
+/// and played melodies mostly lie. Chosen like [`BASS_REGISTER_HZ`] (over G3–G5,
 /// C4–G5, C4–C6, G2–C6).
-pub const CLEAN_LEAD_REGISTER_HZ: (f32, f32) = (220.0, 783.99);
+pub const LEAD_REGISTER_HZ: (f32, f32) = (220.0, 783.99);
 
 /// Voiced hops after which a register prior's pull has halved (2 s of voiced hops): a short
 /// song's line shows most of its compass within its first phrases. Chosen with the registers

@@ -1,4 +1,4 @@
-//! The register prior of a clean stem's streaming range ([`PitchTrack::set_register_prior`],
+//! The register prior of a bass or lead stem's streaming range ([`PitchTrack::set_register_prior`],
 //! README "Streaming levels from a register prior"), through the real bass tracker on audio:
 //! the streaming levels are the discretizer's levels of the track's own pitch within
 //! `tactus_dsp`'s register-padded held range (the oracle, hop by hop), they differ from the
@@ -8,7 +8,7 @@
 use tactus_dsp::discretize::{Discretizer, HeldRange, RangePrior};
 use tactus_engine::profile::Profile;
 use tactus_engine::track::{
-    Geometry, PitchTrack, CLEAN_BASS_HELD_HOPS, CLEAN_BASS_REGISTER_HZ, FOLLOW_RANGE_QUANTILE,
+    Geometry, PitchTrack, BASS_REGISTER_HZ, CLEAN_BASS_HELD_HOPS, FOLLOW_RANGE_QUANTILE,
     HELD_MIN_HOPS, HELD_MIN_SHARE, HELD_TOL_ST, REGISTER_FADE_HOPS,
 };
 use tactus_engine::{Mode, PitchMethod};
@@ -49,7 +49,7 @@ fn track(mode: Mode, register: bool, x: &[f32], chunk: usize) -> PitchTrack {
     let (lo, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
     let mut t = PitchTrack::new(geo(mode), lo, hi, PitchMethod::Shs, false).unwrap();
     if register {
-        t.set_register_prior(CLEAN_BASS_REGISTER_HZ).unwrap();
+        t.set_register_prior(BASS_REGISTER_HZ).unwrap();
     }
     for b in x.chunks(chunk) {
         t.process(b);
@@ -65,7 +65,7 @@ fn streaming_levels_are_the_register_padded_range_levels_of_the_tracks_own_pitch
     // The oracle: the track's own pitch (after gate and fences), hop by hop through the
     // register-padded held range and the discretizer.
     let mut r = HeldRange::with_prior(
-        RangePrior::Register(CLEAN_BASS_REGISTER_HZ.0, CLEAN_BASS_REGISTER_HZ.1),
+        RangePrior::Register(BASS_REGISTER_HZ.0, BASS_REGISTER_HZ.1),
         REGISTER_FADE_HOPS,
         FOLLOW_RANGE_QUANTILE,
         CLEAN_BASS_HELD_HOPS,
