@@ -838,6 +838,7 @@ fn contour_voicing_silences_the_chords_between_phrases() {
 /// forward pass is redone, with every hop's voiced observations shifted by the prior of
 /// the running mean of the voiced states decided before that hop was observed; the hop
 /// `lag_hops` back is decided from the best path, and at the end the rest of the best path.
+#[allow(clippy::needless_range_loop)] // the oracle reads like the textbook
 fn naive_register_decode(c: &ShsConfig, x: &[f32]) -> Vec<usize> {
     let hops = naive_hops(c, x);
     let m = c.n_bins().unwrap();
