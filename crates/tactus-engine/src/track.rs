@@ -155,6 +155,17 @@ pub const PYIN_LAG_HOPS: usize = 10;
 /// bass 0.982 → 0.957 (weak fundamentals of low plucked notes pushed an octave up).
 pub const MIXTURE_FUNDAMENTAL_RATIO: f32 = 0.1;
 
+/// [`tactus_dsp::shs::ShsConfig::register_sigma_st`] for bass tracked on a mixture's low
+/// band: a bass line keeps to its register, while a kick's or a floor tom's body left in
+/// the low band pulls single notes an octave or a fifth under it. Chosen on the tuning
+/// songs' mixes (`benches/bass_eval.py --inputs mix`, offline; sung / chorales / `timgm`):
+/// bass RPA 0.804 / 0.852 / 0.891 → 0.823 / 0.885 / 0.896 and levels ±1 0.638 / 0.823 /
+/// 0.872 → 0.627 / 0.896 / 0.924 at σ = 12 (σ = 9: RPA 0.831 / 0.862 / 0.895; σ = 15:
+/// 0.815 / 0.877 / 0.895; time constants of 5 and 30 s within 0.005 of 10 s). Off on clean
+/// stems and for the lead (a lead's register prior cost `timgm` mix vocals RPA 0.717 →
+/// 0.684).
+pub const MIXTURE_BASS_REGISTER_ST: f32 = 12.0;
+
 /// Contour voicing of the lead on a band of the mix ([`tactus_dsp::shs::ShsConfig::contour_gate_db`]):
 /// a decoded contour more than this many dB below the running mean level of the voiced hops
 /// is reported unvoiced (the chords that the separator leaves in the vocals band while the
@@ -457,6 +468,8 @@ impl PitchTrack {
                     sc.fundamental_ratio = MIXTURE_FUNDAMENTAL_RATIO;
                     if fmax_hz > BASS_MAX_HZ {
                         sc.contour_gate_db = MIXTURE_MELODY_CONTOUR_GATE_DB;
+                    } else {
+                        sc.register_sigma_st = MIXTURE_BASS_REGISTER_ST;
                     }
                 }
                 Box::new(Shs::new(sc)?)
