@@ -129,7 +129,7 @@ pub const BASS_REGISTER_HZ: (f32, f32) = (41.203, 293.66);
 
 /// Register prior of the lead (vocals) stem's streaming range, Hz: A3 to G5, where sung
 /// and played melodies mostly lie. Chosen like [`BASS_REGISTER_HZ`] (over G3–G5,
-/// C4–G5, C4–C6, G2–C6).
+/// C4–G5, C4–C6).
 pub const LEAD_REGISTER_HZ: (f32, f32) = (220.0, 783.99);
 
 /// Voiced hops after which a register prior's pull has halved (2 s of voiced hops): a short
