@@ -62,8 +62,9 @@ pub enum LevelRule {
     /// fences keep ([`FOLLOW_RANGE_QUANTILE`]: a few octave errors no longer stretch it);
     /// in streaming mode the same percentiles of every kept hop so far
     /// ([`PriorRange::with_quantile`]: an early octave error no longer shifts every later
-    /// level), padded to a prior span that fades ([`prior_span_st`]), so the first notes do
-    /// not sit on level 1 or 8. (Running percentiles of the fences' 10 s window were tried
+    /// level), padded to a prior that fades, so the first notes do not sit on level 1 or 8:
+    /// the instrument's register for the bass and the lead ([`BASS_REGISTER_HZ`],
+    /// [`LEAD_REGISTER_HZ`]), a span ([`prior_span_st`]) for the rest. (Running percentiles of the fences' 10 s window were tried
     /// first: vocals levels ±1 fell from 0.76 to 0.68 on the tuned songs; the running min
     /// and max were the streaming range until 2026-11-24.)
     #[default]
