@@ -61,7 +61,7 @@ pub enum LevelRule {
     /// longer cut), the range from the 1st to the 99th percentile of the voiced hops that the
     /// fences keep ([`FOLLOW_RANGE_QUANTILE`]: a few octave errors no longer stretch it);
     /// in streaming mode the same percentiles of every kept hop so far
-    /// ([`PriorRange::with_quantile`]: an early octave error no longer shifts every later
+    /// ([`tactus_dsp::discretize::PriorRange::with_quantile`]: an early octave error no longer shifts every later
     /// level), padded to a prior that fades, so the first notes do not sit on level 1 or 8:
     /// the instrument's register for the bass and the lead ([`BASS_REGISTER_HZ`],
     /// [`LEAD_REGISTER_HZ`]), a span ([`prior_span_st`]) for the rest. (Running percentiles of the fences' 10 s window were tried
