@@ -54,6 +54,16 @@
 //! of the voiced hops seen so far. No added latency (the range lags by `k` hops); no
 //! allocation after construction; `k = 0` is the plain [`PriorRange`].
 //!
+//! **Register prior** ([`RangePrior::Register`], [`PriorRange::with_prior`], our addition,
+//! issue 16). A span prior pads the first notes symmetrically, but where a line starts says
+//! little about which way it will go: a bass line that opens on its lowest roots only climbs.
+//! A register prior knows the instrument's usual compass `[r_lo, r_hi]` instead: each end of
+//! the running (quantile) range starts at the register's edge and moves to the line's own end
+//! as voiced hops accumulate, `lo' = lo − w·max(0, lo − r_lo)` (and mirrored for `hi`) in
+//! semitones, with the same weight `w = fade / (fade + n)`. The range is never narrower than
+//! the line's own, an end beyond the register is kept, and the prior fades to nothing.
+//! Causal, O(1) on top of the quantile range, no allocation after construction.
+//!
 //! **Defaults.** [`DEFAULT_LEVELS`] = 8 (paper), semitone scale (docs/design.md). **Latency:** none.
 
 use crate::ConfigError;
@@ -254,6 +264,28 @@ impl HeldRange {
         min_share: f32,
         min_hops: u64,
     ) -> Result<Self, ConfigError> {
+        Self::with_prior(
+            RangePrior::Span(span_st),
+            fade_hops,
+            p,
+            k,
+            tol_st,
+            min_share,
+            min_hops,
+        )
+    }
+
+    /// As [`HeldRange::new`], both ranges padded towards `prior`
+    /// ([`PriorRange::with_prior`]).
+    pub fn with_prior(
+        prior: RangePrior,
+        fade_hops: f32,
+        p: f32,
+        k: usize,
+        tol_st: f32,
+        min_share: f32,
+        min_hops: u64,
+    ) -> Result<Self, ConfigError> {
         if k > MAX_HELD_HOPS {
             return Err(ConfigError::invalid(
                 "k",
@@ -267,8 +299,8 @@ impl HeldRange {
             return Err(ConfigError::invalid("min_share", "must be in [0, 1]"));
         }
         Ok(HeldRange {
-            all: PriorRange::with_quantile(span_st, fade_hops, p)?,
-            held: PriorRange::with_quantile(span_st, fade_hops, p)?,
+            all: PriorRange::with_prior(prior, fade_hops, p)?,
+            held: PriorRange::with_prior(prior, fade_hops, p)?,
             ring: [(f32::NAN, 0.0); 2 * MAX_HELD_HOPS + 1],
             k,
             tol_st,
@@ -453,15 +485,32 @@ impl QuantileRange {
     }
 }
 
-/// Running range padded to a prior span that fades (module docs, "Streaming range with a
-/// prior"). Causal, allocation-free after construction.
+/// What a streaming range leans on while the line has not shown its own yet (module docs,
+/// "Streaming range with a prior" and "Register prior").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RangePrior {
+    /// Pad the running range symmetrically up to this many semitones.
+    Span(f32),
+    /// Widen each end of the running range towards the register `(lo_hz, hi_hz)`.
+    Register(f32, f32),
+}
+
+/// Running range padded to a prior that fades (module docs, "Streaming range with a
+/// prior", "Register prior"). Causal, allocation-free after construction.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PriorRange {
     /// The unpadded range: quantile 0 (exact min and max) for [`PriorRange::new`].
     range: QuantileRange,
-    span_st: f64,
+    prior: Pad,
     fade: f64,
     n: u64,
+}
+
+/// [`RangePrior`] in the units the padding uses.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Pad {
+    Span(f64),
+    Register(f64, f64),
 }
 
 impl PriorRange {
@@ -477,10 +526,31 @@ impl PriorRange {
         }
         Ok(PriorRange {
             range: QuantileRange::new(0.0),
-            span_st: f64::from(span_st),
+            prior: Pad::Span(f64::from(span_st)),
             fade: f64::from(fade_hops),
             n: 0,
         })
+    }
+
+    /// The running quantile range ([`QuantileRange`], quantile `p` from each end) padded
+    /// towards `prior` with the weight `fade_hops / (fade_hops + n)`. Errors as
+    /// [`PriorRange::with_quantile`] does, and for a register unless
+    /// `0 < lo_hz < hi_hz < ∞`.
+    pub fn with_prior(prior: RangePrior, fade_hops: f32, p: f32) -> Result<Self, ConfigError> {
+        match prior {
+            RangePrior::Span(span_st) => Self::with_quantile(span_st, fade_hops, p),
+            RangePrior::Register(lo, hi) => {
+                if !(lo > 0.0 && lo < hi && hi.is_finite()) {
+                    return Err(ConfigError::invalid(
+                        "register",
+                        "must satisfy 0 < lo < hi < inf (Hz)",
+                    ));
+                }
+                let mut r = Self::with_quantile(0.0, fade_hops, p)?;
+                r.prior = Pad::Register(f64::from(lo), f64::from(hi));
+                Ok(r)
+            }
+        }
     }
 
     /// As [`PriorRange::new`], but padding the running quantile range ([`QuantileRange`],
@@ -512,13 +582,31 @@ impl PriorRange {
 
     fn padded(&self, lo: f32, hi: f32) -> (f32, f32) {
         let (lo, hi) = (f64::from(lo), f64::from(hi));
-        let span = 12.0 * (hi / lo).log2();
         let w = if self.fade.is_finite() {
             self.fade / (self.fade + self.n as f64)
         } else {
             1.0
         };
-        let pad = (self.span_st - span).max(0.0) * w / 2.0;
+        let span_st = match self.prior {
+            Pad::Span(s) => s,
+            Pad::Register(rlo, rhi) => {
+                // `w` of the way to the register's edge, in semitones (geometric in Hz); an
+                // end already beyond the edge stays where it is.
+                let lo = if lo > rlo {
+                    lo * (rlo / lo).powf(w)
+                } else {
+                    lo
+                };
+                let hi = if hi < rhi {
+                    hi * (rhi / hi).powf(w)
+                } else {
+                    hi
+                };
+                return (lo as f32, hi as f32);
+            }
+        };
+        let span = 12.0 * (hi / lo).log2();
+        let pad = (span_st - span).max(0.0) * w / 2.0;
         if pad.is_nan() || pad <= 0.0 {
             return (lo as f32, hi as f32);
         }

@@ -4,7 +4,7 @@
 
 use tactus_dsp::discretize::{
     held_mask, range_offline, range_quantiles, range_quantiles_held, HeldRange, PriorRange,
-    QuantileRange,
+    QuantileRange, RangePrior,
 };
 use tactus_dsp::notes::{note_onsets_offline, NoteConfig, NoteOnsets};
 use tactus_dsp::tukey::{reject_outliers_offline, reject_outliers_offline_min_iqr, SlidingTukey};
@@ -410,21 +410,49 @@ fn held_mask_and_the_offline_held_range_follow_the_definition() {
     }
 }
 
+/// The prior's padding by its definition (module docs), in semitones: the exact range `r`
+/// after `n` voiced hops, with the weight `w = fade / (fade + n)`.
+fn padded_by_hand(
+    prior: RangePrior,
+    fade: f32,
+    r: Option<(f32, f32)>,
+    n: usize,
+) -> Option<(f64, f64)> {
+    r.map(|(lo, hi)| {
+        let (lo, hi) = (hz_to_semitones(lo) as f64, hz_to_semitones(hi) as f64);
+        let w = fade as f64 / (fade as f64 + n as f64);
+        match prior {
+            RangePrior::Span(span) => {
+                let pad = (span as f64 - (hi - lo)).max(0.0) * w / 2.0;
+                (lo - pad, hi + pad)
+            }
+            RangePrior::Register(rlo, rhi) => {
+                let (rlo, rhi) = (hz_to_semitones(rlo) as f64, hz_to_semitones(rhi) as f64);
+                (lo - w * (lo - rlo).max(0.0), hi + w * (rhi - hi).max(0.0))
+            }
+        }
+    })
+}
+
 #[test]
 fn streaming_held_range_is_the_padded_quantile_range_of_the_held_prefix_within_one_cell() {
     // Oracle at every hop j: the held hops of the prefix (their windows inside it), their
     // exact quantiles, padded by the prior's formula with n = the prefix's voiced hops; the
     // plain quantiles of every voiced hop when the held ones are fewer than `min_hops` or
-    // `share` of the voiced. The running range is within one 1/8-semitone cell of it.
-    let (span, fade, p) = (20.0f32, 300.0f32, 0.01f32);
-    let padded = |r: Option<(f32, f32)>, n: usize| {
-        r.map(|(lo, hi)| {
-            let (lo, hi) = (hz_to_semitones(lo) as f64, hz_to_semitones(hi) as f64);
-            let w = fade as f64 / (fade as f64 + n as f64);
-            let pad = (span as f64 - (hi - lo)).max(0.0) * w / 2.0;
-            (lo - pad, hi + pad)
-        })
-    };
+    // `share` of the voiced. The running range is within one 1/8-semitone cell of it. Both
+    // priors: the span, and a register that the line crosses at the top (46–53 of 21–54
+    // semitones), so that one end is pulled and the other is kept.
+    for prior in [
+        RangePrior::Span(20.0),
+        RangePrior::Register(hz(30.0), hz(50.0)),
+    ] {
+        check_held_range(prior);
+    }
+}
+
+fn check_held_range(prior: RangePrior) {
+    let (fade, p) = (300.0f32, 0.01f32);
+    let padded = |r: Option<(f32, f32)>, n: usize| padded_by_hand(prior, fade, r, n);
     for seed in 1..5u64 {
         let f = line_with_transition_errors(1500, seed);
         for (k, tol, share, min_hops) in [
@@ -432,8 +460,8 @@ fn streaming_held_range_is_the_padded_quantile_range_of_the_held_prefix_within_o
             (2, 0.5, 0.5, 1),
             (0, 1.0, 0.25, 300),
         ] {
-            let mut r = HeldRange::new(span, fade, p, k, tol, share, min_hops).unwrap();
-            let mut plain = PriorRange::with_quantile(span, fade, p).unwrap();
+            let mut r = HeldRange::with_prior(prior, fade, p, k, tol, share, min_hops).unwrap();
+            let mut plain = PriorRange::with_prior(prior, fade, p).unwrap();
             let mut used_held = false;
             for j in 0..f.len() {
                 let got = r.update(f[j]);
@@ -467,7 +495,7 @@ fn streaming_held_range_is_the_padded_quantile_range_of_the_held_prefix_within_o
                         let cell = 1.0 / 8.0 + 1e-3;
                         assert!(
                             (lo - wlo).abs() < cell && (hi - whi).abs() < cell,
-                            "seed {seed} k {k} hop {j}: {lo}..{hi} vs {wlo}..{whi}"
+                            "{prior:?} seed {seed} k {k} hop {j}: {lo}..{hi} vs {wlo}..{whi}"
                         );
                     }
                     (g, w) => panic!("seed {seed} k {k} hop {j}: {g:?} vs {w:?}"),
@@ -521,4 +549,99 @@ fn held_range_ignores_the_subharmonic_at_note_changes_without_allocating() {
     assert!(HeldRange::new(20.0, 1.0, 0.01, 17, 1.0, 0.25, 1).is_err());
     assert!(HeldRange::new(20.0, 1.0, 0.01, 5, -1.0, 0.25, 1).is_err());
     assert!(HeldRange::new(20.0, 1.0, 0.01, 5, 1.0, 1.5, 1).is_err());
+}
+
+#[test]
+fn register_prior_starts_at_the_register_and_gives_way_to_the_line() {
+    // A bass line that opens on its lowest note (E2, 40) and climbs to C4 (60) after 400
+    // voiced hops, inside the register E1–D4 (28–62). Fade 100.
+    let (rlo, rhi, fade) = (28.0f32, 62.0f32, 100.0f32);
+    let mut r = PriorRange::with_prior(RangePrior::Register(hz(rlo), hz(rhi)), fade, 0.01).unwrap();
+    assert_eq!(r.update(0.0), None);
+    // One note: w = 100/101 of the way from the note to each edge.
+    let (lo, hi) = r.update(hz(40.0)).unwrap();
+    let w = 100.0 / 101.0;
+    assert!(
+        (hz_to_semitones(lo) - (40.0 - w * 12.0)).abs() < 1e-3,
+        "{lo}"
+    );
+    assert!(
+        (hz_to_semitones(hi) - (40.0 + w * 22.0)).abs() < 1e-3,
+        "{hi}"
+    );
+    // The first note sits low in the register (level 2 of 8), where a span prior centred on
+    // it puts it in the middle.
+    let d = tactus_dsp::discretize::Discretizer::default();
+    assert_eq!(d.level(hz(40.0), (lo, hi)), 3);
+    let mut s = PriorRange::with_prior(RangePrior::Span(20.0), fade, 0.01).unwrap();
+    assert_eq!(d.level(hz(40.0), s.update(hz(40.0)).unwrap()), 5);
+    for _ in 0..399 {
+        r.update(hz(40.0));
+    }
+    // 400 voiced hops: a fifth of the way left.
+    let (_, hi) = r.get().unwrap();
+    assert!(
+        (hz_to_semitones(hi) - (40.0 + 22.0 * 0.2)).abs() < 1e-3,
+        "{hi}"
+    );
+    // An end beyond the register is kept: a low B0 (23) and a high F4 (65), each more than
+    // the 1 % that the quantile cuts.
+    for _ in 0..10 {
+        r.update(hz(23.0));
+    }
+    for _ in 0..100 {
+        r.update(hz(65.0));
+    }
+    let (lo, hi) = r.get().unwrap();
+    assert!(
+        (hz_to_semitones(lo) - 23.0).abs() < 1e-3 && (hz_to_semitones(hi) - 65.0).abs() < 1e-3,
+        "{lo}..{hi}"
+    );
+    // The prior fades to the line's own range, which it never narrows.
+    let mut r = PriorRange::with_prior(RangePrior::Register(hz(rlo), hz(rhi)), fade, 0.0).unwrap();
+    let f = wandering_line(20_000, 7);
+    for (i, &x) in f.iter().enumerate() {
+        let (lo, hi) = r.update(x).unwrap_or((f32::NAN, f32::NAN));
+        if let Some((wlo, whi)) = range_offline(&f[..=i]) {
+            assert!(
+                lo <= wlo * 1.000_001 && hi >= whi * 0.999_999,
+                "hop {i}: {lo}..{hi} vs {wlo}..{whi}"
+            );
+        }
+    }
+    let ((lo, hi), (wlo, whi)) = (r.get().unwrap(), range_offline(&f).unwrap());
+    assert!(
+        hz_to_semitones(wlo) - hz_to_semitones(lo) < 0.1
+            && hz_to_semitones(hi) - hz_to_semitones(whi) < 0.1
+    );
+    r.reset();
+    assert_eq!(r.get(), None);
+    for bad in [
+        (0.0, 100.0),
+        (100.0, 100.0),
+        (200.0, 100.0),
+        (f32::NAN, 100.0),
+        (40.0, f32::INFINITY),
+    ] {
+        assert!(
+            PriorRange::with_prior(RangePrior::Register(bad.0, bad.1), 1.0, 0.01).is_err(),
+            "{bad:?}"
+        );
+        assert!(HeldRange::with_prior(
+            RangePrior::Register(bad.0, bad.1),
+            1.0,
+            0.01,
+            5,
+            1.0,
+            0.25,
+            1
+        )
+        .is_err());
+    }
+    // The span prior through `with_prior` is `with_quantile`.
+    let mut a = PriorRange::with_prior(RangePrior::Span(20.0), 300.0, 0.01).unwrap();
+    let mut b = PriorRange::with_quantile(20.0, 300.0, 0.01).unwrap();
+    for &x in &f[..3000] {
+        assert_eq!(a.update(x), b.update(x));
+    }
 }

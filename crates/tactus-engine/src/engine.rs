@@ -166,7 +166,21 @@ impl StemChain {
             60.0
         };
         let pitch = match (pitch, profile::pitch_range_hz(geo.profile, stem)) {
-            (Some(m), Some((lo, hi))) => Some(PitchTrack::new(geo, lo, hi, m, mixture)?),
+            (Some(m), Some((lo, hi))) => {
+                let mut t = PitchTrack::new(geo, lo, hi, m, mixture)?;
+                // The bass and the lead: the streaming range leans on the instrument's
+                // register (README, "Streaming levels from a register prior"); the
+                // polyphonic rest keeps the span prior.
+                let register = match stem {
+                    Stem::Bass => Some(crate::track::BASS_REGISTER_HZ),
+                    Stem::Vocals => Some(crate::track::LEAD_REGISTER_HZ),
+                    _ => None,
+                };
+                if let (LevelRule::Follow, Some(r)) = (geo.level_rule, register) {
+                    t.set_register_prior(r)?;
+                }
+                Some(t)
+            }
             _ => None,
         };
         let notes = match (notes, &pitch) {

@@ -12,7 +12,7 @@
 
 use tactus_dsp::binner::{bin_beats, bin_levels, BeatBinner, LevelBinner};
 use tactus_dsp::discretize::{
-    range_offline, range_quantiles_held, Discretizer, HeldRange, RunningRange, Scale,
+    range_offline, range_quantiles_held, Discretizer, HeldRange, RangePrior, RunningRange, Scale,
 };
 use tactus_dsp::flux::{OnsetConfig, OnsetDetector, OnsetFrame};
 use tactus_dsp::median::MedianFilter;
@@ -61,9 +61,10 @@ pub enum LevelRule {
     /// longer cut), the range from the 1st to the 99th percentile of the voiced hops that the
     /// fences keep ([`FOLLOW_RANGE_QUANTILE`]: a few octave errors no longer stretch it);
     /// in streaming mode the same percentiles of every kept hop so far
-    /// ([`PriorRange::with_quantile`]: an early octave error no longer shifts every later
-    /// level), padded to a prior span that fades ([`prior_span_st`]), so the first notes do
-    /// not sit on level 1 or 8. (Running percentiles of the fences' 10 s window were tried
+    /// ([`tactus_dsp::discretize::PriorRange::with_quantile`]: an early octave error no longer shifts every later
+    /// level), padded to a prior that fades, so the first notes do not sit on level 1 or 8:
+    /// the instrument's register for the bass and the lead ([`BASS_REGISTER_HZ`],
+    /// [`LEAD_REGISTER_HZ`]), a span ([`prior_span_st`]) for the rest. (Running percentiles of the fences' 10 s window were tried
     /// first: vocals levels ±1 fell from 0.76 to 0.68 on the tuned songs; the running min
     /// and max were the streaming range until 2026-11-24.)
     #[default]
@@ -120,6 +121,23 @@ pub fn prior_span_st(fmax_hz: f32) -> f32 {
     }
 }
 
+/// Register prior of the bass stem's streaming range ([`RangePrior::Register`]), Hz: E1
+/// (the lowest open string of a four-string bass) to D4, the top of a bass line's usual
+/// compass. Chosen on the tuning songs' isolated streaming rows (`benches/bass_eval.py`,
+/// README "Streaming levels from a register prior") over E1–G3, E1–C4, C1–C4, D1–C4; it
+/// also lifts the tuning mixes' streaming levels, so the mix's bass band uses it too.
+pub const BASS_REGISTER_HZ: (f32, f32) = (41.203, 293.66);
+
+/// Register prior of the lead (vocals) stem's streaming range, Hz: A3 to G5, where sung
+/// and played melodies mostly lie. Chosen like [`BASS_REGISTER_HZ`] (over G3–G5,
+/// C4–G5, C4–C6).
+pub const LEAD_REGISTER_HZ: (f32, f32) = (220.0, 783.99);
+
+/// Voiced hops after which a register prior's pull has halved (2 s of voiced hops): a short
+/// song's line shows most of its compass within its first phrases. Chosen with the registers
+/// (100 / 150 / 200 / 300 / 500 / 1000 hops).
+pub const REGISTER_FADE_HOPS: f32 = 200.0;
+
 /// Streaming gate reference decay (dB per second). Slow enough that a held note does not
 /// re-open the gate on its own tail, fast enough that a quiet verse after a loud chorus
 /// is heard within a few seconds.
@@ -137,6 +155,17 @@ pub const PYIN_LAG_HOPS: usize = 10;
 /// chorales' organ basses up to 0.04); off on clean stems, where it cost isolated `timgm`
 /// bass 0.982 → 0.957 (weak fundamentals of low plucked notes pushed an octave up).
 pub const MIXTURE_FUNDAMENTAL_RATIO: f32 = 0.1;
+
+/// [`tactus_dsp::shs::ShsConfig::register_sigma_st`] for bass tracked on a mixture's low
+/// band: a bass line keeps to its register, while a kick's or a floor tom's body left in
+/// the low band pulls single notes an octave or a fifth under it. Chosen on the tuning
+/// songs' mixes (`benches/bass_eval.py --inputs mix`, offline; sung / chorales / `timgm`):
+/// bass RPA 0.804 / 0.852 / 0.891 → 0.823 / 0.885 / 0.896 and levels ±1 0.638 / 0.823 /
+/// 0.872 → 0.627 / 0.896 / 0.924 at σ = 12 (σ = 9: RPA 0.831 / 0.862 / 0.895; σ = 15:
+/// 0.815 / 0.877 / 0.895; time constants of 5 and 30 s within 0.005 of 10 s). Off on clean
+/// stems and for the lead (a lead's register prior cost `timgm` mix vocals RPA 0.717 →
+/// 0.684).
+pub const MIXTURE_BASS_REGISTER_ST: f32 = 12.0;
 
 /// Contour voicing of the lead on a band of the mix ([`tactus_dsp::shs::ShsConfig::contour_gate_db`]):
 /// a decoded contour more than this many dB below the running mean level of the voiced hops
@@ -440,6 +469,8 @@ impl PitchTrack {
                     sc.fundamental_ratio = MIXTURE_FUNDAMENTAL_RATIO;
                     if fmax_hz > BASS_MAX_HZ {
                         sc.contour_gate_db = MIXTURE_MELODY_CONTOUR_GATE_DB;
+                    } else {
+                        sc.register_sigma_st = MIXTURE_BASS_REGISTER_ST;
                     }
                 }
                 Box::new(Shs::new(sc)?)
@@ -493,6 +524,22 @@ impl PitchTrack {
             skipped_f0: 0,
             skipped_rms: 0,
         })
+    }
+
+    /// Leans the streaming range ([`LevelRule::Follow`]) on an instrument's register
+    /// `(lo_hz, hi_hz)` instead of the prior span ([`RangePrior::Register`], fading over
+    /// [`REGISTER_FADE_HOPS`]). Offline output is unchanged. Call before the first block.
+    pub fn set_register_prior(&mut self, register_hz: (f32, f32)) -> Result<(), ConfigError> {
+        self.chain.prior_range = HeldRange::with_prior(
+            RangePrior::Register(register_hz.0, register_hz.1),
+            REGISTER_FADE_HOPS,
+            FOLLOW_RANGE_QUANTILE,
+            self.held_hops,
+            HELD_TOL_ST,
+            HELD_MIN_SHARE,
+            HELD_MIN_HOPS,
+        )?;
+        Ok(())
     }
 
     /// Moves the whole track `hops` hops earlier: what the tracker reports for hop
