@@ -394,23 +394,28 @@ fn decoded_path_matches_a_naive_whole_track_viterbi() {
     c.n_fft = 1024;
     c.hop = 98; // 20 ms: fewer frames for the O(T·M²) oracle
     let (x, _) = bass_line(&[55.0, 82.4, 73.4, 110.0], 0.4, 11);
-    let c0 = c.clone();
-    let state_hz = |k: usize| c0.bin_hz(k) as f64;
     let want = naive_viterbi(&c, &x);
     // Streaming with a lag longer than the track is exactly offline Viterbi.
     c.lag_hops = want.len() + 1;
     let got = run(&mut Shs::new(c.clone()).unwrap(), &x, &[x.len()]);
-    assert_eq!(got.len(), want.len());
+    assert_states(&c, &got, &want, "");
+}
+
+/// Asserts that the stream `got` reports the oracle's decoded states `want`: unvoiced where
+/// the oracle is, else voiced within half a bin of the state's f0 (the parabolic refinement
+/// moves it by at most half a bin). `what` prefixes the messages.
+fn assert_states(c: &ShsConfig, got: &[PitchEstimate], want: &[usize], what: &str) {
+    assert_eq!(got.len(), want.len(), "{what}hops");
     let m = c.n_bins().unwrap();
-    for (t, (e, &s)) in got.iter().zip(&want).enumerate() {
+    let half_bin = 100.0 / (2.0 * c.bins_per_semitone as f64) + 0.5;
+    for (t, (e, &s)) in got.iter().zip(want).enumerate() {
         if s == m {
-            assert_eq!(e.f0_hz, 0.0, "hop {t}: oracle unvoiced");
+            assert_eq!(e.f0_hz, 0.0, "{what}hop {t}: oracle unvoiced");
         } else {
-            // Same bin: the refinement moves the f0 by at most half a bin.
-            let d = cents(e.f0_hz as f64, state_hz(s)).abs();
+            let d = cents(e.f0_hz as f64, c.bin_hz(s) as f64).abs();
             assert!(
-                d <= 100.0 / (2.0 * c.bins_per_semitone as f64) + 0.5,
-                "hop {t}: {} Hz vs bin {s} ({d} cents)",
+                e.f0_hz > 0.0 && d <= half_bin,
+                "{what}hop {t}: {} Hz vs bin {s} ({d} cents)",
                 e.f0_hz
             );
         }
@@ -745,19 +750,7 @@ fn contour_voicing_matches_a_slow_fixed_lag_oracle() {
             .count();
         gated_somewhere |= gated >= 10;
         let got = run(&mut Shs::new(c.clone()).unwrap(), &x, &[x.len()]);
-        assert_eq!(got.len(), want.len());
-        for (t, (e, &s)) in got.iter().zip(&want).enumerate() {
-            if s == m {
-                assert_eq!(e.f0_hz, 0.0, "lag {lag}, hop {t}: oracle unvoiced");
-            } else {
-                let d = cents(e.f0_hz as f64, c.bin_hz(s) as f64).abs();
-                assert!(
-                    e.f0_hz > 0.0 && d <= 100.0 / (2.0 * c.bins_per_semitone as f64) + 0.5,
-                    "lag {lag}, hop {t}: {} Hz vs bin {s} ({d} cents)",
-                    e.f0_hz
-                );
-            }
-        }
+        assert_states(&c, &got, &want, &format!("lag {lag}, "));
         // Without the gate the stream is the plain decoding.
         let got = run(&mut Shs::new(plain).unwrap(), &x, &[x.len()]);
         for (t, (e, &s)) in got.iter().zip(&ungated).enumerate() {
@@ -917,21 +910,7 @@ fn register_prior_matches_a_naive_fixed_lag_decoder() {
     let (x, _) = bass_with_bodies(31, 8, 0.3, (0.45, 0.15));
     let want = naive_register_decode(&c, &x);
     let got = run(&mut Shs::new(c.clone()).unwrap(), &x, &[x.len()]);
-    assert_eq!(got.len(), want.len());
-    let m = c.n_bins().unwrap();
-    let half_bin = 100.0 / (2.0 * c.bins_per_semitone as f64) + 0.5;
-    for (t, (e, &s)) in got.iter().zip(&want).enumerate() {
-        if s == m {
-            assert_eq!(e.f0_hz, 0.0, "hop {t}: oracle unvoiced");
-        } else {
-            let d = cents(e.f0_hz as f64, c.bin_hz(s) as f64).abs();
-            assert!(
-                d <= half_bin,
-                "hop {t}: {} Hz vs bin {s} ({d} cents)",
-                e.f0_hz
-            );
-        }
-    }
+    assert_states(&c, &got, &want, "");
     // The prior decided something here: without it the decoding differs.
     let mut off = c.clone();
     off.register_sigma_st = 0.0;
