@@ -384,17 +384,8 @@ fn held_mask_and_the_offline_held_range_follow_the_definition() {
         for (k, tol) in [(0usize, 1.0f32), (1, 0.5), (5, 1.0), (16, 2.0)] {
             let want = held_by_hand(&f, k, tol);
             assert_eq!(held_mask(&f, k, tol), want, "seed {seed} k {k}");
-            let held: Vec<f32> = f
-                .iter()
-                .zip(&want)
-                .filter(|(_, &m)| m)
-                .map(|(&x, _)| x)
-                .collect();
-            let voiced = f.iter().filter(|x| x.is_finite() && **x > 0.0).count();
             for (share, min_hops) in [(0.25f32, 300u64), (0.99, 1), (0.0, 5000)] {
-                let use_held = !held.is_empty()
-                    && held.len() as u64 >= min_hops
-                    && held.len() as f32 >= share * voiced as f32;
+                let (held, _, use_held) = held_rule_by_hand(&f, &want, share, min_hops);
                 let want = if use_held {
                     range_quantiles(&held, 0.01)
                 } else {
@@ -472,16 +463,7 @@ fn check_held_range(prior: RangePrior) {
                 }
                 let pre = &f[..=j];
                 let m = held_by_hand(pre, k, tol);
-                let held: Vec<f32> = pre
-                    .iter()
-                    .zip(&m)
-                    .filter(|(_, &h)| h)
-                    .map(|(&x, _)| x)
-                    .collect();
-                let voiced = pre.iter().filter(|x| x.is_finite() && **x > 0.0).count();
-                let use_held = !held.is_empty()
-                    && held.len() as u64 >= min_hops
-                    && held.len() as f32 >= share * voiced as f32;
+                let (held, voiced, use_held) = held_rule_by_hand(pre, &m, share, min_hops);
                 used_held |= use_held;
                 let want = if use_held {
                     padded(range_quantiles(&held, p), voiced)
@@ -644,4 +626,26 @@ fn register_prior_starts_at_the_register_and_gives_way_to_the_line() {
     for &x in &f[..3000] {
         assert_eq!(a.update(x), b.update(x));
     }
+}
+
+/// The held-range rule by hand: the hops of `f` inside held notes (`mask`), the voiced hop
+/// count, and whether the held hops decide the range (at least `min_hops` of them and at
+/// least `share` of the voiced hops).
+fn held_rule_by_hand(
+    f: &[f32],
+    mask: &[bool],
+    share: f32,
+    min_hops: u64,
+) -> (Vec<f32>, usize, bool) {
+    let held: Vec<f32> = f
+        .iter()
+        .zip(mask)
+        .filter(|(_, &m)| m)
+        .map(|(&x, _)| x)
+        .collect();
+    let voiced = f.iter().filter(|x| x.is_finite() && **x > 0.0).count();
+    let use_held = !held.is_empty()
+        && held.len() as u64 >= min_hops
+        && held.len() as f32 >= share * voiced as f32;
+    (held, voiced, use_held)
 }
