@@ -433,7 +433,10 @@ fn playing_follows_the_audio_clock() {
     // boundary too); once it has crossed bin k's start, the page must show bin k or later,
     // and exactly the bin its clock is in (checked above for every dump).
     if t >= k as f64 * bin_s + 0.001 {
-        assert!(i as usize >= k, "crossed the boundary but still shows frame {i}");
+        assert!(
+            i as usize >= k,
+            "crossed the boundary but still shows frame {i}"
+        );
         if t < (k + 1) as f64 * bin_s {
             assert_eq!(i as usize, k, "crossed the boundary: the next frame shows");
         }
