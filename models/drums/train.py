@@ -111,10 +111,11 @@ def context(mel):
     return x.astype(np.float32)
 
 
-def labels(truth, n, hard_neg=1.0):
+def labels(truth, n, hard_neg=1.0, ghost=1.0):
     """Targets and weights per hop. hard_neg > 1: a class's negative at another class's
     onset (+-1 hop), e.g. toms on a snare hit, weighs hard_neg (the confusions that
-    differ most between kits)."""
+    differ most between kits). ghost != 1: a ghost snare's positive (velocity <= GHOST_VEL)
+    weighs ghost."""
     y = np.zeros((n, 4), np.float32)
     w = np.ones((n, 4), np.float32)
     for c, name in enumerate(CLASSES):
@@ -124,8 +125,11 @@ def labels(truth, n, hard_neg=1.0):
                 if 0 <= i + d < n and y[i + d, c] == 0:
                     w[i + d, c] = 0.0
             if 0 <= i < n:
+                quiet = name == "snare" and hit.get("velocity", 127) <= GHOST_VEL
+                weight = ghost if quiet else 1.0
+                # Two hits on one hop: the larger weight.
+                w[i, c] = max(w[i, c], weight) if y[i, c] else weight
                 y[i, c] = 1.0
-                w[i, c] = 1.0
     if hard_neg != 1.0:
         near = y.copy()
         near[1:] = np.maximum(near[1:], y[:-1])
@@ -135,6 +139,9 @@ def labels(truth, n, hard_neg=1.0):
             sel = other & (y[:, c] == 0) & (w[:, c] > 0)
             w[sel, c] *= hard_neg
     return y, w
+
+
+GHOST_VEL = 45  # the bench's ghost-snare bound (benches/drums_eval.py, "Recall by hit type")
 
 
 def songs(data):
@@ -529,6 +536,8 @@ def main():
                     help="fraction of frames far from any onset used per epoch (1: all)")
     ap.add_argument("--hard-neg", type=float, default=1.0,
                     help="weight of a class's negative frames at another class's onset (1: plain)")
+    ap.add_argument("--ghost-weight", type=float, default=1.0,
+                    help="weight of a ghost snare's positive (velocity <= 45) in the loss")
     ap.add_argument("--in-drop", type=float, default=0.0, help="input dropout rate (0: none)")
     ap.add_argument("--decay", type=float, default=1e-5, help="L2 weight decay")
     ap.add_argument("--flux", action="store_true",
@@ -558,18 +567,18 @@ def main():
     else:
         rng = np.random.default_rng(a.seed)
 
-        def stack(D, cs, hard_neg=1.0):
+        def stack(D, cs, hard_neg=1.0, ghost=1.0):
             X, Y, W = [], [], []
             for (_, _, c, mel, truth) in D:
                 if c not in cs:
                     continue
                 X.append(prep(mel))
-                y, w = labels(truth, mel.shape[0], hard_neg)
+                y, w = labels(truth, mel.shape[0], hard_neg, ghost)
                 Y.append(y)
                 W.append(w)
             return np.concatenate(X), np.concatenate(Y), np.concatenate(W)
 
-        X, Y, W = stack(D_tr, conds, a.hard_neg)
+        X, Y, W = stack(D_tr, conds, a.hard_neg, a.ghost_weight)
         Xv, Yv, Wv = stack(D_va, conds)
         if FLUX:  # in chunks: the flux inputs are made per batch, never stored
             s1 = s2 = 0.0
