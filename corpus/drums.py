@@ -681,6 +681,17 @@ def _metal(rng, n, scale):
     return sum(np.sign(np.sin(2 * np.pi * f * t + rng.uniform(0, 6.3))) for f in fr)
 
 
+def _cymbal_noise(rng, n, lo, hi, tau, metallic, metal_scale):
+    """A cymbal's body: noise (plus the metallic square-wave cluster) band-passed to
+    [lo, hi] Hz, decaying with time constant tau s. Draws from rng in a fixed order."""
+    t = np.arange(n) / SR
+    src = rng.uniform(0.3, 1.0) * rng.standard_normal(n)
+    if metallic:
+        m = _metal(rng, n, metal_scale)
+        src = src + m / np.max(np.abs(m))
+    return _band(src, lo, hi) * np.exp(-t / tau)
+
+
 def synth_cymbal(rng, kind, metal_scale, metallic):
     length = {"closed": 0.2, "pedal": 0.2, "open": 1.0, "ride": 2.0, "bell": 2.0, "crash": 2.5,
               "splash": 1.0, "china": 2.0}[kind]
@@ -696,11 +707,7 @@ def synth_cymbal(rng, kind, metal_scale, metallic):
         "splash": (rng.uniform(2500, 5000), 16000, rng.uniform(0.2, 0.6)),
         "china": (rng.uniform(800, 2000), 12000, rng.uniform(0.5, 1.5)),
     }[kind]
-    src = rng.uniform(0.3, 1.0) * rng.standard_normal(n)
-    if metallic:
-        m = _metal(rng, n, metal_scale)
-        src = src + m / np.max(np.abs(m))
-    x = _band(src, lo, hi) * np.exp(-t / tau)
+    x = _cymbal_noise(rng, n, lo, hi, tau, metallic, metal_scale)
     if kind in ("ride", "bell"):
         fb = rng.uniform(600, 1200)
         x += (0.6 if kind == "bell" else 0.15) * sum(
@@ -935,11 +942,7 @@ def synth2_cymbal(rng, kind, metal_scale, metallic, low):
         "splash": (_logu(rng, 1000, 5000), 16000, _logu(rng, 0.15, 0.7)),
         "china": (_logu(rng, 500, 2000), 12000, _logu(rng, 0.4, 1.6)),
     }[kind]
-    src = rng.uniform(0.3, 1.0) * rng.standard_normal(n)
-    if metallic:
-        m = _metal(rng, n, metal_scale)
-        src = src + m / np.max(np.abs(m))
-    x = _band(src, lo, hi) * np.exp(-t / tau)
+    x = _cymbal_noise(rng, n, lo, hi, tau, metallic, metal_scale)
     if rng.random() < 0.5:
         x = _resonate(x, [_logu(rng, 2000, 12000) for _ in range(3)], rng.uniform(1, 3))
     if kind in ("ride", "bell"):
