@@ -109,6 +109,37 @@ def chorale_parts(work: str):
     return parts, beats_per_bar, float(score.highestTime) + LEAD_IN_BEATS
 
 
+def extra_songs(n: int):
+    """`n` chorales beyond SONGS: four-part works of music21's Bach corpus in a seeded order,
+    each with a tempo and programs drawn from those of SONGS (seed 1000 + index)."""
+    from music21 import corpus
+
+    used = {w for _, w, *_ in SONGS}
+    works = sorted({"bach/" + os.path.splitext(os.path.basename(str(p)))[0]
+                    for p in corpus.getComposer("bach")} - used)
+    rng = np.random.default_rng(2026)
+    rng.shuffle(works)
+    vps = sorted({s[3] for s in SONGS})
+    bps = sorted({s[4] for s in SONGS})
+    ops = sorted({s[5] for s in SONGS})
+    out = []
+    for work in works:
+        if len(out) == n:
+            break
+        try:
+            parts, _, end_beat = chorale_parts(work)
+        except Exception:  # noqa: BLE001 - a score music21 cannot read is skipped
+            continue
+        if not {"Soprano", "Alto", "Tenor", "Bass"} <= set(parts) or end_beat > 120:
+            continue
+        k = len(out)
+        r = np.random.default_rng(1000 + k)
+        bpm = int(r.integers(66, 141))
+        name = f"{work.split('/')[1].replace('.', '-')}_{bpm}bpm"
+        out.append((name, work, bpm, int(r.choice(vps)), int(r.choice(bps)), int(r.choice(ops)), 1000 + k))
+    return out
+
+
 def arrange(work: str, seed: int):
     parts, bpb, end_beat = chorale_parts(work)
     rng = np.random.default_rng(seed)
@@ -549,6 +580,10 @@ def calibrate(sf2, tmp):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", required=True, help="output folder")
+    ap.add_argument("--extra", type=int, default=0, metavar="N",
+                    help="instead of the six songs: N further four-part chorales of music21's Bach "
+                         "corpus (never those six), programs and tempo drawn per song from the six's "
+                         "(seeded), for training learned models")
     ap.add_argument("--small", action="store_true", help=f"the committed fixture set: {len(SMALL_SONGS)} songs x {SMALL_SECONDS:g} s, FLAC")
     ap.add_argument("--format", choices=("wav", "flac"), default=None, help="audio format (default wav, flac with --small)")
     ap.add_argument("--verify", action="store_true", help="after generating, check audio against truth")
@@ -578,6 +613,8 @@ def main():
             return
         os.makedirs(args.out, exist_ok=True)
         songs = [s for s in SONGS if (not args.small) or s[0] in SMALL_SONGS]
+        if args.extra:
+            songs = extra_songs(args.extra)
         for name, work, bpm, vp, bp, op, seed in songs:
             d = build_song(sf2, name, work, bpm, vp, bp, op, seed, args.out,
                            SMALL_SECONDS if args.small else None, fmt, tmp)

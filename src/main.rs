@@ -57,8 +57,12 @@ enum DrumsArg {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum PitchArg {
-    /// Harmonic-sum salience for the bass and the lead (vocals), pYIN for the rest.
+    /// The learned bass salience times the harmonic sum on the spectral separator's bass stem
+    /// (models/bassnet/README.md), the harmonic sum for other basses and the lead (vocals),
+    /// pYIN for the rest.
     Auto,
+    /// The previous default: the harmonic sum for every bass and the lead, pYIN for the rest.
+    AutoShs,
     Yin,
     Pyin,
     /// Harmonic-sum salience + Viterbi (made for a bass line or a lead in a mix) on every stem.

@@ -1,6 +1,7 @@
 //! Pinned outputs (issue 12): moving code between crates must not change a single byte of
 //! what `tactus render` writes. The demo song is rendered with the defaults, with
-//! `--pitch pyin`, with `--drums bands`, with `--mode streaming` and with `--kit-mask off`;
+//! `--pitch pyin`, with `--drums bands`, with `--mode streaming`, with `--pitch auto-shs`
+//! and with `--kit-mask off --pitch auto-shs`;
 //! the SHA-256 of each
 //! pattern and features file must equal the one committed in `tests/golden/pinned.txt`.
 //!
@@ -18,9 +19,14 @@ const CASES: &[(&str, &[&str])] = &[
     ("pyin", &["--pitch", "pyin"]),
     ("bands", &["--drums", "bands"]),
     ("streaming", &["--mode", "streaming"]),
-    // The separator without its learned kit mask: the default outputs from before the mask
-    // (2026-11-24), byte for byte.
-    ("kit-mask-off", &["--kit-mask", "off"]),
+    // The default before the learned bass salience (2026-11-24 22:35), byte for byte.
+    ("auto-shs", &["--pitch", "auto-shs"]),
+    // The separator without its learned kit mask and the harmonic-sum bass: the default
+    // outputs from before the mask (2026-11-24), byte for byte.
+    (
+        "kit-mask-off",
+        &["--kit-mask", "off", "--pitch", "auto-shs"],
+    ),
 ];
 
 fn root() -> PathBuf {

@@ -39,7 +39,7 @@ OPTIONS: Tuple[str, ...] = (
     "bin_ms",  # bin length in ms, default 100
     "levels",  # pitch levels per melodic stem, 1..8, default 8
     "map",  # built-in map name or TOML map path
-    "pitch",  # "auto" (default) | "yin" | "pyin" | "shs"
+    "pitch",  # "auto" (default) | "auto-shs" | "yin" | "pyin" | "shs"
     "drums",  # "classes" (default) | "bands" | "adtlib"
     "drum_model",  # ONNX model path for drums="adtlib"
     "levels_rule",  # "follow" (default) | "paper"

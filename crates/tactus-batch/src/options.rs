@@ -194,6 +194,7 @@ impl RenderOptions {
                 ("yin", PitchMethod::Yin),
                 ("pyin", PitchMethod::Pyin),
                 ("shs", PitchMethod::Shs),
+                ("auto-shs", PitchMethod::AutoShs),
             ],
         )?;
         let level_rule = pick(

@@ -41,6 +41,7 @@
 //! 10 ms. No allocation after [`DrumTranscriber::new`].
 
 use crate::melbank::{MelBank, MelConfig, LOG_FLOOR};
+use crate::mlp::{read_f32s, read_u32, take};
 use crate::{Band, ConfigError, HopStage};
 
 /// Number of drum classes, in [`Band::ALL`] order: kick, snare, toms, cymbals.
@@ -51,6 +52,8 @@ static EMBEDDED: &[u8] = include_bytes!("../weights/drums.bin");
 
 /// The embedded low-latency model: one hop of look-ahead context (21.6 ms), for `live`.
 static EMBEDDED_LIVE: &[u8] = include_bytes!("../weights/drums_live.bin");
+
+const WHAT: &str = "drum model";
 
 const MAGIC: &[u8; 8] = b"TACTUSDR";
 
@@ -86,35 +89,6 @@ pub struct DrumModel {
     pub thresholds: [f32; CLASSES],
 }
 
-fn take<'a>(bytes: &mut &'a [u8], n: usize) -> Result<&'a [u8], ConfigError> {
-    if bytes.len() < n {
-        return Err(ConfigError::invalid("drum model", "file is truncated"));
-    }
-    let (a, b) = bytes.split_at(n);
-    *bytes = b;
-    Ok(a)
-}
-
-fn read_u32(bytes: &mut &[u8]) -> Result<u32, ConfigError> {
-    let a = take(bytes, 4)?;
-    Ok(u32::from_le_bytes([a[0], a[1], a[2], a[3]]))
-}
-
-fn read_f32s(bytes: &mut &[u8], n: usize) -> Result<Vec<f32>, ConfigError> {
-    let len = n
-        .checked_mul(4)
-        .ok_or_else(|| ConfigError::invalid("drum model", "layer too large"))?;
-    let a = take(bytes, len)?;
-    let v: Vec<f32> = a
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
-    if v.iter().any(|x| !x.is_finite()) {
-        return Err(ConfigError::invalid("drum model", "non-finite value"));
-    }
-    Ok(v)
-}
-
 impl DrumModel {
     /// The model embedded in the binary.
     pub fn embedded() -> DrumModel {
@@ -139,27 +113,27 @@ impl DrumModel {
     /// b[n_out]`, and f32 `thresholds[4]`.
     pub fn from_bytes(mut bytes: &[u8]) -> Result<DrumModel, ConfigError> {
         let b = &mut bytes;
-        if take(b, 8)? != MAGIC {
+        if take(b, 8, WHAT)? != MAGIC {
             return Err(ConfigError::invalid(
                 "drum model",
                 "not a Tactus drum model",
             ));
         }
-        let version = read_u32(b)?;
+        let version = read_u32(b, WHAT)?;
         if version != 1 && version != 2 {
             return Err(ConfigError::invalid(
                 "drum model",
                 format!("version {version} is not supported (1 and 2 are)"),
             ));
         }
-        let bands = read_u32(b)? as usize;
-        let past = read_u32(b)? as usize;
-        let future = read_u32(b)? as usize;
-        let classes = read_u32(b)? as usize;
-        let n_layers = read_u32(b)? as usize;
-        let floor = read_f32s(b, 1)?[0];
+        let bands = read_u32(b, WHAT)? as usize;
+        let past = read_u32(b, WHAT)? as usize;
+        let future = read_u32(b, WHAT)? as usize;
+        let classes = read_u32(b, WHAT)? as usize;
+        let n_layers = read_u32(b, WHAT)? as usize;
+        let floor = read_f32s(b, 1, WHAT)?[0];
         let flux = if version >= 2 {
-            match read_u32(b)? {
+            match read_u32(b, WHAT)? {
                 0 => false,
                 1 => true,
                 f => {
@@ -178,35 +152,16 @@ impl DrumModel {
         if !(1..=512).contains(&bands) || past > 64 || future > 8 || !(1..=8).contains(&n_layers) {
             return Err(ConfigError::invalid("drum model", "implausible shape"));
         }
-        let mut layers = Vec::with_capacity(n_layers);
-        let mut expect =
-            bands * (past + 1 + future) + if flux { bands * (past + future) } else { 0 };
-        for _ in 0..n_layers {
-            let n_in = read_u32(b)? as usize;
-            let n_out = read_u32(b)? as usize;
-            if n_in != expect || n_out == 0 || n_out > 4096 {
-                return Err(ConfigError::invalid(
-                    "drum model",
-                    "layer shapes do not chain",
-                ));
-            }
-            let w = read_f32s(b, n_in * n_out)?;
-            let bias = read_f32s(b, n_out)?;
-            layers.push(Layer {
-                n_in,
-                n_out,
-                w,
-                b: bias,
-            });
-            expect = n_out;
-        }
+        let n_in0 = bands * (past + 1 + future) + if flux { bands * (past + future) } else { 0 };
+        let layers = crate::mlp::read_layers(b, n_layers, n_in0, WHAT)?;
+        let expect = layers.last().map_or(n_in0, |l| l.n_out);
         if expect != CLASSES {
             return Err(ConfigError::invalid(
                 "drum model",
                 "last layer must have 4 outputs",
             ));
         }
-        let t = read_f32s(b, CLASSES)?;
+        let t = read_f32s(b, CLASSES, WHAT)?;
         if !b.is_empty() {
             return Err(ConfigError::invalid("drum model", "trailing bytes"));
         }
@@ -258,28 +213,7 @@ impl DrumModel {
     /// Runs the network on one assembled input; `a` and `b` are scratch buffers at least
     /// as long as the widest layer. Returns the activations.
     pub fn forward(&self, input: &[f32], a: &mut [f32], b: &mut [f32]) -> [f32; CLASSES] {
-        let last = self.layers.len() - 1;
-        a[..input.len()].copy_from_slice(input);
-        let (mut src, mut dst) = (a, b);
-        for (li, l) in self.layers.iter().enumerate() {
-            let rows = l.w.chunks_exact(l.n_in).zip(&l.b);
-            for (d, (row, bias)) in dst[..l.n_out].iter_mut().zip(rows) {
-                let mut acc = [0f32; 8];
-                let (rc, rr) = row.split_at(l.n_in / 8 * 8);
-                let (xc, xr) = src[..l.n_in].split_at(l.n_in / 8 * 8);
-                for (wc, xc) in rc.chunks_exact(8).zip(xc.chunks_exact(8)) {
-                    for k in 0..8 {
-                        acc[k] += wc[k] * xc[k];
-                    }
-                }
-                let mut s: f32 = acc.iter().sum::<f32>() + bias;
-                for (w, x) in rr.iter().zip(xr) {
-                    s += w * x;
-                }
-                *d = if li == last { s } else { s.max(0.0) };
-            }
-            std::mem::swap(&mut src, &mut dst);
-        }
+        let src = crate::mlp::run_layers(&self.layers, input, a, b);
         let mut out = [0f32; CLASSES];
         for (o, &z) in out.iter_mut().zip(src.iter()) {
             *o = 1.0 / (1.0 + (-z).exp());

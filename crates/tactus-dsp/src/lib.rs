@@ -61,8 +61,11 @@
 //! | [`binner`] | per-hop values into bins of B ms | the paper, §3 |
 //! | [`melbank`] | log mel-band power with a chosen look-ahead | HTK mel scale |
 //! | [`drums`] | per-instrument drum transcription (kick, snare, toms, cymbals): mel context, a small MLP, causal peak picking | frame-wise ADT (Vogl et al. 2017; Southall et al. 2017) |
+//! | [`shs`] | harmonic-sum (subharmonic summation) salience with fixed-lag Viterbi, for a bass line or a lead in a mixture | Hermes 1988; Klapuri 2006; Goto 2004 |
+//! | [`bassnet`] | a learned bass salience over a log-frequency spectrum (small MLP), decoded by [`shs`] times the harmonic sum | deep salience (Bittner et al. 2017), product of experts |
 #![forbid(unsafe_code)]
 
+pub mod bassnet;
 pub mod binner;
 pub mod discretize;
 pub mod drums;
@@ -70,6 +73,7 @@ pub mod flux;
 pub mod framer;
 pub mod median;
 pub mod melbank;
+mod mlp;
 pub mod notes;
 pub mod pyin;
 pub mod rms;

@@ -103,9 +103,42 @@ use std::sync::Arc;
 use realfft::num_complex::Complex;
 use realfft::{RealFftPlanner, RealToComplex};
 
+use crate::bassnet::{BassFront, BassNet};
 use crate::framer::Framer;
 use crate::yin::PitchEstimate;
 use crate::{ConfigError, HopStage};
+
+/// The Hann window of step 1, `n` samples, sampled at the centres `(i + 0.5) / n`.
+pub(crate) fn hann(n: usize) -> Vec<f32> {
+    (0..n)
+        .map(|i| {
+            let x = std::f64::consts::PI * 2.0 * (i as f64 + 0.5) / n as f64;
+            (0.5 - 0.5 * x.cos()) as f32
+        })
+        .collect()
+}
+
+/// Step 1 of the module docs before the FFT: `frame` (at most `window.len()` samples) minus
+/// its mean, scaled to unit peak, times `window`, into `buf`, zero-padded; the peak before
+/// scaling, or `None` (and `buf` unscaled) when the frame is silent or not finite.
+pub(crate) fn prepare_frame(frame: &[f32], window: &[f32], buf: &mut [f32]) -> Option<f32> {
+    let n = frame.len().min(window.len());
+    let mean = frame[..n].iter().map(|&x| f64::from(x)).sum::<f64>() / n.max(1) as f64;
+    let mut peak = 0.0f32;
+    for (i, (b, &x)) in buf.iter_mut().zip(&frame[..n]).enumerate() {
+        let v = (f64::from(x) - mean) as f32;
+        peak = peak.max(v.abs());
+        *b = v * window[i];
+    }
+    buf[n..].fill(0.0);
+    if peak.is_nan() || peak <= 1e-9 {
+        return None;
+    }
+    for b in &mut buf[..n] {
+        *b /= peak;
+    }
+    Some(peak)
+}
 
 /// Floor for probabilities before the logarithm.
 const P_FLOOR: f32 = 1e-30;
@@ -174,6 +207,15 @@ pub struct ShsConfig {
     pub register_s: f32,
     /// Decided voiced hops before the register prior applies.
     pub register_min_hops: usize,
+    /// The learned salience ([`crate::bassnet`], the embedded model) in place of the
+    /// harmonic sum: the Viterbi decodes the network's log-probabilities of the candidates
+    /// and of "no bass" (see the module docs, "Learned salience"). Needs the model's
+    /// candidate grid (35–400 Hz, 3 per semitone). Off by default.
+    pub learned: bool,
+    /// With [`ShsConfig::learned`]: the weight `β` of the harmonic sum's own observation
+    /// log-probabilities added to the network's (a product of experts,
+    /// `p_net · p_shs^β`; see the module docs, "Learned salience"). 0 = the network alone.
+    pub learned_blend: f32,
 }
 
 /// The power of two nearest `target` samples (rounding down when the next one up is more
@@ -218,6 +260,8 @@ impl ShsConfig {
             register_sigma_st: 0.0,
             register_s: 10.0,
             register_min_hops: 200,
+            learned: false,
+            learned_blend: 0.0,
         }
     }
 
@@ -344,6 +388,9 @@ impl ShsConfig {
         if !(self.register_s.is_finite() && self.register_s > 0.0) {
             return Err(ConfigError::invalid("register_s", "must be finite and > 0"));
         }
+        if !(self.learned_blend.is_finite() && (0.0..=4.0).contains(&self.learned_blend)) {
+            return Err(ConfigError::invalid("learned_blend", "must be in [0, 4]"));
+        }
         if self.lag_hops > 1 << 20 {
             return Err(ConfigError::invalid("lag_hops", "too large"));
         }
@@ -395,13 +442,7 @@ impl Salience {
         let fwd = planner.plan_fft_forward(cfg.n_fft);
         let spec = fwd.make_output_vec();
         let scratch = fwd.make_scratch_vec();
-        let n = cfg.frame;
-        let window = (0..n)
-            .map(|i| {
-                let x = std::f64::consts::PI * 2.0 * (i as f64 + 0.5) / n as f64;
-                (0.5 - 0.5 * x.cos()) as f32
-            })
-            .collect();
+        let window = hann(cfg.frame);
         let df = cfg.sample_rate as f64 / cfg.n_fft as f64;
         let nyq = cfg.n_fft / 2;
         let half = 2f64.powf(cfg.harmonic_width_st as f64 / 12.0);
@@ -451,22 +492,10 @@ impl Salience {
 
     /// Magnitude spectrum of `frame` into `mag`; false when the frame is silent.
     fn spectrum(&mut self, frame: &[f32]) -> bool {
-        let n = frame.len();
-        let mean = frame.iter().map(|&x| f64::from(x)).sum::<f64>() / n.max(1) as f64;
-        let mut peak = 0.0f32;
-        for (i, (b, &x)) in self.buf.iter_mut().zip(frame).enumerate() {
-            let v = (f64::from(x) - mean) as f32;
-            peak = peak.max(v.abs());
-            *b = v * self.window[i];
-        }
-        self.buf[n..].fill(0.0);
-        if peak.is_nan() || peak <= 1e-9 {
+        let Some(peak) = prepare_frame(frame, &self.window, &mut self.buf) else {
             return false;
-        }
+        };
         self.last_peak = peak;
-        for b in &mut self.buf[..n] {
-            *b /= peak;
-        }
         if self
             .fwd
             .process_with_scratch(&mut self.buf, &mut self.spec, &mut self.scratch)
@@ -556,6 +585,118 @@ struct Tracker {
     peak_ring: Vec<f32>,
     contour: ContourGate,
     register: Register,
+    /// The learned salience's state, when [`ShsConfig::learned`].
+    net: Option<Box<NetState>>,
+}
+
+/// The learned salience's front end, context ring and scratch.
+struct NetState {
+    model: &'static BassNet,
+    front: BassFront,
+    /// Feature frames, `ring × bands`; frame `j` in slot `j % ring`.
+    feats: Vec<f32>,
+    silent: Vec<bool>,
+    peak: Vec<f32>,
+    ring: usize,
+    /// Frames seen.
+    frames: usize,
+    /// Hops handed to the Viterbi (each `future` frames after its own).
+    hops: usize,
+    future: usize,
+    /// The network's input, scratch and log-probabilities for one hop.
+    input: Vec<f32>,
+    a: Vec<f32>,
+    b: Vec<f32>,
+    logp: Vec<f32>,
+    /// [`ShsConfig::learned_blend`].
+    blend: f32,
+    /// Harmonic-sum salience per frame (ring × m, when `blend` > 0) and its voicing evidence.
+    shs: Vec<f32>,
+    shs_v: Vec<f32>,
+}
+
+impl std::fmt::Debug for NetState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("NetState")
+            .field("frames", &self.frames)
+            .field("hops", &self.hops)
+            .finish_non_exhaustive()
+    }
+}
+
+impl NetState {
+    fn new(cfg: &ShsConfig, m: usize) -> Result<NetState, ConfigError> {
+        let model = BassNet::embedded();
+        if model.candidates() != m
+            || cfg.bins_per_semitone != crate::bassnet::BINS_PER_SEMITONE
+            || (cfg.fmin_hz - model.cand_fmin_hz()).abs() > 1e-3
+        {
+            return Err(ConfigError::invalid(
+                "learned",
+                "the bass model's candidate grid is 35-400 Hz at 3 bins per semitone",
+            ));
+        }
+        let bands = model.bands();
+        let ring = model.past() + model.future() + 1;
+        let w = model.width().max(model.input_len());
+        Ok(NetState {
+            model,
+            front: BassFront::with_bands(
+                cfg.sample_rate,
+                cfg.frame,
+                cfg.n_fft,
+                bands,
+                model.low_hz(),
+            )?,
+            feats: vec![0.0; ring * bands],
+            silent: vec![true; ring],
+            peak: vec![0.0; ring],
+            ring,
+            frames: 0,
+            hops: 0,
+            future: model.future(),
+            input: vec![0.0; model.input_len()],
+            a: vec![0.0; w],
+            b: vec![0.0; w],
+            logp: vec![0.0; m + 1],
+            blend: cfg.learned_blend,
+            shs: vec![0.0; if cfg.learned_blend > 0.0 { ring * m } else { 0 }],
+            shs_v: vec![0.02; ring],
+        })
+    }
+
+    /// Takes the next frame's features.
+    fn push(&mut self, frame: &[f32]) {
+        let slot = self.frames % self.ring;
+        let nb = self.model.bands();
+        let f = &mut self.feats[slot * nb..(slot + 1) * nb];
+        self.silent[slot] = !self.front.features(frame, f);
+        self.peak[slot] = self.front.last_peak;
+        self.frames += 1;
+    }
+
+    /// Log-probabilities of hop `h` into `logp` (frames outside `0..frames` are zeros).
+    fn infer(&mut self, h: usize) {
+        let nb = self.model.bands();
+        for (k, &o) in self.model.offsets().iter().enumerate() {
+            let dst = &mut self.input[k * nb..(k + 1) * nb];
+            let j = h as i64 + i64::from(o);
+            if j < 0 || j >= self.frames as i64 {
+                dst.fill(0.0);
+            } else {
+                let slot = j as usize % self.ring;
+                dst.copy_from_slice(&self.feats[slot * nb..(slot + 1) * nb]);
+            }
+        }
+        self.model
+            .forward(&self.input, &mut self.a, &mut self.b, &mut self.logp);
+    }
+
+    fn reset(&mut self) {
+        self.frames = 0;
+        self.hops = 0;
+        self.silent.fill(true);
+    }
 }
 
 /// The register prior's state (see the module docs, "Register prior").
@@ -662,6 +803,11 @@ impl Tracker {
                 reference: 0.0,
                 ref_n: 0,
             },
+            net: if cfg.learned {
+                Some(Box::new(NetState::new(cfg, m)?))
+            } else {
+                None
+            },
         })
     }
 
@@ -671,6 +817,9 @@ impl Tracker {
         self.contour.reset();
         self.register.mean = 0.0;
         self.register.n = 0;
+        if let Some(n) = &mut self.net {
+            n.reset();
+        }
     }
 
     /// Level in dB of the harmonic sum of `state` at `hop` (in the input's units).
@@ -745,6 +894,12 @@ impl Tracker {
         } else {
             self.obs.fill(P_FLOOR.ln());
         }
+        self.apply_register();
+        (1.0 - v).max(P_FLOOR).ln()
+    }
+
+    /// The register prior on the voiced observations.
+    fn apply_register(&mut self) {
         let r = &self.register;
         if r.k > 0.0 && r.n >= r.min_n {
             for (c, o) in self.obs.iter_mut().enumerate() {
@@ -752,13 +907,88 @@ impl Tracker {
                 *o -= (r.k * d * d) as f32;
             }
         }
-        (1.0 - v).max(P_FLOOR).ln()
+    }
+
+    /// The learned salience: frame `frames` arrives; the hop `future` frames before it
+    /// goes to the Viterbi.
+    fn on_net_frame(&mut self, frame: &[f32], emit: &mut dyn FnMut(usize, PitchEstimate)) {
+        let Some(mut n) = self.net.take() else {
+            return;
+        };
+        if n.blend > 0.0 {
+            let m = self.m;
+            let slot = n.frames % n.ring;
+            let dst = &mut n.shs[slot * m..(slot + 1) * m];
+            n.shs_v[slot] = if self.sal.spectrum(frame) {
+                self.sal.salience(dst)
+            } else {
+                dst.fill(0.0);
+                0.02
+            };
+        }
+        n.push(frame);
+        while n.hops + n.future < n.frames {
+            self.net_hop(&mut n, emit);
+        }
+        self.net = Some(n);
+    }
+
+    /// The hops still waiting for future frames (the stream has ended).
+    fn drain_net(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
+        let Some(mut n) = self.net.take() else {
+            return;
+        };
+        while n.hops < n.frames {
+            self.net_hop(&mut n, emit);
+        }
+        self.net = Some(n);
+    }
+
+    /// Hop `n.hops` through the network, then the Viterbi.
+    fn net_hop(&mut self, n: &mut NetState, emit: &mut dyn FnMut(usize, PitchEstimate)) {
+        n.infer(n.hops);
+        let slot = n.hops % n.ring;
+        let (silent, peak) = (n.silent[slot], n.peak[slot]);
+        n.hops += 1;
+        let m = self.m;
+        let logp = &n.logp[..];
+        let (v, l_unvoiced) = if silent {
+            self.s.fill(0.0);
+            (0.02, self.observe(0.02))
+        } else {
+            let floor = P_FLOOR.ln();
+            for ((s, o), &lp) in self.s.iter_mut().zip(self.obs.iter_mut()).zip(&logp[..m]) {
+                *s = lp.exp();
+                *o = lp.max(floor);
+            }
+            let mut lu = logp[m].max(floor);
+            if n.blend > 0.0 {
+                let slot = (n.hops - 1) % n.ring;
+                let sh = &n.shs[slot * m..(slot + 1) * m];
+                let sv = n.shs_v[slot];
+                let peak = sh.iter().fold(0.0f32, |a, &b| a.max(b));
+                for (o, &x) in self.obs.iter_mut().zip(sh) {
+                    let p = if peak > 0.0 {
+                        (sv * (x.max(0.0) / peak).powf(self.sal.sharp)).max(P_FLOOR)
+                    } else {
+                        P_FLOOR
+                    };
+                    *o += n.blend * p.ln();
+                }
+                lu += n.blend * (1.0 - sv).max(P_FLOOR).ln();
+            }
+            self.apply_register();
+            let lu0 = logp[m].max(floor);
+            ((1.0 - lu0.exp()).clamp(0.0, 1.0), lu)
+        };
+        self.advance(silent, v, l_unvoiced, peak, emit);
     }
 
     fn on_frame(&mut self, frame: &[f32], emit: &mut dyn FnMut(usize, PitchEstimate)) {
-        let t = self.hops_seen;
-        let slot = t % self.ring;
-        let m = self.m;
+        if self.net.is_some() {
+            self.on_net_frame(frame, emit);
+            return;
+        }
         let silent = !self.sal.spectrum(frame);
         let v = if silent {
             self.s.fill(0.0);
@@ -770,8 +1000,26 @@ impl Tracker {
             v
         };
         let l_unvoiced = self.observe(v);
+        let peak = if silent { 0.0 } else { self.sal.last_peak };
+        self.advance(silent, v, l_unvoiced, peak, emit);
+    }
+
+    /// The current hop's salience `s` and observations `obs` (voicing evidence `v`,
+    /// unvoiced log-probability `l_unvoiced`) into the rings and the Viterbi; emits the hop
+    /// `lag_hops` back.
+    fn advance(
+        &mut self,
+        silent: bool,
+        v: f32,
+        l_unvoiced: f32,
+        peak: f32,
+        emit: &mut dyn FnMut(usize, PitchEstimate),
+    ) {
+        let t = self.hops_seen;
+        let slot = t % self.ring;
+        let m = self.m;
         self.sal_ring[slot * m..(slot + 1) * m].copy_from_slice(&self.s);
-        self.peak_ring[slot] = if silent { 0.0 } else { self.sal.last_peak };
+        self.peak_ring[slot] = peak;
         self.silent[slot] = silent;
         self.voicing[slot] = v;
         if t == 0 {
@@ -969,6 +1217,7 @@ impl HopStage for Shs {
     fn finish(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
         let tracker = &mut self.tracker;
         self.framer.finish(|_, fr| tracker.on_frame(fr, emit));
+        self.tracker.drain_net(emit);
         self.tracker.flush(emit);
     }
 
@@ -978,7 +1227,8 @@ impl HopStage for Shs {
     }
 
     fn latency_samples(&self) -> usize {
-        self.framer.latency_samples() + self.cfg.lag_hops * self.cfg.hop
+        let future = self.tracker.net.as_ref().map_or(0, |n| n.future);
+        self.framer.latency_samples() + (self.cfg.lag_hops + future) * self.cfg.hop
     }
 
     fn hop(&self) -> usize {

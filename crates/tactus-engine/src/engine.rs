@@ -535,9 +535,24 @@ impl Engine {
                     // than its 2-hop lag to trust a new note: 89 ms against 60 ms median
                     // in benches/live_latency.py; the harmonic-sum tracker's 200 ms
                     // frames do not fit at all).
-                    (PitchMethod::Auto, _) if cfg.profile == Profile::Live => PitchMethod::Yin,
-                    (PitchMethod::Auto, Stem::Bass | Stem::Vocals) => PitchMethod::Shs,
-                    (PitchMethod::Auto, _) => PitchMethod::Pyin,
+                    (PitchMethod::Auto | PitchMethod::AutoShs, _)
+                        if cfg.profile == Profile::Live =>
+                    {
+                        PitchMethod::Yin
+                    }
+                    // The spectral separator's bass stem: the learned salience times the
+                    // harmonic sum (trained on that stem; benches/trials/RULE_bassnet_blend.md);
+                    // supplied stems, other separators and the lead: the harmonic sum.
+                    (PitchMethod::Auto, Stem::Bass)
+                        if cfg.separator == SeparatorChoice::Spectral
+                            && !cfg.supplied.contains(stem) =>
+                    {
+                        PitchMethod::Learned
+                    }
+                    (PitchMethod::Auto | PitchMethod::AutoShs, Stem::Bass | Stem::Vocals) => {
+                        PitchMethod::Shs
+                    }
+                    (PitchMethod::Auto | PitchMethod::AutoShs, _) => PitchMethod::Pyin,
                     (m, _) => m,
                 });
             let notes = needs.note_onsets.contains(&stem).then_some(cfg.note_rule);

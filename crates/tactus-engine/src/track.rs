@@ -45,9 +45,19 @@ pub enum PitchMethod {
     /// Harmonic-sum salience with fixed-lag Viterbi ([`tactus_dsp::shs`]), made for a bass
     /// line or a lead melody in a mixture.
     Shs,
-    /// [`PitchMethod::Shs`] for the bass and the lead (vocals), pYIN for the polyphonic rest.
+    /// The learned bass salience ([`tactus_dsp::bassnet`]) times the harmonic sum
+    /// ([`LEARNED_BASS_BLEND`]), decoded like [`PitchMethod::Shs`]; made for the spectral
+    /// separator's bass stem (the data it was trained on). On a range above the bass it is
+    /// [`PitchMethod::Shs`].
+    Learned,
+    /// [`PitchMethod::Learned`] for the spectral separator's bass stem,
+    /// [`PitchMethod::Shs`] for other basses and the lead (vocals), pYIN for the polyphonic
+    /// rest.
     #[default]
     Auto,
+    /// The default before the learned bass salience: [`PitchMethod::Shs`] for every bass and
+    /// the lead, pYIN for the polyphonic rest.
+    AutoShs,
 }
 
 /// How a pitch track turns voiced pitch into levels (issue 16, "levels that follow the truth").
@@ -166,6 +176,15 @@ pub const MIXTURE_FUNDAMENTAL_RATIO: f32 = 0.1;
 /// stems and for the lead (a lead's register prior cost `timgm` mix vocals RPA 0.717 →
 /// 0.684).
 pub const MIXTURE_BASS_REGISTER_ST: f32 = 12.0;
+
+/// [`tactus_dsp::shs::ShsConfig::learned_blend`] of the learned bass salience: the weight
+/// of the harmonic sum's observation log-probabilities added to the network's. Chosen on the
+/// tuning halves' mixes (`benches/bass_eval.py --inputs mix`, offline, sung / chorales /
+/// `timgm`; `benches/trials/RULE_bassnet_blend.md`): bass RPA 0.875 / 0.908 / 0.900 for the
+/// network alone, 0.895 / 0.930 / 0.925 at 0.2, 0.901 / 0.939 / 0.933 at 0.3, 0.904 / 0.943 /
+/// 0.939 at 0.4 (sung levels ±1 0.677 → 0.596), 0.906 / 0.945 / 0.947 at 0.6 (chorale note F
+/// 0.687 → 0.652).
+pub const LEARNED_BASS_BLEND: f32 = 0.3;
 
 /// Contour voicing of the lead on a band of the mix ([`tactus_dsp::shs::ShsConfig::contour_gate_db`]):
 /// a decoded contour more than this many dB below the running mean level of the voiced hops
@@ -449,13 +468,13 @@ impl PitchTrack {
                 Box::new(TwoFrameYin::new(yc.clone(), split_hz, short_frame)?)
             }
             PitchMethod::Yin => Box::new(Yin::new(yc.clone())?),
-            PitchMethod::Pyin | PitchMethod::Auto => {
+            PitchMethod::Pyin | PitchMethod::Auto | PitchMethod::AutoShs => {
                 let mut pc = PyinConfig::new(rate, fmin_hz, fmax_hz);
                 pc.yin = yc.clone();
                 pc.lag_hops = lag_hops;
                 Box::new(Pyin::new(pc)?)
             }
-            PitchMethod::Shs => {
+            PitchMethod::Shs | PitchMethod::Learned => {
                 // The bass range gets the bass defaults; a higher range (the lead) the
                 // melody defaults (`tactus_dsp::shs` module docs).
                 let mut sc = if fmax_hz <= BASS_MAX_HZ {
@@ -472,6 +491,10 @@ impl PitchTrack {
                     } else {
                         sc.register_sigma_st = MIXTURE_BASS_REGISTER_ST;
                     }
+                }
+                sc.learned = method == PitchMethod::Learned && fmax_hz <= BASS_MAX_HZ;
+                if sc.learned {
+                    sc.learned_blend = LEARNED_BASS_BLEND;
                 }
                 Box::new(Shs::new(sc)?)
             }

@@ -1,0 +1,318 @@
+//! A learned bass-line salience for mixtures: a small network reads the separated bass
+//! band's log-frequency spectrum around a hop and says which pitch candidate (or none) the
+//! bass line has there. [`crate::shs`] decodes its output with the same fixed-lag Viterbi as
+//! the harmonic sum ([`crate::shs::ShsConfig::learned`]).
+//!
+//! Why: on a mixture's low band the harmonic sum follows whatever is loudest there. A kick's
+//! or an 808's body under a bass note with a weak fundamental makes the subharmonic an octave
+//! or a fifth below win (`f/2` collects the body and every harmonic of the note), and the
+//! Viterbi then holds it (README, issue 16, "Where the remaining wrong mix-bass hops
+//! point"). A network that sees a few frames around the hop learns what a drum's body looks
+//! like (a decaying, falling sine that starts with a hit) and what a bass note looks like.
+//!
+//! # Algorithm
+//! 1. **Spectrum** of the frame exactly as the harmonic sum computes it ([`BassFront`]):
+//!    frame minus its mean, scaled to unit peak, times a Hann window, zero-padded, real FFT,
+//!    magnitudes.
+//! 2. **Log-frequency bands**: [`BANDS`] bands, [`BINS_PER_SEMITONE`] per semitone from
+//!    [`LOW_HZ`] (30 Hz to about 1 kHz); band `b` is the largest magnitude among the FFT
+//!    bins within a sixth of a semitone of `LOW_HZ · 2^(b / 36)` (at least one bin), in dB,
+//!    minus the frame's largest band, plus 60, over 60, clipped to `[0, 1]` (level
+//!    invariant: the frame's loudest band is 1, 60 dB under it is 0). A silent frame is all
+//!    zeros.
+//! 3. **Context**: the bands of the frames at the model's offsets from the hop (for the
+//!    embedded model −8, −4, −2, 0, +2, +4 hops), zeros before the stream and after its end.
+//! 4. **Network**: a multilayer perceptron with ReLU hidden layers and a softmax over the
+//!    candidates (the harmonic sum's grid: 35–400 Hz, 3 per semitone) and one "no bass"
+//!    class. Trained by `models/bassnet/train.py` on features dumped by this very code
+//!    (`examples/bass_features.rs`), provenance in `models/bassnet/README.md`.
+//!
+//! # Latency
+//! The hop is decided once the frame at the largest offset exists: `max offset · hop`
+//! samples more than the harmonic sum (4 hops = 40 ms for the embedded model), stated by
+//! [`crate::shs::Shs`]'s `latency_samples()`.
+
+use crate::drums::Layer;
+use crate::mlp::{read_f32s, read_u32, take};
+use std::sync::{Arc, OnceLock};
+
+use realfft::num_complex::Complex;
+use realfft::{RealFftPlanner, RealToComplex};
+
+use crate::ConfigError;
+
+/// Log-frequency bands of the bass model's front end.
+pub const BANDS: usize = 183;
+/// Centre of the bass model's band 0, Hz.
+pub const LOW_HZ: f32 = 30.0;
+/// Bands (and candidates) per semitone.
+pub const BINS_PER_SEMITONE: u32 = 3;
+/// Dynamic range of a band below the frame's loudest, dB.
+pub const RANGE_DB: f32 = 60.0;
+
+const WHAT: &str = "bass model";
+
+const MAGIC: &[u8; 8] = b"TACTUSBN";
+
+/// The embedded model (see `models/bassnet/README.md`).
+static EMBEDDED: &[u8] = include_bytes!("../weights/bassnet.bin");
+
+/// The network and its input layout.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BassNet {
+    bands: usize,
+    low_hz: f32,
+    offsets: Vec<i32>,
+    candidates: usize,
+    cand_fmin_hz: f32,
+    layers: Vec<Layer>,
+}
+
+impl BassNet {
+    /// The model embedded in the binary (parsed once).
+    pub fn embedded() -> &'static BassNet {
+        static MODEL: OnceLock<BassNet> = OnceLock::new();
+        // The embedded file is checked by a unit test, so this cannot fail in a build whose
+        // tests pass.
+        MODEL.get_or_init(|| Self::from_bytes(EMBEDDED).expect("embedded bass model is valid"))
+    }
+
+    /// Parses the format written by `models/bassnet/train.py`: `"TACTUSBN"`, then
+    /// little-endian u32 `version = 1, bands, bins_per_semitone`, f32 `low_hz, range_db`,
+    /// u32 `n_offsets`, i32 `offsets[n_offsets]`, u32 `candidates`, f32 `cand_fmin_hz`,
+    /// u32 `layers`, then per layer u32 `n_in, n_out`, f32 `w[n_out·n_in], b[n_out]`. The
+    /// last layer has `candidates + 1` outputs (the last one: no bass).
+    pub fn from_bytes(mut bytes: &[u8]) -> Result<BassNet, ConfigError> {
+        let b = &mut bytes;
+        if take(b, 8, WHAT)? != MAGIC {
+            return Err(ConfigError::invalid(
+                "bass model",
+                "not a Tactus bass model",
+            ));
+        }
+        if read_u32(b, WHAT)? != 1 {
+            return Err(ConfigError::invalid(
+                "bass model",
+                "only version 1 is supported",
+            ));
+        }
+        let bands = read_u32(b, WHAT)? as usize;
+        let bps = read_u32(b, WHAT)?;
+        let front = read_f32s(b, 2, WHAT)?;
+        if !(1..=512).contains(&bands)
+            || bps != BINS_PER_SEMITONE
+            || !front[0].is_finite()
+            || front[0] <= 0.0
+            || front[1] != RANGE_DB
+        {
+            return Err(ConfigError::invalid(
+                "bass model",
+                "its front end is not this build's",
+            ));
+        }
+        let n_off = read_u32(b, WHAT)? as usize;
+        if !(1..=32).contains(&n_off) {
+            return Err(ConfigError::invalid("bass model", "implausible context"));
+        }
+        let offsets: Vec<i32> = take(b, 4 * n_off, WHAT)?
+            .chunks_exact(4)
+            .map(|c| i32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        if offsets.iter().any(|o| o.abs() > 64) {
+            return Err(ConfigError::invalid("bass model", "implausible context"));
+        }
+        let candidates = read_u32(b, WHAT)? as usize;
+        let cand_fmin_hz = read_f32s(b, 1, WHAT)?[0];
+        let n_layers = read_u32(b, WHAT)? as usize;
+        if !(1..=4096).contains(&candidates) || !(1..=8).contains(&n_layers) || cand_fmin_hz <= 0.0
+        {
+            return Err(ConfigError::invalid("bass model", "implausible shape"));
+        }
+        let layers = crate::mlp::read_layers(b, n_layers, n_off * bands, WHAT)?;
+        let expect = layers.last().map_or(0, |l| l.n_out);
+        if expect != candidates + 1 {
+            return Err(ConfigError::invalid(
+                "bass model",
+                "last layer must have candidates + 1 outputs",
+            ));
+        }
+        if !b.is_empty() {
+            return Err(ConfigError::invalid("bass model", "trailing bytes"));
+        }
+        Ok(BassNet {
+            bands,
+            low_hz: front[0],
+            offsets,
+            candidates,
+            cand_fmin_hz,
+            layers,
+        })
+    }
+
+    /// Log-frequency bands of its front end.
+    pub fn bands(&self) -> usize {
+        self.bands
+    }
+
+    /// Centre of its front end's band 0, Hz.
+    pub fn low_hz(&self) -> f32 {
+        self.low_hz
+    }
+
+    /// Frame offsets of the context, in hops, in input order.
+    pub fn offsets(&self) -> &[i32] {
+        &self.offsets
+    }
+
+    /// Pitch candidates (the last output is "no bass").
+    pub fn candidates(&self) -> usize {
+        self.candidates
+    }
+
+    /// f0 of candidate 0, Hz.
+    pub fn cand_fmin_hz(&self) -> f32 {
+        self.cand_fmin_hz
+    }
+
+    /// Values in one network input.
+    pub fn input_len(&self) -> usize {
+        self.offsets.len() * self.bands
+    }
+
+    /// The widest layer (scratch size for [`BassNet::forward`]).
+    pub fn width(&self) -> usize {
+        self.layers
+            .iter()
+            .map(|l| l.n_in.max(l.n_out))
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Hops of look-ahead (the largest offset, at least 0).
+    pub fn future(&self) -> usize {
+        self.offsets.iter().copied().max().unwrap_or(0).max(0) as usize
+    }
+
+    /// Hops of look-back (minus the smallest offset, at least 0).
+    pub fn past(&self) -> usize {
+        (-self.offsets.iter().copied().min().unwrap_or(0)).max(0) as usize
+    }
+
+    /// Runs the network on one input; `a` and `b` are scratch of at least
+    /// [`BassNet::width`] values. Writes the log-softmax over `candidates + 1` classes into
+    /// `out`.
+    pub fn forward(&self, input: &[f32], a: &mut [f32], b: &mut [f32], out: &mut [f32]) {
+        let z = crate::mlp::run_layers(&self.layers, input, a, b);
+        let mx = z.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        let lse = mx + z.iter().map(|&v| (v - mx).exp()).sum::<f32>().ln();
+        for (o, &v) in out.iter_mut().zip(z) {
+            *o = v - lse;
+        }
+    }
+}
+
+/// The front end (steps 1 and 2 of the module docs) for frames of `frame` samples at
+/// `sample_rate`, zero-padded to `n_fft`.
+pub struct BassFront {
+    fwd: Arc<dyn RealToComplex<f32>>,
+    window: Vec<f32>,
+    buf: Vec<f32>,
+    spec: Vec<Complex<f32>>,
+    scratch: Vec<Complex<f32>>,
+    /// FFT bin range `(lo, hi)` per band.
+    ranges: Vec<(usize, usize)>,
+    /// Peak of the last frame before normalisation (its level).
+    pub last_peak: f32,
+}
+
+impl std::fmt::Debug for BassFront {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BassFront")
+            .field("n_fft", &self.buf.len())
+            .finish_non_exhaustive()
+    }
+}
+
+impl BassFront {
+    /// A front end of `bands` bands from `low_hz` (a model's: [`BassNet::bands`],
+    /// [`BassNet::low_hz`]); every band must lie below Nyquist.
+    pub fn with_bands(
+        sample_rate: u32,
+        frame: usize,
+        n_fft: usize,
+        bands: usize,
+        low_hz: f32,
+    ) -> Result<BassFront, ConfigError> {
+        if frame < 8 || n_fft < frame || !n_fft.is_multiple_of(2) {
+            return Err(ConfigError::invalid("bass front end", "frame and n_fft"));
+        }
+        let df = sample_rate as f64 / n_fft as f64;
+        let nyq = n_fft / 2;
+        let half = 2f64.powf(1.0 / (6.0 * BINS_PER_SEMITONE as f64));
+        let mut ranges = Vec::with_capacity(bands);
+        for b in 0..bands {
+            let f = low_hz as f64 * (b as f64 / (12.0 * BINS_PER_SEMITONE as f64)).exp2();
+            let lo = ((f / half / df).round() as usize).max(1);
+            let hi = ((f * half / df).round() as usize).max(lo);
+            if hi > nyq {
+                return Err(ConfigError::invalid(
+                    "bass front end",
+                    "sample rate too low for the bands",
+                ));
+            }
+            ranges.push((lo, hi));
+        }
+        let mut planner = RealFftPlanner::<f32>::new();
+        let fwd = planner.plan_fft_forward(n_fft);
+        let spec = fwd.make_output_vec();
+        let scratch = fwd.make_scratch_vec();
+        let window = crate::shs::hann(frame);
+        Ok(BassFront {
+            fwd,
+            window,
+            buf: vec![0.0; n_fft],
+            spec,
+            scratch,
+            ranges,
+            last_peak: 0.0,
+        })
+    }
+
+    /// Bands of the front end.
+    pub fn bands(&self) -> usize {
+        self.ranges.len()
+    }
+
+    /// Bands of `frame` into `out` ([`BassFront::bands`] values); false (and zeros) when the
+    /// frame is silent.
+    pub fn features(&mut self, frame: &[f32], out: &mut [f32]) -> bool {
+        let nb = self.ranges.len();
+        out[..nb].fill(0.0);
+        self.last_peak = 0.0;
+        let Some(peak) = crate::shs::prepare_frame(frame, &self.window, &mut self.buf) else {
+            return false;
+        };
+        self.last_peak = peak;
+        if self
+            .fwd
+            .process_with_scratch(&mut self.buf, &mut self.spec, &mut self.scratch)
+            .is_err()
+        {
+            return false;
+        }
+        let mut top = f32::NEG_INFINITY;
+        for (o, &(lo, hi)) in out.iter_mut().zip(&self.ranges) {
+            let mut mx = 0.0f32;
+            for c in &self.spec[lo..=hi] {
+                mx = mx.max(c.re * c.re + c.im * c.im);
+            }
+            let db = 10.0 * mx.max(1e-24).log10();
+            *o = db;
+            top = top.max(db);
+        }
+        for o in out[..nb].iter_mut() {
+            *o = ((*o - top + RANGE_DB) / RANGE_DB).clamp(0.0, 1.0);
+        }
+        true
+    }
+}
