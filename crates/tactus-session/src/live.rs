@@ -30,7 +30,9 @@
 //! dropped. Dropped
 //! audio is counted ([`LiveReport::caught_up`]); frame times include it, so a frame's
 //! `time_ms` stays the time of its audio. The engine sees a splice; a pin may rise there.
-//! Frames the ring could not take (overruns) and device-side xruns are counted too.
+//! Frames the ring could not take (overruns) and device-side xruns are counted too; the
+//! overruns also count in frame times and in the capture clock, like dropped audio (they
+//! passed; leaving them out made every later frame look that much late).
 //!
 //! Latency: the device period, the resampler ([`StreamResampler::latency_samples`]), the
 //! engine's look-ahead and the bin, then the link and the 50 ms pin rise; the report carries
@@ -99,7 +101,8 @@ impl Default for LiveOptions {
 /// Progress, reported every [`LiveOptions::status_every`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LiveStatus {
-    /// Seconds of audio captured.
+    /// Seconds of audio captured: processed, dropped to catch up, or turned away by a full
+    /// ring.
     pub captured_s: f64,
     /// Frames sent.
     pub frames: usize,
@@ -122,7 +125,8 @@ pub struct LiveStatus {
 /// What a live session did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LiveReport {
-    /// Seconds of audio captured.
+    /// Seconds of audio captured: processed, dropped to catch up, or turned away by a full
+    /// ring.
     pub captured_s: f64,
     /// Frames sent to the sink.
     pub frames: usize,
@@ -281,7 +285,7 @@ impl DelayFloor {
 /// from the read where the lag jumps past the bound (a stall: half the bound in one read)
 /// and for as long as it keeps falling (by [`ClockLag::STEP_MS`], three capture periods, at
 /// least once every [`ClockLag::HOLD_MS`]). A lag that crept up and stays (a starved sound
-/// server handing audio over late at the pace it makes it, or samples lost in an overrun)
+/// server handing audio over late at the pace it makes it, or samples lost in a device xrun)
 /// is never dropped for: the floor takes it in after two buckets of reads.
 #[derive(Debug, Default)]
 struct ClockLag {
@@ -490,6 +494,11 @@ impl LiveEngine {
         let mut backlogs = BlockTimes::default();
         let mut block_times = BlockTimes::default();
         let (mut caught_up, mut skipped) = (0u64, 0u64);
+        // Frames the ring had no room for (its overruns) are audio that passed too: they
+        // count in frame times and in the capture clock like frames dropped to catch up,
+        // or every later frame would look that much late (a 3 s stall's burst once filled
+        // the ring for 66 ms, and every frame after it read 66 ms late).
+        let mut lost = 0u64;
         let mut last_backlog_ms = 0.0;
         let mut last_latency: Option<f64> = None;
         let mut delay_floor = DelayFloor::default();
@@ -528,6 +537,10 @@ impl LiveEngine {
                 std::thread::sleep(Duration::from_millis(2));
             } else {
                 let t_block = Instant::now();
+                // Overruns counted by now were frames the ring turned away while it was full
+                // of this read's frames: they passed after this read's newest frame and
+                // before the next read's oldest, and count from then on.
+                let lost_now = reader.overruns().saturating_sub(lost);
                 // The backlog: what waited in the ring (`read` drains it all) plus what
                 // waited in the device beyond its usual delay (its buffer fills while this
                 // process is stopped, then arrives in a burst).
@@ -592,7 +605,7 @@ impl LiveEngine {
                 let first = reader.first_callback();
                 // Audio dropped to catch up counts in frame times and capture times (bins
                 // finished just after a drop are placed as if they followed it).
-                let skipped_ms = skipped as f64 * 1e3 / f64::from(rate);
+                let skipped_ms = (skipped + lost) as f64 * 1e3 / f64::from(rate);
                 while delivered < ready {
                     sink.send_frame(
                         eng.live_frame(delivered),
@@ -601,7 +614,8 @@ impl LiveEngine {
                     if let Some((t0, n0)) = first {
                         // The bin's last sample, in device frames, was captured about
                         // (n − n0) / rate after the first callback (which brought n0 frames).
-                        let end = (delivered + 1) as f64 * bin_samples / ratio + skipped as f64;
+                        let end =
+                            (delivered + 1) as f64 * bin_samples / ratio + (skipped + lost) as f64;
                         let captured_at = (end - n0 as f64) / f64::from(rate);
                         let lat = t0.elapsed().as_secs_f64() * 1e3 - captured_at * 1e3;
                         last_latency = Some(lat);
@@ -611,6 +625,8 @@ impl LiveEngine {
                     }
                     delivered += 1;
                 }
+                lost += lost_now;
+                captured += lost_now;
                 // live_frame still reads the slower features' and the pulses' bins.
                 eng.discard_before(delivered.saturating_sub(eng.live_history_bins()));
                 if !left.is_empty() {
