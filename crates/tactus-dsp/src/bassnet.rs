@@ -34,11 +34,9 @@
 
 use crate::drums::Layer;
 use crate::mlp::{read_f32s, read_u32, take};
-use std::sync::{Arc, OnceLock};
+use std::sync::OnceLock;
 
-use realfft::num_complex::Complex;
-use realfft::{RealFftPlanner, RealToComplex};
-
+use crate::shs::FrameFft;
 use crate::ConfigError;
 
 /// Log-frequency bands of the bass model's front end.
@@ -214,11 +212,7 @@ impl BassNet {
 /// The front end (steps 1 and 2 of the module docs) for frames of `frame` samples at
 /// `sample_rate`, zero-padded to `n_fft`.
 pub struct BassFront {
-    fwd: Arc<dyn RealToComplex<f32>>,
-    window: Vec<f32>,
-    buf: Vec<f32>,
-    spec: Vec<Complex<f32>>,
-    scratch: Vec<Complex<f32>>,
+    fft: FrameFft,
     /// FFT bin range `(lo, hi)` per band.
     ranges: Vec<(usize, usize)>,
     /// Peak of the last frame before normalisation (its level).
@@ -228,7 +222,7 @@ pub struct BassFront {
 impl std::fmt::Debug for BassFront {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("BassFront")
-            .field("n_fft", &self.buf.len())
+            .field("n_fft", &self.fft.n_fft())
             .finish_non_exhaustive()
     }
 }
@@ -262,17 +256,8 @@ impl BassFront {
             }
             ranges.push((lo, hi));
         }
-        let mut planner = RealFftPlanner::<f32>::new();
-        let fwd = planner.plan_fft_forward(n_fft);
-        let spec = fwd.make_output_vec();
-        let scratch = fwd.make_scratch_vec();
-        let window = crate::shs::hann(frame);
         Ok(BassFront {
-            fwd,
-            window,
-            buf: vec![0.0; n_fft],
-            spec,
-            scratch,
+            fft: FrameFft::new(frame, n_fft),
             ranges,
             last_peak: 0.0,
         })
@@ -289,21 +274,14 @@ impl BassFront {
         let nb = self.ranges.len();
         out[..nb].fill(0.0);
         self.last_peak = 0.0;
-        let Some(peak) = crate::shs::prepare_frame(frame, &self.window, &mut self.buf) else {
+        let Some(peak) = self.fft.analyse(frame) else {
             return false;
         };
         self.last_peak = peak;
-        if self
-            .fwd
-            .process_with_scratch(&mut self.buf, &mut self.spec, &mut self.scratch)
-            .is_err()
-        {
-            return false;
-        }
         let mut top = f32::NEG_INFINITY;
         for (o, &(lo, hi)) in out.iter_mut().zip(&self.ranges) {
             let mut mx = 0.0f32;
-            for c in &self.spec[lo..=hi] {
+            for c in &self.fft.spec[lo..=hi] {
                 mx = mx.max(c.re * c.re + c.im * c.im);
             }
             let db = 10.0 * mx.max(1e-24).log10();

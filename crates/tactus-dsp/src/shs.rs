@@ -140,6 +140,46 @@ pub(crate) fn prepare_frame(frame: &[f32], window: &[f32], buf: &mut [f32]) -> O
     Some(peak)
 }
 
+/// Step 1 of the module docs, planned once: a frame through [`prepare_frame`] (Hann window
+/// of `frame` samples, zero-padded to `n_fft`) and a real FFT. Shared by the harmonic sum and
+/// the learned salience's front end ([`crate::bassnet::BassFront`]).
+pub(crate) struct FrameFft {
+    fwd: Arc<dyn RealToComplex<f32>>,
+    window: Vec<f32>,
+    buf: Vec<f32>,
+    scratch: Vec<Complex<f32>>,
+    /// The last analysed frame's spectrum (`n_fft / 2 + 1` bins).
+    pub(crate) spec: Vec<Complex<f32>>,
+}
+
+impl FrameFft {
+    pub(crate) fn new(frame: usize, n_fft: usize) -> Self {
+        let fwd = RealFftPlanner::<f32>::new().plan_fft_forward(n_fft);
+        FrameFft {
+            spec: fwd.make_output_vec(),
+            scratch: fwd.make_scratch_vec(),
+            window: hann(frame),
+            buf: vec![0.0; n_fft],
+            fwd,
+        }
+    }
+
+    /// FFT length.
+    pub(crate) fn n_fft(&self) -> usize {
+        self.buf.len()
+    }
+
+    /// The spectrum of `frame` into [`FrameFft::spec`]; the frame's peak before scaling, or
+    /// `None` when it is silent or not finite (the spectrum is then stale).
+    pub(crate) fn analyse(&mut self, frame: &[f32]) -> Option<f32> {
+        let peak = prepare_frame(frame, &self.window, &mut self.buf)?;
+        self.fwd
+            .process_with_scratch(&mut self.buf, &mut self.spec, &mut self.scratch)
+            .ok()?;
+        Some(peak)
+    }
+}
+
 /// Floor for probabilities before the logarithm.
 const P_FLOOR: f32 = 1e-30;
 
@@ -405,11 +445,7 @@ impl ShsConfig {
 
 /// Salience of one analysed frame, and the frame's voicing evidence.
 struct Salience {
-    fwd: Arc<dyn RealToComplex<f32>>,
-    window: Vec<f32>,
-    buf: Vec<f32>,
-    spec: Vec<Complex<f32>>,
-    scratch: Vec<Complex<f32>>,
+    fft: FrameFft,
     mag: Vec<f32>,
     /// `(k_lo, k_hi)` per (candidate, harmonic), `k_hi < k_lo` when above Nyquist.
     ranges: Vec<(u32, u32)>,
@@ -430,7 +466,7 @@ struct Salience {
 impl std::fmt::Debug for Salience {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Salience")
-            .field("n_fft", &self.buf.len())
+            .field("n_fft", &self.fft.n_fft())
             .field("harmonics", &self.harmonics)
             .finish_non_exhaustive()
     }
@@ -438,11 +474,6 @@ impl std::fmt::Debug for Salience {
 
 impl Salience {
     fn new(cfg: &ShsConfig, m: usize) -> Self {
-        let mut planner = RealFftPlanner::<f32>::new();
-        let fwd = planner.plan_fft_forward(cfg.n_fft);
-        let spec = fwd.make_output_vec();
-        let scratch = fwd.make_scratch_vec();
-        let window = hann(cfg.frame);
         let df = cfg.sample_rate as f64 / cfg.n_fft as f64;
         let nyq = cfg.n_fft / 2;
         let half = 2f64.powf(cfg.harmonic_width_st as f64 / 12.0);
@@ -471,11 +502,7 @@ impl Salience {
             .max(band_lo);
         let weight_sum = (0..h_n).map(|h| cfg.harmonic_decay.powi(h as i32)).sum();
         Salience {
-            fwd,
-            window,
-            buf: vec![0.0; cfg.n_fft],
-            spec,
-            scratch,
+            fft: FrameFft::new(cfg.frame, cfg.n_fft),
             mag: vec![0.0; nyq + 1],
             ranges,
             weights,
@@ -492,19 +519,12 @@ impl Salience {
 
     /// Magnitude spectrum of `frame` into `mag`; false when the frame is silent.
     fn spectrum(&mut self, frame: &[f32]) -> bool {
-        let Some(peak) = prepare_frame(frame, &self.window, &mut self.buf) else {
+        let Some(peak) = self.fft.analyse(frame) else {
             return false;
         };
         self.last_peak = peak;
-        if self
-            .fwd
-            .process_with_scratch(&mut self.buf, &mut self.spec, &mut self.scratch)
-            .is_err()
-        {
-            return false;
-        }
         let e = 0.5 * self.compress;
-        for (m, c) in self.mag.iter_mut().zip(&self.spec) {
+        for (m, c) in self.mag.iter_mut().zip(&self.fft.spec) {
             let p = c.re * c.re + c.im * c.im;
             *m = if e == 0.5 { p.sqrt() } else { p.powf(e) };
         }
