@@ -6,6 +6,8 @@
 //!
 //! `unsafe` appears once in this file: a `GlobalAlloc` impl must be `unsafe impl`.
 
+mod common;
+
 use tactus_dsp::bassnet::{BassFront, BassNet, BANDS, BINS_PER_SEMITONE, LOW_HZ, RANGE_DB};
 use tactus_dsp::shs::{Shs, ShsConfig};
 use tactus_dsp::yin::PitchEstimate;
@@ -309,34 +311,15 @@ fn stated_latency_matches_emission_and_a_step() {
     let mut s = Shs::new(c.clone()).unwrap();
     let (hop, lat) = (s.hop(), s.latency_samples());
     assert_eq!(lat, c.frame - c.frame / 2 + (c.lag_hops + future) * c.hop);
-    let mut emitted = 0usize;
-    for (k, &v) in x.iter().enumerate() {
-        s.process(&[v], &mut |i, _| {
-            assert_eq!(i, emitted);
-            emitted += 1;
-        });
-        let expect = if k + 1 >= lat {
-            (k + 1 - lat) / hop + 1
-        } else {
-            0
-        };
-        assert_eq!(emitted, expect.min(x.len().div_ceil(hop)), "sample {k}");
-    }
+    common::assert_emission_follows_latency(&mut s, &x);
     // A step: silence, then a bass note at s0; the first voiced hop lies within a frame of
     // it and is known exactly `latency` samples after its centre.
     let s0 = 2 * SR as usize;
     let mut y = vec![0.0f32; s0];
     y.extend(bass_line(&[73.4], 1.0).0);
     let mut s = Shs::new(c.clone()).unwrap();
-    let mut first: Option<(usize, usize)> = None;
-    for (k, &v) in y.iter().enumerate() {
-        s.process(&[v], &mut |i, e| {
-            if first.is_none() && e.f0_hz > 0.0 {
-                first = Some((i, k + 1));
-            }
-        });
-    }
-    let (h, fed) = first.expect("the note is found");
+    // (first voiced hop, samples fed when it came out)
+    let (h, fed) = common::first_voiced(&mut s, &y).expect("the note is found");
     let centre = h * hop;
     assert!(
         centre + c.frame >= s0 && centre <= s0 + c.frame,

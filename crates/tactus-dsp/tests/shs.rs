@@ -6,6 +6,8 @@
 //! `unsafe` appears once in this file: a `GlobalAlloc` impl must be `unsafe impl`. It only
 //! forwards to `System` and counts. The library itself stays `#![forbid(unsafe_code)]`.
 
+mod common;
+
 use tactus_dsp::framer::Framer;
 use tactus_dsp::shs::{Shs, ShsConfig};
 use tactus_dsp::yin::PitchEstimate;
@@ -479,34 +481,15 @@ fn latency_against_emission_and_a_step(c: ShsConfig) {
     let mut s = Shs::new(c.clone()).unwrap();
     let (hop, lat) = (s.hop(), s.latency_samples());
     assert_eq!(lat, c.frame - c.frame / 2 + c.lag_hops * c.hop);
-    let mut emitted = 0usize;
-    for (k, &v) in x.iter().enumerate() {
-        s.process(&[v], &mut |i, _| {
-            assert_eq!(i, emitted);
-            emitted += 1;
-        });
-        let expect = if k + 1 >= lat {
-            (k + 1 - lat) / hop + 1
-        } else {
-            0
-        };
-        assert_eq!(emitted, expect.min(x.len().div_ceil(hop)), "sample {k}");
-    }
+    common::assert_emission_follows_latency(&mut s, &x);
     // A step: silence, then a tone at sample s0. The first voiced hop is centred within
     // half a frame of s0 (the time stamps carry no extra delay) ...
     let s0 = 2 * SR as usize;
     let mut y = vec![0.0f32; s0];
     y.extend(harmonic(SR, 73.4, SR as usize, &[1.0, 0.5, 0.3], 2));
     let mut s = Shs::new(c.clone()).unwrap();
-    let mut first: Option<(usize, usize)> = None; // (hop, samples fed when emitted)
-    for (k, &v) in y.iter().enumerate() {
-        s.process(&[v], &mut |i, e| {
-            if first.is_none() && e.f0_hz > 0.0 {
-                first = Some((i, k + 1));
-            }
-        });
-    }
-    let (h, fed) = first.expect("the tone is found");
+    // (first voiced hop, samples fed when it came out)
+    let (h, fed) = common::first_voiced(&mut s, &y).expect("the tone is found");
     let centre = h * hop;
     assert!(
         centre + c.frame / 2 >= s0 && centre <= s0 + c.frame / 2,
