@@ -10,7 +10,6 @@ mod common;
 
 use tactus_dsp::bassnet::{BassFront, BassNet, BANDS, BINS_PER_SEMITONE, LOW_HZ, RANGE_DB};
 use tactus_dsp::shs::{Shs, ShsConfig};
-use tactus_dsp::yin::PitchEstimate;
 use tactus_dsp::HopStage;
 use tactus_testkit::Rng;
 
@@ -246,25 +245,6 @@ fn bass_line(pitches: &[f64], note_s: f64) -> (Vec<f32>, Vec<f64>) {
     (x, truth)
 }
 
-fn run(s: &mut Shs, x: &[f32], chunks: &[usize]) -> Vec<PitchEstimate> {
-    let mut out = Vec::new();
-    let (mut i, mut k) = (0, 0);
-    while i < x.len() {
-        let n = chunks[k % chunks.len()].max(1).min(x.len() - i);
-        s.process(&x[i..i + n], &mut |h, e| {
-            assert_eq!(h, out.len());
-            out.push(e)
-        });
-        i += n;
-        k += 1;
-    }
-    s.finish(&mut |h, e| {
-        assert_eq!(h, out.len());
-        out.push(e)
-    });
-    out
-}
-
 /// The network was trained on separated bass stems of mixes; on bare synthetic tones it is
 /// cautious about voicing (with the embedded model the lone 110 Hz note here stays unvoiced),
 /// so this checks the pitch where it speaks, and that it speaks on most of the line.
@@ -272,7 +252,7 @@ fn run(s: &mut Shs, x: &[f32], chunks: &[usize]) -> Vec<PitchEstimate> {
 fn tracks_a_clean_bass_line() {
     let (x, truth) = bass_line(&[55.0, 82.4, 65.4, 110.0, 49.0, 73.4], 0.5);
     let mut s = Shs::new(cfg()).unwrap();
-    let out = run(&mut s, &x, &[4096]);
+    let out = common::run(&mut s, &x, &[4096]);
     let hop = s.hop();
     let (mut ok, mut voiced, mut n) = (0, 0, 0);
     for (h, e) in out.iter().enumerate() {
@@ -334,15 +314,7 @@ fn chunking_and_reset_do_not_change_the_output() {
     let mut with_register = cfg();
     with_register.register_sigma_st = 12.0;
     with_register.register_min_hops = 20;
-    for c in [cfg(), with_register] {
-        let mut s = Shs::new(c.clone()).unwrap();
-        let whole = run(&mut s, &x, &[x.len()]);
-        for chunks in [vec![1usize, 7, 300], vec![49], vec![4096, 13]] {
-            s.reset();
-            assert_eq!(run(&mut s, &x, &chunks), whole, "chunks {chunks:?}");
-        }
-        assert_eq!(whole.len(), x.len().div_ceil(c.hop));
-    }
+    common::assert_chunking_and_reset_invariant(&[cfg(), with_register], &x);
 }
 
 #[test]

@@ -83,26 +83,6 @@ fn cfg() -> ShsConfig {
     ShsConfig::new(SR, 35.0, 400.0)
 }
 
-fn run(s: &mut Shs, x: &[f32], chunks: &[usize]) -> Vec<PitchEstimate> {
-    let mut out = Vec::new();
-    let mut i = 0;
-    let mut k = 0;
-    while i < x.len() {
-        let n = chunks[k % chunks.len()].max(1).min(x.len() - i);
-        s.process(&x[i..i + n], &mut |h, e| {
-            assert_eq!(h, out.len());
-            out.push(e)
-        });
-        i += n;
-        k += 1;
-    }
-    s.finish(&mut |h, e| {
-        assert_eq!(h, out.len());
-        out.push(e)
-    });
-    out
-}
-
 /// The obvious salience: the same preprocessing, a direct DFT in f64 at each FFT bin, the
 /// max over each harmonic's bins, the weighted sum; and the voicing evidence.
 fn naive_salience(c: &ShsConfig, frame: &[f32]) -> (Vec<f64>, f64) {
@@ -399,7 +379,7 @@ fn decoded_path_matches_a_naive_whole_track_viterbi() {
     let want = naive_viterbi(&c, &x);
     // Streaming with a lag longer than the track is exactly offline Viterbi.
     c.lag_hops = want.len() + 1;
-    let got = run(&mut Shs::new(c.clone()).unwrap(), &x, &[x.len()]);
+    let got = common::run(&mut Shs::new(c.clone()).unwrap(), &x, &[x.len()]);
     assert_states(&c, &got, &want, "");
 }
 
@@ -446,7 +426,7 @@ fn tracks_a_bass_line_under_chord_tones() {
         ),
     ] {
         let mut s = Shs::new(cfg()).unwrap();
-        let est = run(&mut s, &x, &[4096]);
+        let est = common::run(&mut s, &x, &[4096]);
         let hop = cfg().hop;
         let (mut ok, mut n) = (0, 0);
         for (i, e) in est.iter().enumerate() {
@@ -505,15 +485,7 @@ fn chunking_and_reset_do_not_change_the_output() {
     let mut with_register = cfg();
     with_register.register_sigma_st = 12.0;
     with_register.register_min_hops = 20;
-    for c in [cfg(), with_register] {
-        let mut s = Shs::new(c.clone()).unwrap();
-        let whole = run(&mut s, &x, &[x.len()]);
-        for chunks in [vec![1usize, 7, 300], vec![49], vec![4096, 13]] {
-            s.reset();
-            assert_eq!(run(&mut s, &x, &chunks), whole, "chunks {chunks:?}");
-        }
-        assert_eq!(whole.len(), x.len().div_ceil(c.hop));
-    }
+    common::assert_chunking_and_reset_invariant(&[cfg(), with_register], &x);
 }
 
 #[test]
@@ -593,7 +565,7 @@ fn melody_defaults_track_a_lead_over_chords() {
     let x: Vec<f32> = lead.iter().zip(&chord).map(|(a, b)| a + b).collect();
     let rpa = |c: &ShsConfig| {
         let mut s = Shs::new(c.clone()).unwrap();
-        let est = run(&mut s, &x, &[4096]);
+        let est = common::run(&mut s, &x, &[4096]);
         let (mut ok, mut n) = (0, 0);
         for (i, e) in est.iter().enumerate() {
             let at = i * c.hop;
@@ -732,10 +704,10 @@ fn contour_voicing_matches_a_slow_fixed_lag_oracle() {
             .filter(|(w, u)| **w == m && **u < m)
             .count();
         gated_somewhere |= gated >= 10;
-        let got = run(&mut Shs::new(c.clone()).unwrap(), &x, &[x.len()]);
+        let got = common::run(&mut Shs::new(c.clone()).unwrap(), &x, &[x.len()]);
         assert_states(&c, &got, &want, &format!("lag {lag}, "));
         // Without the gate the stream is the plain decoding.
-        let got = run(&mut Shs::new(plain).unwrap(), &x, &[x.len()]);
+        let got = common::run(&mut Shs::new(plain).unwrap(), &x, &[x.len()]);
         for (t, (e, &s)) in got.iter().zip(&ungated).enumerate() {
             assert_eq!(e.f0_hz > 0.0, s < m, "lag {lag}, hop {t}: gate off");
         }
@@ -775,7 +747,7 @@ fn contour_voicing_silences_the_chords_between_phrases() {
         });
     let x: Vec<f32> = lead.iter().zip(&chord).map(|(a, b)| a + b).collect();
     let score = |c: &ShsConfig| {
-        let est = run(&mut Shs::new(c.clone()).unwrap(), &x, &[4096]);
+        let est = common::run(&mut Shs::new(c.clone()).unwrap(), &x, &[4096]);
         let (mut ok, mut n, mut fa, mut rests) = (0, 0, 0, 0);
         for (i, e) in est.iter().enumerate() {
             let at = i * c.hop;
@@ -892,12 +864,12 @@ fn register_prior_matches_a_naive_fixed_lag_decoder() {
     let c = register_cfg();
     let (x, _) = bass_with_bodies(31, 8, 0.3, (0.45, 0.15));
     let want = naive_register_decode(&c, &x);
-    let got = run(&mut Shs::new(c.clone()).unwrap(), &x, &[x.len()]);
+    let got = common::run(&mut Shs::new(c.clone()).unwrap(), &x, &[x.len()]);
     assert_states(&c, &got, &want, "");
     // The prior decided something here: without it the decoding differs.
     let mut off = c.clone();
     off.register_sigma_st = 0.0;
-    let plain = run(&mut Shs::new(off).unwrap(), &x, &[x.len()]);
+    let plain = common::run(&mut Shs::new(off).unwrap(), &x, &[x.len()]);
     let differ = plain
         .iter()
         .zip(&got)
@@ -916,7 +888,7 @@ fn register_prior_keeps_a_bass_line_out_of_the_drum_bodies() {
     c.fundamental_ratio = 0.1;
     let (x, truth) = bass_with_bodies(41, 24, 0.4, (0.6, 0.2));
     let rpa = |c: &ShsConfig| {
-        let est = run(&mut Shs::new(c.clone()).unwrap(), &x, &[4096]);
+        let est = common::run(&mut Shs::new(c.clone()).unwrap(), &x, &[4096]);
         let (mut ok, mut n) = (0, 0);
         for (i, e) in est.iter().enumerate() {
             let t = truth.get(i * c.hop).copied().unwrap_or(0.0);
@@ -945,7 +917,7 @@ fn register_prior_keeps_a_bass_line_out_of_the_drum_bodies() {
         .map(|k| if k < 8 { [110.0, 98.0][k % 2] } else { 55.0 })
         .collect();
     let (y, truth) = bass_line(&pitches, 0.5, 43);
-    let est = run(&mut Shs::new(on.clone()).unwrap(), &y, &[4096]);
+    let est = common::run(&mut Shs::new(on.clone()).unwrap(), &y, &[4096]);
     let per = (0.5 * SR as f64) as usize;
     let (mut ok, mut n) = (0, 0);
     for (i, e) in est.iter().enumerate() {

@@ -1,7 +1,8 @@
 //! Checks shared by the pitch trackers' tests (`shs.rs`, `bassnet.rs`).
 #![allow(dead_code)]
 
-use tactus_dsp::shs::Shs;
+use tactus_dsp::shs::{Shs, ShsConfig};
+use tactus_dsp::yin::PitchEstimate;
 use tactus_dsp::HopStage;
 
 /// Feeds `x` one sample at a time: hops come out in order, and after sample `k` exactly as
@@ -36,4 +37,38 @@ pub fn first_voiced(s: &mut Shs, y: &[f32]) -> Option<(usize, usize)> {
         });
     }
     first
+}
+
+pub fn run(s: &mut Shs, x: &[f32], chunks: &[usize]) -> Vec<PitchEstimate> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    let mut k = 0;
+    while i < x.len() {
+        let n = chunks[k % chunks.len()].max(1).min(x.len() - i);
+        s.process(&x[i..i + n], &mut |h, e| {
+            assert_eq!(h, out.len());
+            out.push(e)
+        });
+        i += n;
+        k += 1;
+    }
+    s.finish(&mut |h, e| {
+        assert_eq!(h, out.len());
+        out.push(e)
+    });
+    out
+}
+
+/// Every chunking of `x` and a reset between runs give the same hops as one block, one per
+/// hop of the input, for each configuration.
+pub fn assert_chunking_and_reset_invariant(cfgs: &[ShsConfig], x: &[f32]) {
+    for c in cfgs {
+        let mut s = Shs::new(c.clone()).unwrap();
+        let whole = run(&mut s, x, &[x.len()]);
+        for chunks in [vec![1usize, 7, 300], vec![49], vec![4096, 13]] {
+            s.reset();
+            assert_eq!(run(&mut s, x, &chunks), whole, "chunks {chunks:?}");
+        }
+        assert_eq!(whole.len(), x.len().div_ceil(c.hop));
+    }
 }
