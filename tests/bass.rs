@@ -7,7 +7,8 @@
 //! `bwv66-6`, 2026-11-24), so a regression of the model, its front end or the engine wiring
 //! fails here; `--pitch auto-shs` (the previous default) must give another bass track.
 use std::path::{Path, PathBuf};
-use std::process::Command;
+
+mod common;
 
 fn fixtures() -> Vec<PathBuf> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("corpus/fixtures");
@@ -19,19 +20,6 @@ fn fixtures() -> Vec<PathBuf> {
     v.sort();
     assert_eq!(v.len(), 2, "fixtures in {}", root.display());
     v
-}
-
-/// Runs `tactus` with `args` and checks that it succeeded.
-fn tactus(args: &[&std::ffi::OsStr]) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tactus"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
 }
 
 fn json(path: &Path) -> serde_json::Value {
@@ -56,16 +44,8 @@ fn bass(song: &Path, args: &[&str]) -> (Vec<serde_json::Value>, f64) {
         feat.as_os_str(),
     ];
     render.extend(args.iter().map(std::ffi::OsStr::new));
-    tactus(&render);
-    tactus(&[
-        "eval".as_ref(),
-        feat.as_os_str(),
-        "--truth".as_ref(),
-        song.as_os_str(),
-        "--json".as_ref(),
-        ev.as_os_str(),
-    ]);
-    let rpa = json(&ev)["stems"]
+    common::tactus_ok(&render);
+    let rpa = common::eval(&feat, song, &ev)["stems"]
         .as_array()
         .unwrap()
         .iter()

@@ -16,3 +16,37 @@ pub fn skip(what: &str) {
     }
     eprintln!("SKIPPED {what}");
 }
+
+/// Runs the `tactus` binary with `args`; panics with its stderr unless it succeeded.
+pub fn tactus_ok<I, S>(args: I)
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<std::ffi::OsStr>,
+{
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tactus"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// `tactus eval FEATURES --truth SONG --json OUT`; the parsed report.
+pub fn eval(
+    features: &std::path::Path,
+    song: &std::path::Path,
+    out: &std::path::Path,
+) -> serde_json::Value {
+    tactus_ok([
+        "eval".as_ref(),
+        features.as_os_str(),
+        "--truth".as_ref(),
+        song.as_os_str(),
+        "--json".as_ref(),
+        out.as_os_str(),
+    ]);
+    serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap()
+}
