@@ -133,7 +133,9 @@ struct EngineArgs {
     /// (ONNX, --drum-model models/adtlib.onnx).
     #[arg(long, value_enum)]
     drums: Option<DrumsArg>,
-    /// ONNX model for --drums adtlib (made by models/setup_adtlib.sh).
+    /// Drum model file: for --drums adtlib the ONNX file of models/setup_adtlib.sh; for
+    /// classes or classes-live a Tactus drum model (models/drums/train.py, train_cnn.py)
+    /// in place of the embedded one.
     #[arg(long)]
     drum_model: Option<PathBuf>,
     /// How pitch becomes levels: follow (floored Tukey IQR, a streaming range prior) or the

@@ -163,3 +163,66 @@ const MIX_FLOORS: [f64; 4] = [0.88, 0.43, 0.60, 0.76];
 /// live model's isolated toms F moved 0.61 → 0.58 while its snare rose 0.55 → 0.66 and its
 /// kick 0.82 → 0.86 (`benches/drums_eval.py`, README "Drums").
 const LIVE_ISOLATED_FLOORS: [f64; 4] = [0.85, 0.36, 0.40, 0.65];
+
+/// `--drums classes --drum-model FILE` runs the transcriber with the file's network: the
+/// embedded model's own file gives the default render byte for byte, the live model's file
+/// gives `--drums classes-live`'s; a file that is not a model, a missing one, and a model
+/// with the band method are clear errors that write nothing.
+#[test]
+fn a_drum_model_file_replaces_the_embedded_network() {
+    use std::ffi::OsString;
+    let mix = fixtures()[0].join("mix.flac");
+    let weights = Path::new(env!("CARGO_MANIFEST_DIR")).join("crates/tactus-dsp/weights");
+    let (embedded, live) = (weights.join("drums.bin"), weights.join("drums_live.bin"));
+    let dir = tempfile::tempdir().unwrap();
+    let args = |out: &Path, extra: &[&Path]| -> Vec<OsString> {
+        let mut v: Vec<OsString> = vec!["render".into(), mix.clone().into(), "-o".into()];
+        v.push(out.into());
+        v.extend(extra.iter().map(|p| p.as_os_str().to_owned()));
+        v
+    };
+    let features = |name: &str, extra: &[&Path]| -> Vec<u8> {
+        let feat = dir.path().join(format!("{name}.json"));
+        let mut a = args(&dir.path().join(format!("{name}.pattern.json")), extra);
+        a.extend(["--features".into(), feat.clone().into()]);
+        common::tactus_ok(&a);
+        std::fs::read(&feat).unwrap()
+    };
+    let p = Path::new;
+    let default = features("default", &[]);
+    let from_file = features("file", &[p("--drum-model"), &embedded]);
+    assert!(
+        default == from_file,
+        "the embedded model's file changed the render"
+    );
+    let live_cli = features("live", &[p("--drums"), p("classes-live")]);
+    let live_file = features(
+        "live-file",
+        &[p("--drums"), p("classes-live"), p("--drum-model"), &live],
+    );
+    assert!(
+        live_cli == live_file,
+        "the live model's file changed the render"
+    );
+    assert!(default != live_cli, "the two models gave the same render");
+    let readme = p(env!("CARGO_MANIFEST_DIR")).join("README.md");
+    let missing = p("/nonexistent/drums.bin");
+    for (extra, want) in [
+        (vec![p("--drum-model"), &readme], "not a Tactus drum model"),
+        (vec![p("--drum-model"), missing], "/nonexistent/drums.bin"),
+        (
+            vec![p("--drums"), p("bands"), p("--drum-model"), &embedded],
+            "not bands",
+        ),
+    ] {
+        let out_path = dir.path().join("bad.json");
+        let a = args(&out_path, &extra);
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tactus"))
+            .args(&a)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(want), "{a:?}: {err}");
+        assert!(!out_path.exists(), "{a:?} wrote {}", out_path.display());
+    }
+}

@@ -228,11 +228,23 @@ impl RenderOptions {
             if live { "classes-live" } else { "classes" },
             &["classes", "classes-live", "bands", "adtlib"],
         )? {
+            "bands" if self.drum_model.is_some() => {
+                return Err(err(
+                    "--drum-model is for --drums classes, classes-live (a Tactus drum model file) \
+                     or adtlib (an ONNX file), not bands"
+                        .into(),
+                ))
+            }
             "bands" => DrumMethod::Bands,
-            "classes-live" => DrumMethod::ClassesLive,
             "adtlib" => DrumMethod::AdtLib(self.drum_model.clone().ok_or_else(|| {
                 err("--drums adtlib needs --drum-model PATH (see README, \"ONNX models\")".into())
             })?),
+            // A model file of models/drums/train.py or train_cnn.py in place of the embedded
+            // one; its own context decides its latency.
+            _ if self.drum_model.is_some() => {
+                DrumMethod::ClassesFile(self.drum_model.clone().unwrap_or_default())
+            }
+            "classes-live" => DrumMethod::ClassesLive,
             _ => DrumMethod::Classes,
         };
         let mode = pick(

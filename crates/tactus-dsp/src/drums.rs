@@ -21,6 +21,13 @@
 //!    first layer's weights. The weights are trained by `models/drums/train.py` on kits
 //!    rendered from free soundfonts and samples (provenance in `models/drums/README.md`)
 //!    and embedded in the binary ([`DrumModel::embedded`]).
+//!    A model file may instead hold a small convolutional network (file version 4,
+//!    `models/drums/train_cnn.py`: [`Conv`] layers over time × band, "valid" in time and
+//!    zero-padded in band, ReLU, max-pool; the standardisation applied explicitly, then
+//!    dense layers), or be an ensemble of such files whose activations are averaged
+//!    ([`DrumModel::members`]). The embedded models are perceptrons; the other kinds run
+//!    through `render --drum-model FILE` (a trial that was not adopted,
+//!    `benches/trials/RULE_cnn_ensemble.md`).
 //! 5. **Peak picking** per class, causal: hop `i` is an onset of class `c` when the
 //!    activation `a_c[i] >= threshold_c`, the detector is *armed*, and at least
 //!    `min_interval` (50 ms, docs/design.md) has passed since the last onset of that class. A
@@ -57,6 +64,9 @@ const WHAT: &str = "drum model";
 
 const MAGIC: &[u8; 8] = b"TACTUSDR";
 
+/// An ensemble file: networks whose activations are averaged.
+const MAGIC_ENSEMBLE: &[u8; 8] = b"TACTUSDE";
+
 /// One dense layer, `out = W · in + b`, `W` row-major `[n_out][n_in]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Layer {
@@ -83,10 +93,109 @@ pub struct DrumModel {
     pub floor: f32,
     /// Whether the input also carries the positive first difference of the frames (step 3).
     pub flux: bool,
+    /// Convolutional front layers (file version 4), run before the dense ones; `None` for a
+    /// perceptron.
+    pub conv: Option<ConvNet>,
     /// Dense layers; ReLU between them, sigmoid after the last.
     pub layers: Vec<Layer>,
     /// Activation threshold per class.
     pub thresholds: [f32; CLASSES],
+    /// Further networks of an ensemble file, on the same input (same bands, context, floor
+    /// and feature set): the activations are the mean of this network's and theirs. Their
+    /// own thresholds are unused; empty for a single network.
+    pub members: Vec<DrumModel>,
+}
+
+/// One convolution over (time × band) maps, "valid" in time and "same" (zero-padded by
+/// `kb / 2` on each side) in band, then ReLU, then a max-pool of `pool_t × pool_b`
+/// (incomplete windows at the end dropped).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Conv {
+    /// Output channels.
+    pub c_out: usize,
+    /// Input channels.
+    pub c_in: usize,
+    /// Kernel length in time (frames).
+    pub kt: usize,
+    /// Kernel width in band (odd).
+    pub kb: usize,
+    /// Pooling in time.
+    pub pool_t: usize,
+    /// Pooling in band.
+    pub pool_b: usize,
+    /// Weights `[c_out][c_in][kt][kb]`.
+    pub w: Vec<f32>,
+    /// Biases, `c_out`.
+    pub b: Vec<f32>,
+}
+
+impl Conv {
+    /// Output shape `(channels, frames, bands)` after pooling, for an input of
+    /// `t × bands` per channel; `None` when the input is too short for the kernel or pool.
+    pub fn out_shape(&self, t: usize, bands: usize) -> Option<(usize, usize, usize)> {
+        let tc = t.checked_sub(self.kt - 1)?;
+        let (to, bo) = (tc / self.pool_t, bands / self.pool_b);
+        (to > 0 && bo > 0).then_some((self.c_out, to, bo))
+    }
+
+    /// Runs the layer on `x` (`c_in × t × bands`), using `tmp` (at least
+    /// `c_out · (t - kt + 1) · bands`) for the maps before pooling; writes the pooled maps to
+    /// `out`.
+    pub fn run(&self, x: &[f32], t: usize, bands: usize, tmp: &mut [f32], out: &mut [f32]) {
+        let tc = t + 1 - self.kt;
+        let pad = self.kb / 2;
+        let maps = &mut tmp[..self.c_out * tc * bands];
+        for (o, map) in maps.chunks_exact_mut(tc * bands).enumerate() {
+            map.fill(self.b[o]);
+            for i in 0..self.c_in {
+                let xi = &x[i * t * bands..(i + 1) * t * bands];
+                for dt in 0..self.kt {
+                    for db in 0..self.kb {
+                        let w = self.w[((o * self.c_in + i) * self.kt + dt) * self.kb + db];
+                        // Output band j reads input band j + db - pad, when inside.
+                        let j0 = pad.saturating_sub(db);
+                        let j1 = (bands + pad).saturating_sub(db).min(bands);
+                        for tt in 0..tc {
+                            let row = &mut map[tt * bands + j0..tt * bands + j1];
+                            let src0 = (tt + dt) * bands + j0 + db - pad;
+                            let src = &xi[src0..src0 + (j1 - j0)];
+                            for (r, &v) in row.iter_mut().zip(src) {
+                                *r += w * v;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        let (_, to, bo) = self.out_shape(t, bands).expect("shape checked at load");
+        for o in 0..self.c_out {
+            let map = &maps[o * tc * bands..(o + 1) * tc * bands];
+            for a in 0..to {
+                for c in 0..bo {
+                    let mut m = 0f32; // ReLU, then max: the max of 0 and the window
+                    for pt in 0..self.pool_t {
+                        let r = &map[(a * self.pool_t + pt) * bands + c * self.pool_b..];
+                        for &v in &r[..self.pool_b] {
+                            m = m.max(v);
+                        }
+                    }
+                    out[(o * to + a) * bo + c] = m;
+                }
+            }
+        }
+    }
+}
+
+/// The convolutional part of a version-4 model: the input standardisation (not foldable
+/// into weights shared across positions) and the layers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ConvNet {
+    /// Training mean per input value (`window_len`).
+    pub mean: Vec<f32>,
+    /// Training standard deviation per input value.
+    pub std: Vec<f32>,
+    /// Layers, in order.
+    pub layers: Vec<Conv>,
 }
 
 impl DrumModel {
@@ -111,7 +220,14 @@ impl DrumModel {
     /// classes = 4, layers`, f32 `floor`, in version 2 only a u32 input feature set
     /// (0: mel, 1: mel + flux), then per layer u32 `n_in, n_out`, f32 `w[n_out·n_in],
     /// b[n_out]`, and f32 `thresholds[4]`.
+    ///
+    /// An ensemble file (`models/drums/train_cnn.py --combine`) is `"TACTUSDE"`, u32
+    /// `version = 1, members (2..=4)`, per member a u32 byte length and a whole single-model
+    /// file as above, then f32 `thresholds[4]` for the averaged activations.
     pub fn from_bytes(mut bytes: &[u8]) -> Result<DrumModel, ConfigError> {
+        if bytes.starts_with(MAGIC_ENSEMBLE) {
+            return Self::ensemble_from_bytes(&bytes[8..]);
+        }
         let b = &mut bytes;
         if take(b, 8, WHAT)? != MAGIC {
             return Err(ConfigError::invalid(
@@ -120,10 +236,10 @@ impl DrumModel {
             ));
         }
         let version = read_u32(b, WHAT)?;
-        if version != 1 && version != 2 {
+        if !(1..=2).contains(&version) && version != 4 {
             return Err(ConfigError::invalid(
                 "drum model",
-                format!("version {version} is not supported (1 and 2 are)"),
+                format!("version {version} is not supported (1, 2 and 4 are)"),
             ));
         }
         let bands = read_u32(b, WHAT)? as usize;
@@ -132,7 +248,7 @@ impl DrumModel {
         let classes = read_u32(b, WHAT)? as usize;
         let n_layers = read_u32(b, WHAT)? as usize;
         let floor = read_f32s(b, 1, WHAT)?[0];
-        let flux = if version >= 2 {
+        let flux = if version == 2 {
             match read_u32(b, WHAT)? {
                 0 => false,
                 1 => true,
@@ -152,7 +268,15 @@ impl DrumModel {
         if !(1..=512).contains(&bands) || past > 64 || future > 8 || !(1..=8).contains(&n_layers) {
             return Err(ConfigError::invalid("drum model", "implausible shape"));
         }
-        let n_in0 = bands * (past + 1 + future) + if flux { bands * (past + future) } else { 0 };
+        let frames = past + 1 + future;
+        let mut n_in0 = bands * frames + if flux { bands * (past + future) } else { 0 };
+        let conv = if version == 4 {
+            let (net, flat) = read_conv(b, frames, bands)?;
+            n_in0 = flat;
+            Some(net)
+        } else {
+            None
+        };
         let layers = crate::mlp::read_layers(b, n_layers, n_in0, WHAT)?;
         let expect = layers.last().map_or(n_in0, |l| l.n_out);
         if expect != CLASSES {
@@ -171,9 +295,85 @@ impl DrumModel {
             future,
             floor,
             flux,
+            conv,
             layers,
             thresholds: [t[0], t[1], t[2], t[3]],
+            members: Vec::new(),
         })
+    }
+
+    fn ensemble_from_bytes(mut bytes: &[u8]) -> Result<DrumModel, ConfigError> {
+        let b = &mut bytes;
+        let version = read_u32(b, WHAT)?;
+        if version != 1 {
+            return Err(ConfigError::invalid(
+                "drum model",
+                format!("ensemble version {version} is not supported (1 is)"),
+            ));
+        }
+        let n = read_u32(b, WHAT)? as usize;
+        if !(2..=4).contains(&n) {
+            return Err(ConfigError::invalid(
+                "drum model",
+                "an ensemble has 2 to 4 members",
+            ));
+        }
+        let mut models = Vec::with_capacity(n);
+        for _ in 0..n {
+            let len = read_u32(b, WHAT)? as usize;
+            let one = take(b, len, WHAT)?;
+            if !one.starts_with(MAGIC) {
+                return Err(ConfigError::invalid(
+                    "drum model",
+                    "an ensemble member is not a single network",
+                ));
+            }
+            models.push(Self::from_bytes(one)?);
+        }
+        let t = read_f32s(b, CLASSES, WHAT)?;
+        if !b.is_empty() {
+            return Err(ConfigError::invalid("drum model", "trailing bytes"));
+        }
+        let mut first = models.remove(0);
+        let same = |m: &DrumModel| {
+            (m.bands, m.past, m.future, m.flux)
+                == (first.bands, first.past, first.future, first.flux)
+                && m.floor == first.floor
+        };
+        if !models.iter().all(same) {
+            return Err(ConfigError::invalid(
+                "drum model",
+                "ensemble members must share bands, context, floor and input features",
+            ));
+        }
+        first.members = models;
+        first.thresholds = [t[0], t[1], t[2], t[3]];
+        Ok(first)
+    }
+
+    /// Scratch values [`DrumModel::forward`] needs in each of its three buffers.
+    pub fn scratch_len(&self) -> usize {
+        let own = self.own_scratch_len();
+        self.members
+            .iter()
+            .map(Self::own_scratch_len)
+            .fold(own, usize::max)
+    }
+
+    fn own_scratch_len(&self) -> usize {
+        let mut widest = self.input_len().max(CLASSES);
+        for l in &self.layers {
+            widest = widest.max(l.n_in).max(l.n_out);
+        }
+        if let Some(net) = &self.conv {
+            let (mut t, mut bands) = (self.past + 1 + self.future, self.bands);
+            for c in &net.layers {
+                widest = widest.max(c.c_out * (t + 1 - c.kt) * bands);
+                let (_, to, bo) = c.out_shape(t, bands).expect("checked at load");
+                (t, bands) = (to, bo);
+            }
+        }
+        widest
     }
 
     /// Mel values in the context window: `bands · (past + 1 + future)`.
@@ -210,16 +410,128 @@ impl DrumModel {
         }
     }
 
-    /// Runs the network on one assembled input; `a` and `b` are scratch buffers at least
-    /// as long as the widest layer. Returns the activations.
-    pub fn forward(&self, input: &[f32], a: &mut [f32], b: &mut [f32]) -> [f32; CLASSES] {
-        let src = crate::mlp::run_layers(&self.layers, input, a, b);
+    /// Runs the network on one assembled input; `a`, `b` and `c` are scratch buffers of
+    /// [`DrumModel::scratch_len`] values. Returns the activations: for an ensemble, the mean
+    /// of its members' (this network's first, then [`DrumModel::members`] in order).
+    pub fn forward(
+        &self,
+        input: &[f32],
+        a: &mut [f32],
+        b: &mut [f32],
+        c: &mut [f32],
+    ) -> [f32; CLASSES] {
+        let mut out = self.forward_one(input, a, b, c);
+        if self.members.is_empty() {
+            return out;
+        }
+        for m in &self.members {
+            let o = m.forward_one(input, a, b, c);
+            for (x, y) in out.iter_mut().zip(o) {
+                *x += y;
+            }
+        }
+        let n = (1 + self.members.len()) as f32;
+        out.map(|x| x / n)
+    }
+
+    /// This network's activations alone (members ignored).
+    fn forward_one(
+        &self,
+        input: &[f32],
+        a: &mut [f32],
+        b: &mut [f32],
+        c: &mut [f32],
+    ) -> [f32; CLASSES] {
+        let src = match &self.conv {
+            None => crate::mlp::run_layers(&self.layers, input, a, b),
+            Some(net) => {
+                let n = input.len();
+                for (((o, &x), &m), &s) in c[..n].iter_mut().zip(input).zip(&net.mean).zip(&net.std)
+                {
+                    *o = (x - m) / s;
+                }
+                let (mut t, mut bands) = (self.past + 1 + self.future, self.bands);
+                let (mut src, mut dst) = (&mut *c, &mut *b);
+                for l in &net.layers {
+                    l.run(src, t, bands, a, dst);
+                    let (_, to, bo) = l.out_shape(t, bands).expect("checked at load");
+                    (t, bands) = (to, bo);
+                    std::mem::swap(&mut src, &mut dst);
+                }
+                let flat = self.layers[0].n_in;
+                // `a` is free again: the dense layers take their input from it.
+                let (x, _) = src.split_at(flat);
+                crate::mlp::run_layers(&self.layers, x, a, dst)
+            }
+        };
         let mut out = [0f32; CLASSES];
         for (o, &z) in out.iter_mut().zip(src.iter()) {
             *o = 1.0 / (1.0 + (-z).exp());
         }
         out
     }
+}
+
+/// Reads the convolutional part of a version-4 file (after the floor): u32 layer count,
+/// f32 mean and std (`frames · bands` each, every std > 0), then per layer u32 `c_out, c_in,
+/// kt, kb, pool_t, pool_b` and f32 `w`, `b`. Returns the layers and the length of their
+/// flattened output.
+fn read_conv(b: &mut &[u8], frames: usize, bands: usize) -> Result<(ConvNet, usize), ConfigError> {
+    let n = read_u32(b, WHAT)? as usize;
+    if !(1..=4).contains(&n) {
+        return Err(ConfigError::invalid(
+            "drum model",
+            "implausible conv layer count",
+        ));
+    }
+    let mean = read_f32s(b, frames * bands, WHAT)?;
+    let std = read_f32s(b, frames * bands, WHAT)?;
+    if std.iter().any(|&s| s <= 0.0) {
+        return Err(ConfigError::invalid(
+            "drum model",
+            "a standard deviation is not positive",
+        ));
+    }
+    let (mut ch, mut t, mut bd) = (1usize, frames, bands);
+    let mut layers = Vec::with_capacity(n);
+    for _ in 0..n {
+        let mut d = [0usize; 6];
+        for v in &mut d {
+            *v = read_u32(b, WHAT)? as usize;
+        }
+        let [c_out, c_in, kt, kb, pool_t, pool_b] = d;
+        let sane = c_in == ch
+            && (1..=64).contains(&c_out)
+            && (1..=t).contains(&kt)
+            && kb % 2 == 1
+            && kb <= bd
+            && (1..=4).contains(&pool_t)
+            && (1..=4).contains(&pool_b);
+        if !sane {
+            return Err(ConfigError::invalid(
+                "drum model",
+                "conv layer shapes do not chain",
+            ));
+        }
+        let w = read_f32s(b, c_out * c_in * kt * kb, WHAT)?;
+        let bias = read_f32s(b, c_out, WHAT)?;
+        let l = Conv {
+            c_out,
+            c_in,
+            kt,
+            kb,
+            pool_t,
+            pool_b,
+            w,
+            b: bias,
+        };
+        let (c2, t2, b2) = l
+            .out_shape(t, bd)
+            .ok_or_else(|| ConfigError::invalid("drum model", "conv layer shapes do not chain"))?;
+        (ch, t, bd) = (c2, t2, b2);
+        layers.push(l);
+    }
+    Ok((ConvNet { mean, std, layers }, ch * t * bd))
 }
 
 /// What the transcriber emits for every hop.
@@ -284,6 +596,7 @@ struct Core {
     input: Vec<f32>,
     a: Vec<f32>,
     b: Vec<f32>,
+    c: Vec<f32>,
     pickers: [Picker; CLASSES],
     min_gap: usize,
     /// Mel frames received.
@@ -305,7 +618,9 @@ impl Core {
             let i = self.frames - 1 - self.model.future;
             debug_assert_eq!(i, self.next);
             self.model.assemble(&self.window, &mut self.input);
-            let act = self.model.forward(&self.input, &mut self.a, &mut self.b);
+            let act = self
+                .model
+                .forward(&self.input, &mut self.a, &mut self.b, &mut self.c);
             let mut f = DrumFrame {
                 activation: act,
                 onset: [false; CLASSES],
@@ -344,18 +659,14 @@ impl DrumTranscriber {
         }
         let hop = cfg.hop;
         let mel = MelBank::new(cfg)?;
-        let widest = model
-            .layers
-            .iter()
-            .map(|l| l.n_in.max(l.n_out))
-            .max()
-            .unwrap_or(CLASSES);
+        let widest = model.scratch_len();
         let min_gap = ((0.05 * sample_rate as f64) / hop as f64).ceil() as usize;
         let mut core = Core {
             window: vec![0.0; model.window_len()],
             input: vec![0.0; model.input_len()],
             a: vec![0.0; widest],
             b: vec![0.0; widest],
+            c: vec![0.0; widest],
             model,
             pickers: [Picker::NEW; CLASSES],
             min_gap: min_gap.max(1),
@@ -447,6 +758,53 @@ mod tests {
         let mut bad = EMBEDDED.to_vec();
         bad[0] = b'X';
         assert!(DrumModel::from_bytes(&bad).is_err());
+    }
+
+    fn ensemble(members: &[&[u8]], thresholds: [f32; 4]) -> Vec<u8> {
+        let mut v = MAGIC_ENSEMBLE.to_vec();
+        v.extend(1u32.to_le_bytes());
+        v.extend((members.len() as u32).to_le_bytes());
+        for m in members {
+            v.extend((m.len() as u32).to_le_bytes());
+            v.extend_from_slice(m);
+        }
+        for t in thresholds {
+            v.extend(t.to_le_bytes());
+        }
+        v
+    }
+
+    #[test]
+    fn ensemble_files_average_their_members() {
+        let one = DrumModel::embedded();
+        let two = ensemble(&[EMBEDDED, EMBEDDED], [0.1, 0.2, 0.3, 0.4]);
+        let m = DrumModel::from_bytes(&two).unwrap();
+        assert_eq!(m.members.len(), 1);
+        assert_eq!(m.thresholds, [0.1, 0.2, 0.3, 0.4]);
+        // Two copies of one network: the mean is that network's activation.
+        let w = m.scratch_len();
+        let (mut a, mut b, mut c) = (vec![0f32; w], vec![0f32; w], vec![0f32; w]);
+        let window: Vec<f32> = (0..m.window_len())
+            .map(|i| -(((i * 37) % 23) as f32))
+            .collect();
+        let mut input = vec![0f32; m.input_len()];
+        m.assemble(&window, &mut input);
+        let got = m.forward(&input, &mut a, &mut b, &mut c);
+        let want = one.forward(&input, &mut a, &mut b, &mut c);
+        for k in 0..CLASSES {
+            assert!((got[k] - want[k]).abs() < 1e-6, "{got:?} vs {want:?}");
+        }
+        // Members must read the same input; counts, nesting and lengths are checked.
+        let e = DrumModel::from_bytes(&ensemble(&[EMBEDDED, EMBEDDED_LIVE], [0.5; 4]));
+        assert!(e.unwrap_err().to_string().contains("must share"));
+        assert!(DrumModel::from_bytes(&ensemble(&[EMBEDDED], [0.5; 4])).is_err());
+        assert!(DrumModel::from_bytes(&ensemble(&[&two, EMBEDDED], [0.5; 4])).is_err());
+        for n in [8, 12, 16, 20, two.len() / 2, two.len() - 1] {
+            assert!(DrumModel::from_bytes(&two[..n]).is_err(), "{n}");
+        }
+        let mut extra = two.clone();
+        extra.push(0);
+        assert!(DrumModel::from_bytes(&extra).is_err());
     }
 
     /// A version-2 file by hand: 2 bands, 1 past and 1 future frame, one 10 → 4 layer

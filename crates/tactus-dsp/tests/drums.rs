@@ -7,7 +7,7 @@
 //! implemented with `unsafe impl`. It forwards to `System` unchanged.
 #![deny(unsafe_code)]
 
-use tactus_dsp::drums::{DrumFrame, DrumModel, DrumTranscriber, Layer, CLASSES};
+use tactus_dsp::drums::{Conv, ConvNet, DrumFrame, DrumModel, DrumTranscriber, Layer, CLASSES};
 use tactus_dsp::melbank::{filters, MelBank, MelConfig, LOG_FLOOR};
 use tactus_dsp::HopStage;
 
@@ -270,7 +270,23 @@ fn dc_to_the_end_is_not_a_step() {
 // The oracle is written the obvious way, with indices.
 #[allow(clippy::needless_range_loop)]
 fn naive_forward(m: &DrumModel, input: &[f32]) -> Vec<f64> {
+    // An ensemble: the plain mean of every network's activations.
+    let mut sum = naive_one(m, input);
+    for member in &m.members {
+        for (s, v) in sum.iter_mut().zip(naive_one(member, input)) {
+            *s += v;
+        }
+    }
+    let n = (1 + m.members.len()) as f64;
+    sum.iter().map(|s| s / n).collect()
+}
+
+#[allow(clippy::needless_range_loop)]
+fn naive_one(m: &DrumModel, input: &[f32]) -> Vec<f64> {
     let mut h: Vec<f64> = input.iter().map(|&v| v as f64).collect();
+    if let Some(net) = &m.conv {
+        h = naive_conv(m, net, &h);
+    }
     for (li, l) in m.layers.iter().enumerate() {
         let mut o = vec![0f64; l.n_out];
         for (r, out) in o.iter_mut().enumerate() {
@@ -287,6 +303,54 @@ fn naive_forward(m: &DrumModel, input: &[f32]) -> Vec<f64> {
         h = o;
     }
     h.iter().map(|z| 1.0 / (1.0 + (-z).exp())).collect()
+}
+
+/// The convolutional layers written the obvious way, in f64: standardise, then per layer
+/// every output value as its full sum (zero outside the bands), ReLU, max over the pool.
+#[allow(clippy::needless_range_loop)]
+fn naive_conv(m: &DrumModel, net: &ConvNet, input: &[f64]) -> Vec<f64> {
+    let mut x: Vec<f64> = (0..input.len())
+        .map(|k| (input[k] - net.mean[k] as f64) / net.std[k] as f64)
+        .collect();
+    let (mut t, mut bands) = (m.past + 1 + m.future, m.bands);
+    for l in &net.layers {
+        let tc = t - l.kt + 1;
+        let pad = (l.kb / 2) as isize;
+        let at = |o: usize, tt: usize, j: usize, x: &Vec<f64>| -> f64 {
+            let mut s = l.b[o] as f64;
+            for i in 0..l.c_in {
+                for dt in 0..l.kt {
+                    for db in 0..l.kb {
+                        let src = j as isize + db as isize - pad;
+                        if src < 0 || src >= bands as isize {
+                            continue;
+                        }
+                        let w = l.w[((o * l.c_in + i) * l.kt + dt) * l.kb + db] as f64;
+                        s += w * x[(i * t + tt + dt) * bands + src as usize];
+                    }
+                }
+            }
+            s.max(0.0)
+        };
+        let (to, bo) = (tc / l.pool_t, bands / l.pool_b);
+        let mut y = vec![0f64; l.c_out * to * bo];
+        for o in 0..l.c_out {
+            for a in 0..to {
+                for c in 0..bo {
+                    let mut best = f64::NEG_INFINITY;
+                    for pt in 0..l.pool_t {
+                        for pb in 0..l.pool_b {
+                            best = best.max(at(o, a * l.pool_t + pt, c * l.pool_b + pb, &x));
+                        }
+                    }
+                    y[(o * to + a) * bo + c] = best;
+                }
+            }
+        }
+        x = y;
+        (t, bands) = (to, bo);
+    }
+    x
 }
 
 /// Step 3 of `drums.rs` written the obvious way: window minus its maximum, clipped at the
@@ -333,8 +397,77 @@ fn random_flux_model() -> DrumModel {
         future,
         floor: -16.0,
         flux: true,
+        conv: None,
         layers,
         thresholds: [0.5; CLASSES],
+        members: Vec::new(),
+    }
+}
+
+/// A random convolutional model (file version 4) of the trial's shape, with an odd pool
+/// and a kernel wider than the band pool, so every edge case of the fast path is met.
+fn random_conv_model(kb2: usize, pool: (usize, usize)) -> DrumModel {
+    let mut rng = Rng(13);
+    let (bands, past, future) = (48, 7, 4);
+    let frames = past + 1 + future;
+    let mut r =
+        |n: usize, s: f32| -> Vec<f32> { (0..n).map(|_| (rng.next_f32() - 0.5) * s).collect() };
+    let c1 = Conv {
+        c_out: 8,
+        c_in: 1,
+        kt: 3,
+        kb: 5,
+        pool_t: 2,
+        pool_b: 2,
+        w: r(8 * 15, 0.6),
+        b: r(8, 0.2),
+    };
+    let c2 = Conv {
+        c_out: 16,
+        c_in: 8,
+        kt: 3,
+        kb: kb2,
+        pool_t: pool.0,
+        pool_b: pool.1,
+        w: r(16 * 8 * 3 * kb2, 0.3),
+        b: r(16, 0.2),
+    };
+    let (_, t1, b1) = c1.out_shape(frames, bands).unwrap();
+    let (ch, t2, b2) = c2.out_shape(t1, b1).unwrap();
+    let flat = ch * t2 * b2;
+    let layers = vec![
+        Layer {
+            n_in: flat,
+            n_out: 24,
+            w: r(flat * 24, 0.2),
+            b: r(24, 0.2),
+        },
+        Layer {
+            n_in: 24,
+            n_out: CLASSES,
+            w: r(24 * CLASSES, 0.5),
+            b: r(CLASSES, 0.5),
+        },
+    ];
+    let mean = r(frames * bands, 2.0).iter().map(|v| v - 8.0).collect();
+    let std = r(frames * bands, 2.0)
+        .iter()
+        .map(|v| v.abs() + 1.0)
+        .collect();
+    DrumModel {
+        bands,
+        past,
+        future,
+        floor: -16.0,
+        flux: false,
+        conv: Some(ConvNet {
+            mean,
+            std,
+            layers: vec![c1, c2],
+        }),
+        layers,
+        thresholds: [0.5; CLASSES],
+        members: Vec::new(),
     }
 }
 
@@ -343,15 +476,21 @@ fn forward_matches_naive_f64() {
     forward_matches_naive(DrumModel::embedded());
     forward_matches_naive(DrumModel::embedded_live());
     forward_matches_naive(random_flux_model());
+    forward_matches_naive(random_conv_model(3, (1, 2)));
+    forward_matches_naive(random_conv_model(7, (2, 3)));
+    let mut ens = DrumModel::embedded();
+    ens.members = vec![random_conv_model(3, (1, 2)), random_conv_model(7, (2, 3))];
+    forward_matches_naive(ens);
 }
 
 fn forward_matches_naive(m: DrumModel) {
     let mut rng = Rng(5);
-    let widest = m.layers.iter().map(|l| l.n_in.max(l.n_out)).max().unwrap();
-    let (mut a, mut b) = (vec![0f32; widest], vec![0f32; widest]);
+    let widest = m.scratch_len();
+    let (mut a, mut b, mut c) = (vec![0f32; widest], vec![0f32; widest], vec![0f32; widest]);
     // Dirty scratch first: the result must not depend on it.
     a.iter_mut().for_each(|v| *v = 1e6);
     b.iter_mut().for_each(|v| *v = -1e6);
+    c.iter_mut().for_each(|v| *v = 3e5);
     for _ in 0..50 {
         // Values spread over 25 nepers, so some fall under the floor.
         let window: Vec<f32> = (0..m.window_len())
@@ -368,7 +507,7 @@ fn forward_matches_naive(m: DrumModel) {
             );
         }
         assert!(input.contains(&m.floor));
-        let fast = m.forward(&input, &mut a, &mut b);
+        let fast = m.forward(&input, &mut a, &mut b, &mut c);
         let slow = naive_forward(&m, &input);
         for c in 0..CLASSES {
             assert!(

@@ -2,7 +2,7 @@
 //! training script `models/drums/train.py`, computed by the very code the engine runs.
 //!
 //! ```text
-//! cargo run --release -p tactus-engine --example drum_features -- INPUT OUT.f32 [iso|sep|mix]
+//! cargo run --release -p tactus-engine --example drum_features -- INPUT OUT.f32 [iso|sep|mix] [MODEL]
 //! ```
 //! * `iso`: INPUT is a drum stem; it is downmixed to mono.
 //! * `sep`: INPUT is a mix; the embedded spectral separator's drum stem is used (what the
@@ -10,12 +10,15 @@
 //! * `mix`: INPUT is a mix, downmixed to mono (the transcriber on the mix itself).
 //!
 //! Every input then goes through the engine's drum denoiser (30 Hz high-pass + 3-sample
-//! median). OUT is little-endian f32, one row of `bands` values per 10 ms hop.
+//! median). OUT is little-endian f32, one row of `bands` values per 10 ms hop; with MODEL (a
+//! drum model file), one row of the transcriber's 4 activations per hop instead, so a
+//! training script can check that the engine runs its network as it does.
 use std::io::Write;
 use std::path::Path;
 
+use tactus_dsp::drums::{DrumModel, DrumTranscriber};
 use tactus_dsp::melbank::{MelBank, MelConfig};
-use tactus_dsp::Stem;
+use tactus_dsp::{HopStage, Stem};
 use tactus_engine::source::decode_all;
 use tactus_engine::track::Denoise;
 use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
@@ -53,12 +56,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let mut den = Denoise::new(30.0, sr)?;
     den.process_inplace(&mut x);
-    let mut mel = MelBank::new(MelConfig::drums(sr))?;
     let mut rows: Vec<f32> = Vec::new();
-    for c in x.chunks(88_200) {
-        mel.process_bands(c, &mut |_, b| rows.extend_from_slice(b));
+    if let Some(model) = args.get(4) {
+        let model = DrumModel::from_bytes(&std::fs::read(model)?)?;
+        let mut t = DrumTranscriber::with_model(sr, model)?;
+        for c in x.chunks(88_200) {
+            t.process(c, &mut |_, f| rows.extend_from_slice(&f.activation));
+        }
+        t.finish(&mut |_, f| rows.extend_from_slice(&f.activation));
+    } else {
+        let mut mel = MelBank::new(MelConfig::drums(sr))?;
+        for c in x.chunks(88_200) {
+            mel.process_bands(c, &mut |_, b| rows.extend_from_slice(b));
+        }
+        mel.finish_bands(&mut |_, b| rows.extend_from_slice(b));
     }
-    mel.finish_bands(&mut |_, b| rows.extend_from_slice(b));
     let mut f = std::io::BufWriter::new(std::fs::File::create(&args[2])?);
     for v in rows {
         f.write_all(&v.to_le_bytes())?;

@@ -28,6 +28,10 @@ pub enum DrumMethod {
     Bands,
     /// ADTLib's networks converted to ONNX (`models/setup_adtlib.sh`); feature `onnx`.
     AdtLib(std::path::PathBuf),
+    /// The per-instrument transcriber with a model file in place of the embedded one
+    /// (`--drums classes --drum-model FILE`: a file of `models/drums/train.py` or
+    /// `train_cnn.py`, read by [`DrumModel::from_bytes`]); its context sets its latency.
+    ClassesFile(std::path::PathBuf),
 }
 
 impl DrumMethod {
@@ -38,6 +42,7 @@ impl DrumMethod {
             DrumMethod::ClassesLive => "classes-live",
             DrumMethod::Bands => "bands",
             DrumMethod::AdtLib(_) => "adtlib",
+            DrumMethod::ClassesFile(_) => "classes (model file)",
         }
     }
 }
@@ -191,6 +196,16 @@ impl ClassTrack {
     /// A track with the embedded low-latency model ([`DrumModel::embedded_live`]).
     pub fn live(geo: Geometry) -> Result<Self, ConfigError> {
         Self::with_model(geo, DrumModel::embedded_live())
+    }
+
+    /// A track with the model in `path` (a Tactus drum model file); the error names the file.
+    pub fn from_file(geo: Geometry, path: &std::path::Path) -> Result<Self, crate::EngineError> {
+        let what = |e: &dyn std::fmt::Display| {
+            crate::EngineError::Config(format!("--drum-model {}: {e}", path.display()))
+        };
+        let bytes = std::fs::read(path).map_err(|e| what(&e))?;
+        let model = DrumModel::from_bytes(&bytes).map_err(|e| what(&e))?;
+        Self::with_model(geo, model).map_err(|e| what(&e))
     }
 
     /// A track with a given model.

@@ -212,6 +212,9 @@ impl StemChain {
             DrumMethod::ClassesLive if !bands.is_empty() => {
                 (Some(ClassTrack::live(geo)?), bands.to_vec())
             }
+            DrumMethod::ClassesFile(path) if !bands.is_empty() => {
+                (Some(ClassTrack::from_file(geo, path)?), bands.to_vec())
+            }
             #[cfg(feature = "onnx")]
             DrumMethod::AdtLib(model) if !bands.is_empty() => {
                 (Some(ClassTrack::adtlib(geo, model, 0)?), bands.to_vec())
