@@ -40,8 +40,8 @@ OPTIONS: Tuple[str, ...] = (
     "levels",  # pitch levels per melodic stem, 1..8, default 8
     "map",  # built-in map name or TOML map path
     "pitch",  # "auto" (default) | "auto-shs" | "yin" | "pyin" | "shs"
-    "drums",  # "classes" (default) | "bands" | "adtlib"
-    "drum_model",  # ONNX model path for drums="adtlib"
+    "drums",  # "classes" (default) | "classes-live" | "bands" | "adtlib"
+    "drum_model",  # drums="adtlib": the ONNX file; "classes"/"classes-live": a Tactus drum model file
     "levels_rule",  # "follow" (default) | "paper"
     "note_onsets",  # "attack" (default) | "legato" | "pitch"
     "kit_mask",  # "on" (default) | "off": the separator's learned kit mask
