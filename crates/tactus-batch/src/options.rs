@@ -219,7 +219,7 @@ impl RenderOptions {
             "on",
             &[("on", true), ("off", false)],
         )?;
-        let drums = match choice(
+        let drums_name = choice(
             "drums",
             self.drums.as_deref(),
             // Issues 10 and 13: live uses the per-instrument transcriber's 1-hop model
@@ -227,24 +227,23 @@ impl RenderOptions {
             // the bands' 0.29; rhythm p95 29.1 ms end to end, 12 of 12 hits of tests/live.rs).
             if live { "classes-live" } else { "classes" },
             &["classes", "classes-live", "bands", "adtlib"],
-        )? {
-            "bands" if self.drum_model.is_some() => {
+        )?;
+        let drums = match (drums_name, self.drum_model.clone()) {
+            ("bands", Some(_)) => {
                 return Err(err(
                     "--drum-model is for --drums classes, classes-live (a Tactus drum model file) \
                      or adtlib (an ONNX file), not bands"
                         .into(),
                 ))
             }
-            "bands" => DrumMethod::Bands,
-            "adtlib" => DrumMethod::AdtLib(self.drum_model.clone().ok_or_else(|| {
+            ("bands", None) => DrumMethod::Bands,
+            ("adtlib", model) => DrumMethod::AdtLib(model.ok_or_else(|| {
                 err("--drums adtlib needs --drum-model PATH (see README, \"ONNX models\")".into())
             })?),
             // A model file of models/drums/train.py or train_cnn.py in place of the embedded
             // one; its own context decides its latency.
-            _ if self.drum_model.is_some() => {
-                DrumMethod::ClassesFile(self.drum_model.clone().unwrap_or_default())
-            }
-            "classes-live" => DrumMethod::ClassesLive,
+            (_, Some(path)) => DrumMethod::ClassesFile(path),
+            ("classes-live", None) => DrumMethod::ClassesLive,
             _ => DrumMethod::Classes,
         };
         let mode = pick(
