@@ -215,11 +215,27 @@ def aggregate(results):
     return agg
 
 
-def markdown(agg, args, methods, n_songs, errors, mismatches):
+def song_list(songs, data):
+    """`family: first .. last (n of N folders)` per family: `--songs N` takes the first N
+    folders in sorted order, so two reports score the same songs only if each family holds
+    the same folders (README's held-out figures need `fluid` generated with 40 songs)."""
+    by = {}
+    for s in songs:
+        by.setdefault(os.path.basename(os.path.dirname(s)), []).append(os.path.basename(s))
+    out = []
+    for fam, names in by.items():
+        total = sum(1 for d in os.listdir(os.path.join(data, fam)) if not d.startswith("."))
+        out.append(f"{fam}: {names[0]} .. {names[-1]} ({len(names)} of {total} folders)")
+    return "; ".join(out)
+
+
+def markdown(agg, args, methods, n_songs, errors, mismatches, songs=()):
     L = []
     L.append("# Drum transcription: per-instrument onset scores\n")
     L.append(f"Data: `{args.data}` ({n_songs} songs); held out: {', '.join(args.held_out) or 'none'}; "
              f"window ±{WINDOW_S * 1000:.0f} ms; TP/FP/FN summed over songs, then P/R/F.")
+    if songs:
+        L.append(f"Songs (the first `--songs` folders of each family, sorted): {song_list(songs, args.data)}.")
     L.append("Conditions: **isolated** = `render mix.wav --stem drums=drums.wav --map drums-only.toml`; "
              "**mix** = `render mix.wav` (default map and separator).")
     L.append("Methods: " + ", ".join(f"`{m}` = `{a or '(no extra args)'}`" for m, a in methods) + "\n")
@@ -322,10 +338,11 @@ def main():
         print(f"warning: Python matching differs from tactus eval on {mismatches} runs, e.g. "
               f"{next(r['mismatch'] for r in results if r.get('mismatch'))}", file=sys.stderr)
     agg = aggregate(results)
-    md = markdown(agg, args, methods, len(songs), errors, mismatches)
+    md = markdown(agg, args, methods, len(songs), errors, mismatches, songs)
     report = {
         "data": args.data, "held_out": args.held_out, "window_s": WINDOW_S, "methods": dict(methods),
-        "conditions": conds, "songs": len(songs), "errors": errors,
+        "conditions": conds, "songs": len(songs), "song_dirs": [os.path.relpath(s, args.data) for s in songs],
+        "errors": errors,
         "aggregate": {f"{m}/{c}": a for (m, c), a in agg.items()},
         "per_song": [{k: v for k, v in r.items() if k != "py"} | ({"py_counts": r["py"]["counts"]} if "py" in r else {})
                      for r in sorted(results, key=lambda r: (r["method"], r["cond"], r["song"]))],
