@@ -217,10 +217,7 @@ fn a_drum_model_file_replaces_the_embedded_network() {
     ] {
         let out_path = dir.path().join("bad.json");
         let a = args(&out_path, &extra);
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tactus"))
-            .args(&a)
-            .output()
-            .unwrap();
+        let out = common::tactus_output(&a);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success() && err.contains(want), "{a:?}: {err}");
         assert!(!out_path.exists(), "{a:?} wrote {}", out_path.display());

@@ -17,16 +17,25 @@ pub fn skip(what: &str) {
     eprintln!("SKIPPED {what}");
 }
 
+/// Runs the `tactus` binary with `args` and returns what it did (status, stdout, stderr).
+pub fn tactus_output<I, S>(args: I) -> std::process::Output
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<std::ffi::OsStr>,
+{
+    std::process::Command::new(env!("CARGO_BIN_EXE_tactus"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
 /// Runs the `tactus` binary with `args`; panics with its stderr unless it succeeded.
 pub fn tactus_ok<I, S>(args: I)
 where
     I: IntoIterator<Item = S>,
     S: AsRef<std::ffi::OsStr>,
 {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tactus"))
-        .args(args)
-        .output()
-        .unwrap();
+    let out = tactus_output(args);
     assert!(
         out.status.success(),
         "{}",
