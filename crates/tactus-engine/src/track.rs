@@ -194,6 +194,16 @@ pub const LEARNED_BASS_BLEND: f32 = 0.3;
 /// it only removed quiet sung notes (isolated sung vocals RPA 0.926 → 0.898).
 pub const MIXTURE_MELODY_CONTOUR_GATE_DB: f32 = 6.0;
 
+/// Harmonics summed by the harmonic-sum tracker on a lead that comes as its own stem (the
+/// melody defaults sum 8). With 8, a low voice's candidate (130 Hz: up to 1.04 kHz) sees less
+/// of the spectrum than its octave or twelfth (up to 2.1 or 3.1 kHz, where the formants
+/// are), and low male voices were tracked an octave or a twelfth up. Chosen on the tuning
+/// halves (`benches/trials/RULE_clean_lead_harmonics.md`): isolated vocals RPA sung /
+/// chorales / `timgm` 0.926 / 0.881 / 0.927 → 0.960 / 0.881 / 0.927. Only harmonics below
+/// the melody's 5 kHz are summed, so a lead above about 420 Hz is unchanged. A lead on a
+/// band of the mix keeps 8 (12 gave 0.543 / 0.749 / 0.717 → 0.545 / 0.741 / 0.713 there).
+pub const CLEAN_LEAD_HARMONICS: usize = 12;
+
 /// How many hops a pitch track on the spectral separator's bass or vocals stem is moved
 /// earlier ([`PitchTrack::set_advance_hops`]): the separator's harmonic time median spans more
 /// past frames than look-ahead ones (5 + 2, the bass 8 + 2, of 23 ms), so a new note reaches
@@ -491,6 +501,9 @@ impl PitchTrack {
                     } else {
                         sc.register_sigma_st = MIXTURE_BASS_REGISTER_ST;
                     }
+                }
+                if !mixture && fmax_hz > BASS_MAX_HZ {
+                    sc.harmonics = CLEAN_LEAD_HARMONICS;
                 }
                 sc.learned = method == PitchMethod::Learned && fmax_hz <= BASS_MAX_HZ;
                 if sc.learned {
