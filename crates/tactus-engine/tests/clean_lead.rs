@@ -33,7 +33,9 @@ fn low_vowels() -> (Vec<f32>, Vec<f64>) {
             let s: f64 = amps
                 .iter()
                 .enumerate()
-                .map(|(h, a)| a * (std::f64::consts::TAU * (h + 1) as f64 * f0 * t + h as f64).sin())
+                .map(|(h, a)| {
+                    a * (std::f64::consts::TAU * (h + 1) as f64 * f0 * t + h as f64).sin()
+                })
                 .sum();
             x.push(s as f32);
             truth.push(f0);
