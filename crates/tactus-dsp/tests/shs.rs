@@ -542,6 +542,28 @@ fn no_allocation_after_construction() {
 /// an exact octave above a chord tone are left out: there the chord tone's harmonic sum
 /// holds the whole lead and the two readings are equally good. Hops within half a frame of a
 /// note change are skipped.
+/// RPA (±50 cents) of `c`'s tracker on `x` against the per-sample `truth`, over the hops
+/// whose frame lies inside one note (at least 100 of them).
+fn steady_rpa(c: &ShsConfig, x: &[f32], truth: &[f64]) -> f64 {
+    let mut s = Shs::new(c.clone()).unwrap();
+    let est = common::run(&mut s, x, &[4096]);
+    let (mut ok, mut n) = (0, 0);
+    for (i, e) in est.iter().enumerate() {
+        let at = i * c.hop;
+        let Some(&t) = truth.get(at) else { continue };
+        let span = at.saturating_sub(c.frame / 2)..(at + c.frame / 2).min(truth.len());
+        if span.clone().any(|k| truth[k] != t) {
+            continue;
+        }
+        n += 1;
+        if e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0 {
+            ok += 1;
+        }
+    }
+    assert!(n > 100, "{n} hops scored");
+    ok as f64 / n as f64
+}
+
 #[test]
 fn melody_defaults_track_a_lead_over_chords() {
     const MSR: u32 = 14_700;
@@ -563,25 +585,7 @@ fn melody_defaults_track_a_lead_over_chords() {
             acc.iter().zip(&v).map(|(a, b)| a + b).collect()
         });
     let x: Vec<f32> = lead.iter().zip(&chord).map(|(a, b)| a + b).collect();
-    let rpa = |c: &ShsConfig| {
-        let mut s = Shs::new(c.clone()).unwrap();
-        let est = common::run(&mut s, &x, &[4096]);
-        let (mut ok, mut n) = (0, 0);
-        for (i, e) in est.iter().enumerate() {
-            let at = i * c.hop;
-            let Some(&t) = truth.get(at) else { continue };
-            let span = at.saturating_sub(c.frame / 2)..(at + c.frame / 2).min(truth.len());
-            if span.clone().any(|k| truth[k] != t) {
-                continue;
-            }
-            n += 1;
-            if e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0 {
-                ok += 1;
-            }
-        }
-        assert!(n > 100, "{n} hops scored");
-        ok as f64 / n as f64
-    };
+    let rpa = |c: &ShsConfig| steady_rpa(c, &x, &truth);
     let melody = rpa(&c);
     // The bass defaults over the same range (harmonics only below 320 Hz) cannot see the
     // lead's upper partials: the test can tell the two apart.
@@ -974,23 +978,7 @@ fn twelve_harmonics_keep_a_low_voice_at_its_fundamental() {
     let rpa = |harmonics: usize| {
         let mut c = ShsConfig::melody(MSR, 70.0, 1400.0);
         c.harmonics = harmonics;
-        let mut s = Shs::new(c.clone()).unwrap();
-        let est = common::run(&mut s, &x, &[4096]);
-        let (mut ok, mut n) = (0, 0);
-        for (i, e) in est.iter().enumerate() {
-            let at = i * c.hop;
-            let Some(&t) = truth.get(at) else { continue };
-            let span = at.saturating_sub(c.frame / 2)..(at + c.frame / 2).min(truth.len());
-            if span.clone().any(|k| truth[k] != t) {
-                continue;
-            }
-            n += 1;
-            if e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0 {
-                ok += 1;
-            }
-        }
-        assert!(n > 100, "{n} hops scored");
-        ok as f64 / n as f64
+        steady_rpa(&c, &x, &truth)
     };
     let (eight, twelve) = (rpa(8), rpa(12));
     eprintln!("low vowel RPA: 8 harmonics {eight:.3}, 12 harmonics {twelve:.3}");
