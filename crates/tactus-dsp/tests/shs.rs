@@ -542,25 +542,31 @@ fn no_allocation_after_construction() {
 /// an exact octave above a chord tone are left out: there the chord tone's harmonic sum
 /// holds the whole lead and the two readings are equally good. Hops within half a frame of a
 /// note change are skipped.
+/// `c`'s tracker on `x`: per hop whose frame lies inside one segment of the per-sample
+/// `truth` (0 = rest), the estimated f0 and the truth.
+fn steady_hops(c: &ShsConfig, x: &[f32], truth: &[f64]) -> Vec<(f32, f64)> {
+    let est = common::run(&mut Shs::new(c.clone()).unwrap(), x, &[4096]);
+    est.iter()
+        .enumerate()
+        .filter_map(|(i, e)| {
+            let at = i * c.hop;
+            let &t = truth.get(at)?;
+            let span = at.saturating_sub(c.frame / 2)..(at + c.frame / 2).min(truth.len());
+            (!truth[span].iter().any(|&v| v != t)).then_some((e.f0_hz, t))
+        })
+        .collect()
+}
+
 /// RPA (±50 cents) of `c`'s tracker on `x` against the per-sample `truth`, over the hops
 /// whose frame lies inside one note (at least 100 of them).
 fn steady_rpa(c: &ShsConfig, x: &[f32], truth: &[f64]) -> f64 {
-    let mut s = Shs::new(c.clone()).unwrap();
-    let est = common::run(&mut s, x, &[4096]);
-    let (mut ok, mut n) = (0, 0);
-    for (i, e) in est.iter().enumerate() {
-        let at = i * c.hop;
-        let Some(&t) = truth.get(at) else { continue };
-        let span = at.saturating_sub(c.frame / 2)..(at + c.frame / 2).min(truth.len());
-        if span.clone().any(|k| truth[k] != t) {
-            continue;
-        }
-        n += 1;
-        if e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0 {
-            ok += 1;
-        }
-    }
+    let hops = steady_hops(c, x, truth);
+    let n = hops.len();
     assert!(n > 100, "{n} hops scored");
+    let ok = hops
+        .iter()
+        .filter(|&&(f, t)| f > 0.0 && cents(f as f64, t).abs() <= 50.0)
+        .count();
     ok as f64 / n as f64
 }
 
@@ -751,21 +757,14 @@ fn contour_voicing_silences_the_chords_between_phrases() {
         });
     let x: Vec<f32> = lead.iter().zip(&chord).map(|(a, b)| a + b).collect();
     let score = |c: &ShsConfig| {
-        let est = common::run(&mut Shs::new(c.clone()).unwrap(), &x, &[4096]);
         let (mut ok, mut n, mut fa, mut rests) = (0, 0, 0, 0);
-        for (i, e) in est.iter().enumerate() {
-            let at = i * c.hop;
-            let Some(&t) = truth.get(at) else { continue };
-            let span = at.saturating_sub(c.frame / 2)..(at + c.frame / 2).min(truth.len());
-            if span.clone().any(|k| truth[k] != t) {
-                continue;
-            }
+        for (f, t) in steady_hops(c, &x, &truth) {
             if t == 0.0 {
                 rests += 1;
-                fa += usize::from(e.f0_hz > 0.0);
+                fa += usize::from(f > 0.0);
             } else {
                 n += 1;
-                ok += usize::from(e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0);
+                ok += usize::from(f > 0.0 && cents(f as f64, t).abs() <= 50.0);
             }
         }
         (ok as f64 / n as f64, fa as f64 / rests as f64)
