@@ -54,6 +54,19 @@
 //! of the voiced hops seen so far. No added latency (the range lags by `k` hops); no
 //! allocation after construction; `k = 0` is the plain [`PriorRange`].
 //!
+//! **Range without octave shadows** ([`shadow_mask`], [`range_quantiles_kept`],
+//! [`HeldRange::with_shadow`], our addition, issue 16). On a mixture a bass tracker
+//! sometimes reports the line's own note an octave low for a run of hops (a kick or tom body
+//! under the note supplies the subharmonic). A few percent of such hops are enough to put the
+//! 1st percentile an octave under the line's lowest note and shift every level. A voiced hop
+//! is an *octave shadow* when the line sounds an octave above it (within [`SHADOW_TOL_ST`]
+//! of its pitch + 12) within `w` hops on either side; shadows are left out of the range the
+//! way unheld hops are (same `min_share` and `min_hops` fallback). A line that really drops
+//! an octave within `w` hops loses that low note from its range; a line that alternates
+//! root and octave throughout falls back to every voiced hop (too few kept). Streaming:
+//! hop `i` is judged once hop `i + max(k, w)` has arrived (no added latency; the range lags
+//! by that many hops, and the first `max(k, w)` hops of a stream never count).
+//!
 //! **Register prior** ([`RangePrior::Register`], [`PriorRange::with_prior`], our addition,
 //! issue 16). A span prior pads the first notes symmetrically, but where a line starts says
 //! little about which way it will go: a bass line that opens on its lowest roots only climbs.
@@ -207,6 +220,31 @@ pub fn held_mask(f0_hz: &[f32], k: usize, tol_st: f32) -> Vec<bool> {
         .collect()
 }
 
+/// Longest `w` of [`HeldRange::with_shadow`] and [`shadow_mask`].
+pub const MAX_SHADOW_HOPS: usize = 32;
+
+/// Semitones within which a hop's octave counts as sounding ([`shadow_mask`]).
+pub const SHADOW_TOL_ST: f32 = 1.0;
+
+/// Whether each hop is an *octave shadow*: it is voiced and some voiced hop at most `w` hops
+/// away (either side, itself excluded) lies within [`SHADOW_TOL_ST`] semitones of its pitch
+/// + 12 (module docs, "Range without octave shadows"). `w = 0`: no hop is. Allocates.
+pub fn shadow_mask(f0_hz: &[f32], w: usize) -> Vec<bool> {
+    let st: Vec<Option<f32>> = f0_hz.iter().map(|&f| semitones(f)).collect();
+    (0..st.len())
+        .map(|i| {
+            let Some(c) = st[i] else {
+                return false;
+            };
+            let (a, b) = (i.saturating_sub(w), (i + w).min(st.len().saturating_sub(1)));
+            w > 0
+                && st[a..=b]
+                    .iter()
+                    .any(|x| x.is_some_and(|x| (x - (c + 12.0)).abs() <= SHADOW_TOL_ST))
+        })
+        .collect()
+}
+
 /// [`range_quantiles`] of the held hops ([`held_mask`]) when there are at least `min_hops`
 /// (and one) of them and they are at least `min_share` of the voiced hops, else of every
 /// voiced hop. Allocates.
@@ -218,7 +256,27 @@ pub fn range_quantiles_held(
     min_share: f32,
     min_hops: u64,
 ) -> Option<(f32, f32)> {
-    let mask = held_mask(f0_hz, k, tol_st);
+    range_quantiles_kept(f0_hz, p, k, tol_st, 0, min_share, min_hops)
+}
+
+/// [`range_quantiles_held`] where a hop must also not be an octave shadow ([`shadow_mask`]
+/// with window `w`) to be kept; `w = 0` is [`range_quantiles_held`], and `k = 0` keeps every
+/// voiced hop that is not a shadow. Allocates.
+pub fn range_quantiles_kept(
+    f0_hz: &[f32],
+    p: f32,
+    k: usize,
+    tol_st: f32,
+    w: usize,
+    min_share: f32,
+    min_hops: u64,
+) -> Option<(f32, f32)> {
+    let mut mask = held_mask(f0_hz, k, tol_st);
+    if w > 0 {
+        for (m, s) in mask.iter_mut().zip(shadow_mask(f0_hz, w)) {
+            *m &= !s;
+        }
+    }
     let held: Vec<f32> = f0_hz
         .iter()
         .zip(&mask)
@@ -240,9 +298,12 @@ pub fn range_quantiles_held(
 pub struct HeldRange {
     all: PriorRange,
     held: PriorRange,
-    /// Semitones (NaN = unvoiced) and Hz of the last `2k + 1` hops, hop `i` at `i % len`.
-    ring: [(f32, f32); 2 * MAX_HELD_HOPS + 1],
+    /// Semitones (NaN = unvoiced) and Hz of the last `2·max(k, w) + 1` hops, hop `i` at
+    /// `i % len`.
+    ring: [(f32, f32); 2 * MAX_SHADOW_HOPS + 1],
     k: usize,
+    /// Octave-shadow window ([`HeldRange::with_shadow`]); 0 = off.
+    w: usize,
     tol_st: f32,
     min_share: f32,
     min_hops: u64,
@@ -301,8 +362,9 @@ impl HeldRange {
         Ok(HeldRange {
             all: PriorRange::with_prior(prior, fade_hops, p)?,
             held: PriorRange::with_prior(prior, fade_hops, p)?,
-            ring: [(f32::NAN, 0.0); 2 * MAX_HELD_HOPS + 1],
+            ring: [(f32::NAN, 0.0); 2 * MAX_SHADOW_HOPS + 1],
             k,
+            w: 0,
             tol_st,
             min_share,
             min_hops,
@@ -312,27 +374,46 @@ impl HeldRange {
         })
     }
 
+    /// Also leaves out of the kept range every hop that is an octave shadow ([`shadow_mask`]
+    /// with window `w`; module docs, "Range without octave shadows"); with `k = 0` the kept
+    /// hops are the voiced ones that are not shadows. A hop is judged once its `max(k, w)`-th
+    /// successor has arrived, so the first `max(k, w)` hops of a stream never count. Errors
+    /// unless `w ≤` [`MAX_SHADOW_HOPS`].
+    pub fn with_shadow(mut self, w: usize) -> Result<Self, ConfigError> {
+        if w > MAX_SHADOW_HOPS {
+            return Err(ConfigError::invalid(
+                "w",
+                format!("must be ≤ {MAX_SHADOW_HOPS}"),
+            ));
+        }
+        self.w = w;
+        Ok(self)
+    }
+
     /// Feeds one hop's pitch; returns the range so far (module docs), `None` until a voiced
     /// value has arrived.
     pub fn update(&mut self, f0_hz: f32) -> Option<(f32, f32)> {
         let all = self.all.update(f0_hz);
-        if self.k == 0 {
+        if self.k == 0 && self.w == 0 {
             return all;
         }
         let st = semitones(f0_hz);
         self.n_voiced += u64::from(st.is_some());
         // The held range's padding fades with every voiced hop, as the plain range's does.
         self.held.n += u64::from(st.is_some());
-        let len = 2 * self.k + 1;
+        let m = self.k.max(self.w);
+        let len = 2 * m + 1;
         self.ring[self.n_in % len] = (st.unwrap_or(f32::NAN), f0_hz);
         self.n_in += 1;
         if self.n_in >= len {
-            // The centre of the last 2k + 1 hops.
-            let (c, f) = self.ring[(self.n_in - 1 - self.k) % len];
+            // The centre of the last 2m + 1 hops.
+            let ci = self.n_in - 1 - m;
+            let (c, f) = self.ring[ci % len];
+            let at = |j: usize| self.ring[j % len].0;
             if !c.is_nan()
-                && self.ring[..len]
-                    .iter()
-                    .all(|&(x, _)| (x - c).abs() <= self.tol_st)
+                && (ci - self.k..=ci + self.k).all(|j| (at(j) - c).abs() <= self.tol_st)
+                && !(ci - self.w..=ci + self.w)
+                    .any(|j| (at(j) - (c + 12.0)).abs() <= SHADOW_TOL_ST)
             {
                 self.held.range.update(f);
                 self.n_held += 1;
@@ -351,7 +432,7 @@ impl HeldRange {
     pub fn reset(&mut self) {
         self.all.reset();
         self.held.reset();
-        self.ring = [(f32::NAN, 0.0); 2 * MAX_HELD_HOPS + 1];
+        self.ring = [(f32::NAN, 0.0); 2 * MAX_SHADOW_HOPS + 1];
         self.n_in = 0;
         self.n_voiced = 0;
         self.n_held = 0;

@@ -3,8 +3,9 @@
 //! pitch track (against an obvious offline oracle, streaming = offline, stated latency).
 
 use tactus_dsp::discretize::{
-    held_mask, range_offline, range_quantiles, range_quantiles_held, HeldRange, PriorRange,
-    QuantileRange, RangePrior,
+    held_mask, range_offline, range_quantiles, range_quantiles_held, range_quantiles_kept,
+    shadow_mask, HeldRange, PriorRange, QuantileRange, RangePrior, MAX_SHADOW_HOPS,
+    SHADOW_TOL_ST,
 };
 use tactus_dsp::notes::{note_onsets_offline, NoteConfig, NoteOnsets};
 use tactus_dsp::tukey::{reject_outliers_offline, reject_outliers_offline_min_iqr, SlidingTukey};
@@ -648,4 +649,208 @@ fn held_rule_by_hand(
         && held.len() as u64 >= min_hops
         && held.len() as f32 >= share * voiced as f32;
     (held, voiced, use_held)
+}
+
+/// Octave shadows written out: hop `i` is one when it is voiced and some voiced hop `j` with
+/// `|j − i| ≤ w` lies within a semitone of its pitch + 12 (nested loops, f64).
+fn shadow_by_hand(f: &[f32], w: usize) -> Vec<bool> {
+    let st = |x: f32| (x.is_finite() && x > 0.0).then(|| hz_to_semitones(x) as f64);
+    (0..f.len())
+        .map(|i| {
+            let Some(c) = st(f[i]) else { return false };
+            let mut found = false;
+            for j in 0..f.len() {
+                if i.abs_diff(j) <= w {
+                    if let Some(x) = st(f[j]) {
+                        found |= (x - (c + 12.0)).abs() <= SHADOW_TOL_ST as f64;
+                    }
+                }
+            }
+            found
+        })
+        .collect()
+}
+
+/// A bass line of notes (10–40 hops, 40–53 semitones) that now and then carries a run of
+/// 5–30 hops of the same note an octave low, where a kick under the note gives the tracker a
+/// subharmonic, with rests and the wandering line's junk values.
+fn line_with_octave_shadows(n: usize, seed: u64) -> Vec<f32> {
+    let junk = wandering_line(n, seed ^ 0xbeef);
+    let mut x = seed | 1;
+    let mut next = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut f = Vec::with_capacity(n);
+    while f.len() < n {
+        let note = 40.0 + (next() * 14.0).floor() as f32;
+        let len = 10 + (next() * 30.0) as usize;
+        f.extend((0..len).map(|_| hz(note + 0.4 * (next() as f32 - 0.5))));
+        if next() < 0.15 {
+            let len = 5 + (next() * 26.0) as usize;
+            f.extend((0..len).map(|_| hz(note - 12.0 + 0.6 * (next() as f32 - 0.5))));
+        }
+        if next() < 0.3 {
+            f.extend(std::iter::repeat_n(0.0, (next() * 10.0) as usize));
+        }
+    }
+    f.truncate(n);
+    for (i, v) in f.iter_mut().enumerate() {
+        if i % 41 == 7 {
+            *v = junk[i];
+        }
+    }
+    f
+}
+
+#[test]
+fn shadow_mask_is_the_definition_written_out() {
+    for seed in 1..6u64 {
+        let f = line_with_octave_shadows(1200, seed);
+        for w in [0usize, 1, 5, 25, MAX_SHADOW_HOPS] {
+            let got = shadow_mask(&f, w);
+            let want = shadow_by_hand(&f, w);
+            assert_eq!(got, want, "seed {seed} w {w}");
+            if w >= 5 {
+                assert!(got.iter().any(|&s| s), "seed {seed} w {w}: no shadow found");
+            }
+        }
+    }
+    assert!(shadow_mask(&[], 25).is_empty());
+    assert_eq!(shadow_mask(&[0.0, f32::NAN, -1.0], 25), vec![false; 3]);
+}
+
+#[test]
+fn range_without_octave_shadows_drops_the_octave_errors_and_keeps_a_real_low_note() {
+    // 40–53 with 5 % of its hops an octave under its own notes: the plain 1 % quantile
+    // reaches them, the range without shadows does not.
+    let mut f = Vec::new();
+    for i in 0..60 {
+        let note = 40.0 + [0.0, 7.0, 13.0, 5.0][i % 4];
+        f.extend(std::iter::repeat_n(hz(note), 38));
+        if i % 4 == 0 {
+            f.extend(std::iter::repeat_n(hz(note - 12.0), 8));
+        }
+    }
+    let (lo, _) = range_quantiles(&f, 0.01).unwrap();
+    assert!((hz_to_semitones(lo) - 28.0).abs() < 0.01, "the plain range reaches the errors");
+    let (lo, hi) = range_quantiles_kept(&f, 0.01, 0, 1.0, 25, 0.25, 300).unwrap();
+    assert!(
+        (hz_to_semitones(lo) - 40.0).abs() < 0.01 && (hz_to_semitones(hi) - 53.0).abs() < 0.01,
+        "{lo}..{hi}"
+    );
+    // w = 0 is the held rule; k = 0 and w = 0 every voiced hop.
+    assert_eq!(
+        range_quantiles_kept(&f, 0.01, 5, 1.0, 0, 0.25, 300),
+        range_quantiles_held(&f, 0.01, 5, 1.0, 0.25, 300)
+    );
+    assert_eq!(
+        range_quantiles_kept(&f, 0.01, 0, 1.0, 0, 0.25, 300),
+        range_quantiles(&f, 0.01)
+    );
+    // A real low note, 40 hops with no octave above it within 25 hops: kept.
+    let mut g = f.clone();
+    g.extend(std::iter::repeat_n(0.0, 30));
+    g.extend(std::iter::repeat_n(hz(26.0), 40));
+    let (lo, _) = range_quantiles_kept(&g, 0.01, 0, 1.0, 25, 0.25, 300).unwrap();
+    assert!((hz_to_semitones(lo) - 26.0).abs() < 0.01, "{lo}");
+    // A line that alternates root and octave throughout: almost every low hop is a shadow,
+    // the kept hops are under a quarter of the voiced ones, and every hop counts.
+    let octaves: Vec<f32> = (0..2000)
+        .map(|i| hz(if (i / 10) % 2 == 0 { 36.0 } else { 48.0 }) + (i % 3) as f32 * 0.01)
+        .collect();
+    let kept = range_quantiles_kept(&octaves, 0.01, 0, 1.0, 25, 0.6, 300);
+    assert_eq!(kept, range_quantiles(&octaves, 0.01));
+    assert!((hz_to_semitones(kept.unwrap().0) - 36.0).abs() < 0.01);
+}
+
+#[test]
+fn streaming_shadow_range_is_the_padded_quantile_range_of_the_kept_prefix_within_one_cell() {
+    // Oracle at every hop j: the hops i of the prefix with max(k, w) ≤ i and
+    // i + max(k, w) < j + 1 that are held (k) and not shadows (w), both by hand on the
+    // prefix; then the held-range rule and padding as in `check_held_range`.
+    let (fade, p) = (300.0f32, 0.01f32);
+    for prior in [
+        RangePrior::Span(20.0),
+        RangePrior::Register(hz(30.0), hz(50.0)),
+    ] {
+        for seed in 1..4u64 {
+            let f = line_with_octave_shadows(1500, seed);
+            for (k, w, share, min_hops) in [
+                (0usize, 25usize, 0.25f32, 300u64),
+                (0, 3, 0.5, 1),
+                (5, 10, 0.25, 50),
+                (5, 2, 0.25, 50),
+            ] {
+                let mut r = HeldRange::with_prior(prior, fade, p, k, 1.0, share, min_hops)
+                    .unwrap()
+                    .with_shadow(w)
+                    .unwrap();
+                let m = k.max(w);
+                let mut used = false;
+                for j in 0..f.len() {
+                    let got = r.update(f[j]);
+                    let pre = &f[..=j];
+                    let held = held_by_hand(pre, k, 1.0);
+                    let shadow = shadow_by_hand(pre, w);
+                    let mask: Vec<bool> = (0..pre.len())
+                        .map(|i| i >= m && i + m < pre.len() && held[i] && !shadow[i])
+                        .collect();
+                    let (kept, voiced, use_kept) = held_rule_by_hand(pre, &mask, share, min_hops);
+                    used |= use_kept;
+                    let want = if use_kept {
+                        padded_by_hand(prior, fade, range_quantiles(&kept, p), voiced)
+                    } else {
+                        padded_by_hand(prior, fade, range_quantiles(pre, p), voiced)
+                    };
+                    match (got, want) {
+                        (None, None) => {}
+                        (Some((lo, hi)), Some((wlo, whi))) => {
+                            let (lo, hi) =
+                                (hz_to_semitones(lo) as f64, hz_to_semitones(hi) as f64);
+                            let cell = 1.0 / 8.0 + 1e-3;
+                            assert!(
+                                (lo - wlo).abs() < cell && (hi - whi).abs() < cell,
+                                "{prior:?} seed {seed} k {k} w {w} hop {j}: {lo}..{hi} vs {wlo}..{whi}"
+                            );
+                        }
+                        (g, wnt) => panic!("seed {seed} k {k} w {w} hop {j}: {g:?} vs {wnt:?}"),
+                    }
+                }
+                assert!(used, "seed {seed} k {k} w {w}: the kept range was never used");
+            }
+        }
+    }
+}
+
+#[test]
+fn shadow_range_streams_without_allocating_and_refuses_a_long_window() {
+    let f = line_with_octave_shadows(3000, 9);
+    let mut r = HeldRange::new(20.0, 1.0, 0.01, 0, 1.0, 0.25, 300)
+        .unwrap()
+        .with_shadow(25)
+        .unwrap();
+    let mut last = None;
+    let allocs = tactus_testkit::allocations_during(|| {
+        for &x in &f {
+            last = r.update(x);
+        }
+    });
+    assert_eq!(allocs, 0);
+    // Fade 1: the padding is gone; the running range is within a cell of the offline one of
+    // the same kept hops (the stream's first and last 25 hops excepted, which these are not).
+    let (lo, hi) = last.unwrap();
+    let (wlo, whi) = range_quantiles_kept(&f, 0.01, 0, 1.0, 25, 0.25, 300).unwrap();
+    assert!(
+        (hz_to_semitones(lo) - hz_to_semitones(wlo)).abs() < 0.2
+            && (hz_to_semitones(hi) - hz_to_semitones(whi)).abs() < 0.2,
+        "{lo}..{hi} vs {wlo}..{whi}"
+    );
+    r.reset();
+    assert_eq!(r.update(0.0), None);
+    let fresh = HeldRange::new(20.0, 1.0, 0.01, 0, 1.0, 0.25, 300).unwrap();
+    assert!(fresh.clone().with_shadow(MAX_SHADOW_HOPS).is_ok());
+    assert!(fresh.with_shadow(MAX_SHADOW_HOPS + 1).is_err());
 }

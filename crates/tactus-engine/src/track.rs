@@ -12,7 +12,7 @@
 
 use tactus_dsp::binner::{bin_beats, bin_levels, BeatBinner, LevelBinner};
 use tactus_dsp::discretize::{
-    range_offline, range_quantiles_held, Discretizer, HeldRange, RangePrior, RunningRange, Scale,
+    range_offline, range_quantiles_kept, Discretizer, HeldRange, RangePrior, RunningRange, Scale,
 };
 use tactus_dsp::flux::{OnsetConfig, OnsetDetector, OnsetFrame};
 use tactus_dsp::median::MedianFilter;
@@ -94,6 +94,13 @@ pub const CLEAN_BASS_HELD_HOPS: usize = 5;
 
 /// Semitones a held note's hops stay within ([`CLEAN_BASS_HELD_HOPS`]).
 pub const HELD_TOL_ST: f32 = 1.0;
+
+/// `--levels-rule follow` on the bass band of a mixture (the spectral separator's bass):
+/// a hop whose octave above sounds within this many hops on either side is left out of the
+/// level range (`tactus_dsp::discretize::shadow_mask`; README, "The mix's bass range without
+/// octave shadows"). Chosen on the tuning mixes and 16 validation songs over 10 / 25 / 50 /
+/// 100 hops (`benches/trials/RULE_octave_shadow_range.md`).
+pub const MIX_BASS_SHADOW_HOPS: usize = 25;
 
 /// Below this share of held hops among the voiced ones every voiced hop sets the range.
 pub const HELD_MIN_SHARE: f32 = 0.25;
@@ -425,6 +432,8 @@ pub struct PitchTrack {
     min_iqr_st: f32,
     /// Hops on each side a pitch must hold to count towards the range (0 = every voiced hop).
     held_hops: usize,
+    /// Octave-shadow window of the range ([`MIX_BASS_SHADOW_HOPS`]; 0 = off).
+    shadow_hops: usize,
     /// f0 per hop after gate and fences (streaming: filled as hops arrive; offline: at the end).
     pub f0: Vec<f32>,
     /// The stem's RMS per hop in dBFS, beside `f0` (same hops, before the gate): what note
@@ -519,6 +528,12 @@ impl PitchTrack {
         } else {
             0
         };
+        // The bass band of a mixture: the range without octave shadows.
+        let shadow_hops = if mixture && fmax_hz <= BASS_MAX_HZ {
+            MIX_BASS_SHADOW_HOPS
+        } else {
+            0
+        };
         let min_iqr_st = match geo.level_rule {
             LevelRule::Paper => 0.0,
             LevelRule::Follow => min_iqr_st(fmax_hz),
@@ -545,13 +560,15 @@ impl PitchTrack {
                     HELD_TOL_ST,
                     HELD_MIN_SHARE,
                     HELD_MIN_HOPS,
-                )?,
+                )?
+                .with_shadow(shadow_hops)?,
                 rule: geo.level_rule,
                 disc: Discretizer::new(geo.levels, Scale::Semitones)?,
                 binner: LevelBinner::new(hop, geo.bin_samples)?,
             },
             min_iqr_st,
             held_hops,
+            shadow_hops,
             f0: Vec::new(),
             level_db: Vec::new(),
             hop_levels: Vec::new(),
@@ -574,7 +591,8 @@ impl PitchTrack {
             HELD_TOL_ST,
             HELD_MIN_SHARE,
             HELD_MIN_HOPS,
-        )?;
+        )?
+        .with_shadow(self.shadow_hops)?;
         Ok(())
     }
 
@@ -682,11 +700,12 @@ impl PitchTrack {
         reject_outliers_offline_min_iqr(&mut f0, TUKEY_K, self.min_iqr_st);
         let r = match self.geo.level_rule {
             LevelRule::Paper => range_offline(&f0),
-            LevelRule::Follow => range_quantiles_held(
+            LevelRule::Follow => range_quantiles_kept(
                 &f0,
                 FOLLOW_RANGE_QUANTILE,
                 self.held_hops,
                 HELD_TOL_ST,
+                self.shadow_hops,
                 HELD_MIN_SHARE,
                 HELD_MIN_HOPS,
             ),
