@@ -57,11 +57,13 @@ enum DrumsArg {
 
 #[derive(Clone, Copy, ValueEnum)]
 enum PitchArg {
-    /// The learned bass salience times the harmonic sum on the spectral separator's bass stem
-    /// (models/bassnet/README.md), the harmonic sum for other basses and the lead (vocals),
-    /// pYIN for the rest.
+    /// The learned salience on the spectral separator's stems (models/bassnet/README.md): for
+    /// the bass times the harmonic sum; for the lead (vocals) the harmonic sum decides
+    /// whether and the learned lead model which pitch. The harmonic sum for other basses and
+    /// leads, pYIN for the rest.
     Auto,
-    /// The previous default: the harmonic sum for every bass and the lead, pYIN for the rest.
+    /// The default before the learned salience: the harmonic sum for every bass and the
+    /// lead, pYIN for the rest.
     AutoShs,
     Yin,
     Pyin,

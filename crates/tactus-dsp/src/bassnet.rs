@@ -55,6 +55,10 @@ const MAGIC: &[u8; 8] = b"TACTUSBN";
 /// The embedded model (see `models/bassnet/README.md`).
 static EMBEDDED: &[u8] = include_bytes!("../weights/bassnet.bin");
 
+/// The embedded lead model: the same network over a mixture's lead band (216 bands from
+/// 70 Hz, candidates 70–1400 Hz; `models/bassnet/README.md`, "The lead model").
+static EMBEDDED_LEAD: &[u8] = include_bytes!("../weights/leadnet.bin");
+
 /// The network and its input layout.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BassNet {
@@ -73,6 +77,14 @@ impl BassNet {
         // The embedded file is checked by a unit test, so this cannot fail in a build whose
         // tests pass.
         MODEL.get_or_init(|| Self::from_bytes(EMBEDDED).expect("embedded bass model is valid"))
+    }
+
+    /// The embedded lead model (parsed once), for a mixture's lead
+    /// ([`crate::shs::ShsConfig::learned`] on the lead's candidate grid).
+    pub fn embedded_lead() -> &'static BassNet {
+        static MODEL: OnceLock<BassNet> = OnceLock::new();
+        // Checked by a unit test, like the bass model.
+        MODEL.get_or_init(|| Self::from_bytes(EMBEDDED_LEAD).expect("embedded lead model is valid"))
     }
 
     /// Parses the format written by `models/bassnet/train.py`: `"TACTUSBN"`, then

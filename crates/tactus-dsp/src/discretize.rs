@@ -412,8 +412,7 @@ impl HeldRange {
             let at = |j: usize| self.ring[j % len].0;
             if !c.is_nan()
                 && (ci - self.k..=ci + self.k).all(|j| (at(j) - c).abs() <= self.tol_st)
-                && !(ci - self.w..=ci + self.w)
-                    .any(|j| (at(j) - (c + 12.0)).abs() <= SHADOW_TOL_ST)
+                && !(ci - self.w..=ci + self.w).any(|j| (at(j) - (c + 12.0)).abs() <= SHADOW_TOL_ST)
             {
                 self.held.range.update(f);
                 self.n_held += 1;

@@ -63,6 +63,7 @@
 //! | [`drums`] | per-instrument drum transcription (kick, snare, toms, cymbals): mel context, a small MLP, causal peak picking | frame-wise ADT (Vogl et al. 2017; Southall et al. 2017) |
 //! | [`shs`] | harmonic-sum (subharmonic summation) salience with fixed-lag Viterbi, for a bass line or a lead in a mixture | Hermes 1988; Klapuri 2006; Goto 2004 |
 //! | [`bassnet`] | a learned bass salience over a log-frequency spectrum (small MLP), decoded by [`shs`] times the harmonic sum | deep salience (Bittner et al. 2017), product of experts |
+//! | [`pair`] | two pitch trackers over one stream: one decides whether, the other which pitch | ours |
 #![forbid(unsafe_code)]
 
 pub mod bassnet;
@@ -75,6 +76,7 @@ pub mod median;
 pub mod melbank;
 mod mlp;
 pub mod notes;
+pub mod pair;
 pub mod pyin;
 pub mod rms;
 pub mod sanitize;

@@ -592,6 +592,10 @@ struct Tracker {
     /// Viterbi scores: `delta[..m]` voiced bins, `delta[m]` unvoiced.
     delta: Vec<f32>,
     next: Vec<f32>,
+    /// Scratch of [`Tracker::step`]: per voiced bin, the best predecessor's score and index.
+    best_in: Vec<f32>,
+    /// The best predecessor's offset `src − k`.
+    arg_in: Vec<i32>,
     /// Backpointers, `ring × (m + 1)`.
     bp: Vec<u16>,
     /// Salience per hop (ring × m), for the f0 refinement.
@@ -646,16 +650,24 @@ impl std::fmt::Debug for NetState {
 
 impl NetState {
     fn new(cfg: &ShsConfig, m: usize) -> Result<NetState, ConfigError> {
-        let model = BassNet::embedded();
-        if model.candidates() != m
-            || cfg.bins_per_semitone != crate::bassnet::BINS_PER_SEMITONE
-            || (cfg.fmin_hz - model.cand_fmin_hz()).abs() > 1e-3
-        {
+        // The embedded model whose candidate grid is the tracker's: the bass model's
+        // (35–400 Hz) or the lead model's (70–1400 Hz), 3 bins per semitone.
+        let fits = |md: &BassNet| {
+            md.candidates() == m
+                && cfg.bins_per_semitone == crate::bassnet::BINS_PER_SEMITONE
+                && (cfg.fmin_hz - md.cand_fmin_hz()).abs() <= 1e-3
+        };
+        let model = if fits(BassNet::embedded()) {
+            BassNet::embedded()
+        } else if fits(BassNet::embedded_lead()) {
+            BassNet::embedded_lead()
+        } else {
             return Err(ConfigError::invalid(
                 "learned",
-                "the bass model's candidate grid is 35-400 Hz at 3 bins per semitone",
+                "the learned models' candidate grids are 35-400 Hz (bass) and 70-1400 Hz \
+                 (lead) at 3 bins per semitone",
             ));
-        }
+        };
         let bands = model.bands();
         let ring = model.past() + model.future() + 1;
         let w = model.width().max(model.input_len());
@@ -791,6 +803,8 @@ impl Tracker {
             obs: vec![0.0; m],
             delta: vec![0.0; m + 1],
             next: vec![0.0; m + 1],
+            best_in: vec![0.0; m],
+            arg_in: vec![0; m],
             bp: vec![0; ring * (m + 1)],
             sal_ring: vec![0.0; ring * m],
             silent: vec![true; ring],
@@ -1077,19 +1091,36 @@ impl Tracker {
         let j = self.max_jump;
         let bp = &mut self.bp[slot * (m + 1)..(slot + 1) * (m + 1)];
         let du = self.delta[m];
+        // The best predecessor of every voiced bin k among src = k + d, |d| ≤ j: the same
+        // sums and the same first-wins comparisons as a loop over src for each k (src
+        // ascending), but run one offset d at a time over every k, which vectorises.
+        self.best_in.fill(f32::NEG_INFINITY);
+        self.arg_in.fill(0);
+        for d in -(j.min(m - 1) as isize)..=(j.min(m - 1) as isize) {
+            let w = self.l_jump[d.unsigned_abs()];
+            let (k_lo, k_hi) = if d < 0 {
+                (d.unsigned_abs(), m)
+            } else {
+                (0, m - d as usize)
+            };
+            let src_lo = (k_lo as isize + d) as usize;
+            let src = &self.delta[src_lo..src_lo + (k_hi - k_lo)];
+            let bv = &mut self.best_in[k_lo..k_hi];
+            let arg = &mut self.arg_in[k_lo..k_hi];
+            let d32 = d as i32;
+            for ((b, a), &x) in bv.iter_mut().zip(arg.iter_mut()).zip(src) {
+                let v = x + w;
+                let gt = v > *b;
+                *b = if gt { v } else { *b };
+                *a = if gt { d32 } else { *a };
+            }
+        }
         let mut best = f32::NEG_INFINITY;
         for k in 0..m {
-            let lo = k.saturating_sub(j);
-            let hi = (k + j).min(m - 1);
-            let mut bv = f32::NEG_INFINITY;
-            let mut arg = k;
-            for src in lo..=hi {
-                let v = self.delta[src] + self.l_jump[src.abs_diff(k)];
-                if v > bv {
-                    bv = v;
-                    arg = src;
-                }
-            }
+            let (bv, arg) = (
+                self.best_in[k],
+                (k as isize + self.arg_in[k] as isize) as usize,
+            );
             let stay = bv + self.l_stay;
             let enter = du + self.l_enter;
             let (sv, pv) = if stay >= enter {
@@ -1253,5 +1284,91 @@ impl HopStage for Shs {
 
     fn hop(&self) -> usize {
         self.cfg.hop
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// [`Tracker::step`] written the obvious way (a loop over the sources of each voiced
+    /// bin, first best wins, as it was before the offset-major form), normalised the same.
+    fn step_by_hand(t: &Tracker, l_unvoiced: f32) -> (Vec<f32>, Vec<u16>) {
+        let (m, j) = (t.m, t.max_jump);
+        let du = t.delta[m];
+        let mut next = vec![0.0f32; m + 1];
+        let mut bp = vec![0u16; m + 1];
+        for k in 0..m {
+            let (lo, hi) = (k.saturating_sub(j), (k + j).min(m - 1));
+            let (mut bv, mut arg) = (f32::NEG_INFINITY, k);
+            for src in lo..=hi {
+                let v = t.delta[src] + t.l_jump[src.abs_diff(k)];
+                if v > bv {
+                    bv = v;
+                    arg = src;
+                }
+            }
+            let (stay, enter) = (bv + t.l_stay, du + t.l_enter);
+            let (sv, pv) = if stay >= enter {
+                (stay, arg)
+            } else {
+                (enter, m)
+            };
+            next[k] = sv + t.obs[k];
+            bp[k] = pv as u16;
+        }
+        let (mut bv, mut arg) = (f32::NEG_INFINITY, 0);
+        for (src, &d) in t.delta[..m].iter().enumerate() {
+            if d > bv {
+                bv = d;
+                arg = src;
+            }
+        }
+        let (su, pu) = if du + t.l_stay >= bv + t.l_switch {
+            (du + t.l_stay, m)
+        } else {
+            (bv + t.l_switch, arg)
+        };
+        next[m] = su + l_unvoiced;
+        bp[m] = pu as u16;
+        let best = next.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        for v in next.iter_mut() {
+            *v -= best;
+        }
+        (next, bp)
+    }
+
+    #[test]
+    fn the_offset_major_viterbi_step_equals_the_source_loop_bit_for_bit() {
+        let mut seed = 0x9e37_79b9u32;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32
+        };
+        for (fmin, fmax, jump) in [(35.0, 400.0, 36), (70.0, 1400.0, 36), (70.0, 1400.0, 3)] {
+            let mut cfg = ShsConfig::new(14_700, fmin, fmax);
+            cfg.max_jump_bins = jump;
+            let mut t = Tracker::new(&cfg).unwrap();
+            let m = t.m;
+            for trial in 0..20 {
+                // Scores with ties (quantised) so that the first-wins rule is exercised.
+                for d in t.delta.iter_mut() {
+                    *d = -(rnd() * 8.0).floor();
+                }
+                for o in t.obs.iter_mut() {
+                    *o = (rnd() * 4.0).ln();
+                }
+                let (want, want_bp) = step_by_hand(&t, -1.0);
+                let slot = trial % t.ring;
+                t.step(slot, -1.0);
+                let bp = &t.bp[slot * (m + 1)..(slot + 1) * (m + 1)];
+                assert_eq!(bp, &want_bp[..], "{fmin}-{fmax} jump {jump} trial {trial}");
+                for (k, (w, d)) in want.iter().zip(&t.delta).enumerate() {
+                    assert_eq!(w.to_bits(), d.to_bits(), "bin {k}");
+                }
+            }
+        }
     }
 }

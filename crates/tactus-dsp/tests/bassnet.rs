@@ -39,14 +39,20 @@ struct Oracle {
 }
 
 fn oracle() -> Oracle {
-    let b = WEIGHTS;
+    oracle_of(WEIGHTS, BANDS, LOW_HZ)
+}
+
+/// The lead model's file (`BassNet::embedded_lead`).
+const LEAD_WEIGHTS: &[u8] = include_bytes!("../weights/leadnet.bin");
+
+fn oracle_of(b: &[u8], bands: usize, low_hz: f32) -> Oracle {
     let u32_at = |o: usize| u32::from_le_bytes(b[o..o + 4].try_into().unwrap());
     let f32_at = |o: usize| f32::from_le_bytes(b[o..o + 4].try_into().unwrap()) as f64;
     assert_eq!(&b[..8], b"TACTUSBN");
     assert_eq!(u32_at(8), 1);
-    assert_eq!(u32_at(12) as usize, BANDS);
+    assert_eq!(u32_at(12) as usize, bands);
     assert_eq!(u32_at(16), BINS_PER_SEMITONE);
-    assert_eq!(f32_at(20) as f32, LOW_HZ);
+    assert_eq!(f32_at(20) as f32, low_hz);
     assert_eq!(f32_at(24) as f32, RANGE_DB);
     let n_off = u32_at(28) as usize;
     let mut o = 32;
@@ -127,6 +133,47 @@ fn embedded_model_matches_a_separate_f64_reader() {
         }
         let total: f64 = out.iter().map(|&v| (v as f64).exp()).sum();
         assert!((total - 1.0).abs() < 1e-4, "probabilities sum to {total}");
+    }
+}
+
+#[test]
+fn embedded_lead_model_matches_a_separate_f64_reader() {
+    // The lead chain's rate (44.1 kHz decimated for 1400 Hz) and its melody grid.
+    let net = BassNet::embedded_lead();
+    let or = oracle_of(LEAD_WEIGHTS, 216, 70.0);
+    assert_eq!(net.offsets(), &[-6, -3, 0, 3]);
+    assert_eq!(net.offsets(), &or.offsets[..]);
+    assert_eq!(
+        (net.bands(), net.low_hz(), net.cand_fmin_hz()),
+        (216, 70.0, 70.0)
+    );
+    assert_eq!(
+        net.candidates(),
+        ShsConfig::melody(14_700, 70.0, 1400.0).n_bins().unwrap()
+    );
+    let mut rng = Rng::new(9);
+    let w = net.width().max(net.input_len());
+    let (mut a, mut b) = (vec![0.0f32; w], vec![0.0f32; w]);
+    let mut out = vec![0.0f32; net.candidates() + 1];
+    for trial in 0..3 {
+        let x: Vec<f32> = (0..net.input_len())
+            .map(|_| {
+                let u = uniform(&mut rng);
+                if u < 0.3 {
+                    0.0
+                } else {
+                    u as f32
+                }
+            })
+            .collect();
+        net.forward(&x, &mut a, &mut b, &mut out);
+        let want = oracle_forward(&or, &x.iter().map(|&v| v as f64).collect::<Vec<_>>());
+        for (k, (&g, &e)) in out.iter().zip(&want).enumerate() {
+            assert!(
+                (g as f64 - e).abs() < 1e-3,
+                "trial {trial} class {k}: {g} vs {e}"
+            );
+        }
     }
 }
 

@@ -4,8 +4,7 @@
 
 use tactus_dsp::discretize::{
     held_mask, range_offline, range_quantiles, range_quantiles_held, range_quantiles_kept,
-    shadow_mask, HeldRange, PriorRange, QuantileRange, RangePrior, MAX_SHADOW_HOPS,
-    SHADOW_TOL_ST,
+    shadow_mask, HeldRange, PriorRange, QuantileRange, RangePrior, MAX_SHADOW_HOPS, SHADOW_TOL_ST,
 };
 use tactus_dsp::notes::{note_onsets_offline, NoteConfig, NoteOnsets};
 use tactus_dsp::tukey::{reject_outliers_offline, reject_outliers_offline_min_iqr, SlidingTukey};
@@ -659,9 +658,9 @@ fn shadow_by_hand(f: &[f32], w: usize) -> Vec<bool> {
         .map(|i| {
             let Some(c) = st(f[i]) else { return false };
             let mut found = false;
-            for j in 0..f.len() {
+            for (j, &y) in f.iter().enumerate() {
                 if i.abs_diff(j) <= w {
-                    if let Some(x) = st(f[j]) {
+                    if let Some(x) = st(y) {
                         found |= (x - (c + 12.0)).abs() <= SHADOW_TOL_ST as f64;
                     }
                 }
@@ -735,7 +734,10 @@ fn range_without_octave_shadows_drops_the_octave_errors_and_keeps_a_real_low_not
         }
     }
     let (lo, _) = range_quantiles(&f, 0.01).unwrap();
-    assert!((hz_to_semitones(lo) - 28.0).abs() < 0.01, "the plain range reaches the errors");
+    assert!(
+        (hz_to_semitones(lo) - 28.0).abs() < 0.01,
+        "the plain range reaches the errors"
+    );
     let (lo, hi) = range_quantiles_kept(&f, 0.01, 0, 1.0, 25, 0.25, 300).unwrap();
     assert!(
         (hz_to_semitones(lo) - 40.0).abs() < 0.01 && (hz_to_semitones(hi) - 53.0).abs() < 0.01,
@@ -808,8 +810,7 @@ fn streaming_shadow_range_is_the_padded_quantile_range_of_the_kept_prefix_within
                     match (got, want) {
                         (None, None) => {}
                         (Some((lo, hi)), Some((wlo, whi))) => {
-                            let (lo, hi) =
-                                (hz_to_semitones(lo) as f64, hz_to_semitones(hi) as f64);
+                            let (lo, hi) = (hz_to_semitones(lo) as f64, hz_to_semitones(hi) as f64);
                             let cell = 1.0 / 8.0 + 1e-3;
                             assert!(
                                 (lo - wlo).abs() < cell && (hi - whi).abs() < cell,
@@ -819,7 +820,10 @@ fn streaming_shadow_range_is_the_padded_quantile_range_of_the_kept_prefix_within
                         (g, wnt) => panic!("seed {seed} k {k} w {w} hop {j}: {g:?} vs {wnt:?}"),
                     }
                 }
-                assert!(used, "seed {seed} k {k} w {w}: the kept range was never used");
+                assert!(
+                    used,
+                    "seed {seed} k {k} w {w}: the kept range was never used"
+                );
             }
         }
     }

@@ -545,8 +545,16 @@ impl Engine {
                     }
                     // The spectral separator's bass stem: the learned salience times the
                     // harmonic sum (trained on that stem; benches/trials/RULE_bassnet_blend.md);
-                    // supplied stems, other separators and the lead: the harmonic sum.
+                    // supplied stems and other separators: the harmonic sum.
                     (PitchMethod::Auto, Stem::Bass)
+                        if cfg.separator == SeparatorChoice::Spectral
+                            && !cfg.supplied.contains(stem) =>
+                    {
+                        PitchMethod::Learned
+                    }
+                    // The spectral separator's lead: the harmonic sum decides whether, the
+                    // learned lead salience which pitch (benches/trials/RULE_lead_pair_notes.md).
+                    (PitchMethod::Auto, Stem::Vocals)
                         if cfg.separator == SeparatorChoice::Spectral
                             && !cfg.supplied.contains(stem) =>
                     {

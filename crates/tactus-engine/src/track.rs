@@ -16,6 +16,7 @@ use tactus_dsp::discretize::{
 };
 use tactus_dsp::flux::{OnsetConfig, OnsetDetector, OnsetFrame};
 use tactus_dsp::median::MedianFilter;
+use tactus_dsp::pair::VoicingPitchPair;
 use tactus_dsp::pyin::{Pyin, PyinConfig};
 use tactus_dsp::rms::{gate_offline, Rms, StreamingGate, GATE_BELOW_DB};
 use tactus_dsp::shs::{Shs, ShsConfig};
@@ -45,14 +46,17 @@ pub enum PitchMethod {
     /// Harmonic-sum salience with fixed-lag Viterbi ([`tactus_dsp::shs`]), made for a bass
     /// line or a lead melody in a mixture.
     Shs,
-    /// The learned bass salience ([`tactus_dsp::bassnet`]) times the harmonic sum
-    /// ([`LEARNED_BASS_BLEND`]), decoded like [`PitchMethod::Shs`]; made for the spectral
-    /// separator's bass stem (the data it was trained on). On a range above the bass it is
-    /// [`PitchMethod::Shs`].
+    /// The learned salience ([`tactus_dsp::bassnet`]), made for the spectral separator's
+    /// stems (the data it was trained on). On the bass range: the bass model times the
+    /// harmonic sum ([`LEARNED_BASS_BLEND`]), decoded like [`PitchMethod::Shs`]. Above it
+    /// (the lead): a [`tactus_dsp::pair::VoicingPitchPair`] whose harmonic-sum tracker
+    /// decides whether a hop is voiced (and gives the note onsets their pitch,
+    /// [`PitchTrack::note_f0`]) and whose lead-model tracker ([`LEARNED_LEAD_BLEND`])
+    /// decides which pitch.
     Learned,
-    /// [`PitchMethod::Learned`] for the spectral separator's bass stem,
-    /// [`PitchMethod::Shs`] for other basses and the lead (vocals), pYIN for the polyphonic
-    /// rest.
+    /// [`PitchMethod::Learned`] for the spectral separator's bass and lead (vocals) stems,
+    /// [`PitchMethod::Shs`] for other basses and leads (supplied stems, other separators),
+    /// pYIN for the polyphonic rest.
     #[default]
     Auto,
     /// The default before the learned bass salience: [`PitchMethod::Shs`] for every bass and
@@ -183,6 +187,13 @@ pub const MIXTURE_FUNDAMENTAL_RATIO: f32 = 0.1;
 /// stems and for the lead (a lead's register prior cost `timgm` mix vocals RPA 0.717 →
 /// 0.684).
 pub const MIXTURE_BASS_REGISTER_ST: f32 = 12.0;
+
+/// [`tactus_dsp::shs::ShsConfig::learned_blend`] of the learned lead salience's pitch
+/// tracker ([`tactus_dsp::pair::VoicingPitchPair`]): 0, the network alone. On the tuning
+/// mixes and the validation songs the harmonic sum's 0.3 (the bass's blend) gave the same
+/// RPA (sung / chorales / `timgm` / validation 0.691 / 0.858 / 0.789 / 0.717 against 0.705 /
+/// 0.848 / 0.793 / 0.729 alone) for another harmonic sum per hop.
+pub const LEARNED_LEAD_BLEND: f32 = 0.0;
 
 /// [`tactus_dsp::shs::ShsConfig::learned_blend`] of the learned bass salience: the weight
 /// of the harmonic sum's observation log-probabilities added to the network's. Chosen on the
@@ -365,7 +376,7 @@ struct LevelChain {
 impl LevelChain {
     /// Hop `i`: returns its pitch after gate and fences and its level; completed bins go to
     /// `bins`.
-    fn push(&mut self, i: usize, rms_db: f32, raw_f0: f32, bins: &mut Vec<u8>) -> (f32, u8) {
+    fn push(&mut self, i: usize, rms_db: f32, raw_f0: f32, bins: &mut Vec<u8>) -> (f32, u8, bool) {
         let open = self.gate.process(rms_db);
         let f0 = self.tukey.process(if open { raw_f0 } else { 0.0 });
         let range = match self.rule {
@@ -374,7 +385,7 @@ impl LevelChain {
         };
         let level = range.map_or(0, |r| self.disc.level(f0, r));
         self.binner.push(i, level, &mut |_, l| bins.push(l));
-        (f0, level)
+        (f0, level, open)
     }
 
     fn reset(&mut self) {
@@ -414,10 +425,61 @@ impl<F: HopFilter> Reset for F {
     }
 }
 
+/// The tracker of a [`PitchTrack`]: one, or a voicing/pitch pair whose voicing tracker's
+/// own pitch is kept for note onsets ([`PitchTrack::note_f0`]).
+enum Tracker {
+    One(Box<dyn HopStage<Out = PitchEstimate>>),
+    Pair(Box<VoicingPitchPair>),
+}
+
+impl Tracker {
+    /// Feeds a block; `emit(f0, note_f0)` per hop (`note_f0` only for a pair).
+    fn process(&mut self, x: &[f32], emit: &mut dyn FnMut(f32, Option<f32>)) {
+        match self {
+            Tracker::One(t) => t.process(x, &mut |_, e| emit(e.f0_hz, None)),
+            Tracker::Pair(p) => p.process_both(x, &mut |_, e, v| emit(e.f0_hz, Some(v.f0_hz))),
+        }
+    }
+
+    fn finish(&mut self, emit: &mut dyn FnMut(f32, Option<f32>)) {
+        match self {
+            Tracker::One(t) => t.finish(&mut |_, e| emit(e.f0_hz, None)),
+            Tracker::Pair(p) => p.finish_both(&mut |_, e, v| emit(e.f0_hz, Some(v.f0_hz))),
+        }
+    }
+
+    fn reset(&mut self) {
+        match self {
+            Tracker::One(t) => t.reset(),
+            Tracker::Pair(p) => p.reset(),
+        }
+    }
+
+    fn latency_samples(&self) -> usize {
+        match self {
+            Tracker::One(t) => t.latency_samples(),
+            Tracker::Pair(p) => p.latency_samples(),
+        }
+    }
+}
+
+/// A pair's voicing-tracker pitch through the same gate decisions and its own fences: what
+/// note onsets read ([`PitchTrack::note_f0`]).
+struct NoteSide {
+    /// Raw voicing-tracker pitch per hop (kept like `PitchTrack::raw_f0`).
+    raw: Vec<f32>,
+    skipped: usize,
+    tukey: SlidingTukey,
+    /// After gate and fences, like `PitchTrack::f0`.
+    f0: Vec<f32>,
+}
+
 /// Pitch feature track of one melodic stem.
 pub struct PitchTrack {
     decimator: Decimator,
-    tracker: Box<dyn HopStage<Out = PitchEstimate>>,
+    tracker: Tracker,
+    /// With a pair: the voicing tracker's pitch for note onsets.
+    note_side: Option<NoteSide>,
     rms: Rms,
     hop: usize,
     geo: Geometry,
@@ -482,16 +544,18 @@ impl PitchTrack {
         let two_frame = live && method == PitchMethod::Yin && split_hz < fmax_hz;
         let short_frame = crate::profile::pitch_frame(rate, split_hz);
         let frame = if two_frame { short_frame } else { yc.frame };
-        let tracker: Box<dyn HopStage<Out = PitchEstimate>> = match method {
-            PitchMethod::Yin if two_frame => {
-                Box::new(TwoFrameYin::new(yc.clone(), split_hz, short_frame)?)
-            }
-            PitchMethod::Yin => Box::new(Yin::new(yc.clone())?),
+        let tracker: Tracker = match method {
+            PitchMethod::Yin if two_frame => Tracker::One(Box::new(TwoFrameYin::new(
+                yc.clone(),
+                split_hz,
+                short_frame,
+            )?)),
+            PitchMethod::Yin => Tracker::One(Box::new(Yin::new(yc.clone())?)),
             PitchMethod::Pyin | PitchMethod::Auto | PitchMethod::AutoShs => {
                 let mut pc = PyinConfig::new(rate, fmin_hz, fmax_hz);
                 pc.yin = yc.clone();
                 pc.lag_hops = lag_hops;
-                Box::new(Pyin::new(pc)?)
+                Tracker::One(Box::new(Pyin::new(pc)?))
             }
             PitchMethod::Shs | PitchMethod::Learned => {
                 // The bass range gets the bass defaults; a higher range (the lead) the
@@ -518,7 +582,21 @@ impl PitchTrack {
                 if sc.learned {
                     sc.learned_blend = LEARNED_BASS_BLEND;
                 }
-                Box::new(Shs::new(sc)?)
+                if method == PitchMethod::Learned && fmax_hz > BASS_MAX_HZ {
+                    // A mixture's lead: the harmonic sum decides whether, the learned
+                    // lead salience which pitch (README, "The learned lead's pitch inside
+                    // the harmonic sum's voicing").
+                    let mut lc = sc.clone();
+                    lc.learned = true;
+                    lc.learned_blend = LEARNED_LEAD_BLEND;
+                    lc.contour_gate_db = 0.0;
+                    Tracker::Pair(Box::new(VoicingPitchPair::new(
+                        Box::new(Shs::new(sc)?),
+                        Box::new(Shs::new(lc)?),
+                    )?))
+                } else {
+                    Tracker::One(Box::new(Shs::new(sc)?))
+                }
             }
         };
         let hop_s = hop as f32 / geo.sample_rate as f32;
@@ -538,9 +616,20 @@ impl PitchTrack {
             LevelRule::Paper => 0.0,
             LevelRule::Follow => min_iqr_st(fmax_hz),
         };
+        let note_side = match tracker {
+            Tracker::Pair(_) => Some(NoteSide {
+                raw: Vec::new(),
+                skipped: 0,
+                tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
+                    .with_min_iqr(min_iqr_st),
+                f0: Vec::new(),
+            }),
+            Tracker::One(_) => None,
+        };
         Ok(PitchTrack {
             decimator: Decimator::new(geo.sample_rate, factor)?,
             tracker,
+            note_side,
             rms: Rms::new(frame.min(4 * yc.hop).max(yc.hop), yc.hop)?,
             hop,
             geo,
@@ -640,8 +729,12 @@ impl PitchTrack {
         self.decimator.process(block);
         let block = self.decimator.output();
         let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
-        self.tracker.process(block, &mut |_, e| {
-            advanced_push(raw_f0, skipped, advance, e.f0_hz)
+        let side = &mut self.note_side;
+        self.tracker.process(block, &mut |f, nf| {
+            advanced_push(raw_f0, skipped, advance, f);
+            if let (Some(s), Some(nf)) = (side.as_mut(), nf) {
+                advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
+            }
         });
         let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
         self.rms.process(block, &mut |_, r| {
@@ -653,11 +746,19 @@ impl PitchTrack {
     /// Ends the stream (and, offline, computes the whole-track statistics).
     pub fn finish(&mut self) {
         let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
-        self.tracker
-            .finish(&mut |_, e| advanced_push(raw_f0, skipped, advance, e.f0_hz));
+        let side = &mut self.note_side;
+        self.tracker.finish(&mut |f, nf| {
+            advanced_push(raw_f0, skipped, advance, f);
+            if let (Some(s), Some(nf)) = (side.as_mut(), nf) {
+                advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
+            }
+        });
         // The advanced track ends as long as it would have: the dropped hops come back
         // unvoiced and silent at the end.
         raw_f0.extend(std::iter::repeat_n(0.0, *skipped));
+        if let Some(s) = side {
+            s.raw.extend(std::iter::repeat_n(0.0, s.skipped));
+        }
         let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
         self.rms
             .finish(&mut |_, r| advanced_push(raw_rms, skipped, advance, r));
@@ -678,9 +779,13 @@ impl PitchTrack {
         // long the stream): `raw_*[j]` is hop `next + j`.
         let ready = self.raw_f0.len().min(self.raw_rms.len());
         for j in 0..ready {
-            let (f0, level) =
+            let (f0, level, open) =
                 self.chain
                     .push(self.next, self.raw_rms[j], self.raw_f0[j], &mut self.bins);
+            if let Some(s) = &mut self.note_side {
+                let nf = s.raw.get(j).copied().unwrap_or(0.0);
+                s.f0.push(s.tukey.process(if open { nf } else { 0.0 }));
+            }
             self.f0.push(f0);
             self.level_db.push(self.raw_rms[j]);
             self.hop_levels.push(level);
@@ -688,6 +793,9 @@ impl PitchTrack {
         }
         self.raw_f0.drain(..ready);
         self.raw_rms.drain(..ready);
+        if let Some(s) = &mut self.note_side {
+            s.raw.drain(..ready.min(s.raw.len()));
+        }
     }
 
     fn post_offline(&mut self) {
@@ -698,6 +806,19 @@ impl PitchTrack {
             .map(|i| if open[i] { self.raw_f0[i] } else { 0.0 })
             .collect();
         reject_outliers_offline_min_iqr(&mut f0, TUKEY_K, self.min_iqr_st);
+        if let Some(s) = &mut self.note_side {
+            let mut nf: Vec<f32> = (0..n)
+                .map(|i| {
+                    if open[i] {
+                        s.raw.get(i).copied().unwrap_or(0.0)
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            reject_outliers_offline_min_iqr(&mut nf, TUKEY_K, self.min_iqr_st);
+            s.f0 = nf;
+        }
         let r = match self.geo.level_rule {
             LevelRule::Paper => range_offline(&f0),
             LevelRule::Follow => range_quantiles_kept(
@@ -728,6 +849,17 @@ impl PitchTrack {
             + self.hop_levels.len()
             + self.raw_f0.len()
             + self.raw_rms.len()
+            + self
+                .note_side
+                .as_ref()
+                .map_or(0, |s| s.raw.len() + s.f0.len())
+    }
+
+    /// The pitch that note onsets read, per hop (after gate and fences): [`PitchTrack::f0`],
+    /// or for a voicing/pitch pair its voicing tracker's own pitch (README, "The learned
+    /// lead's pitch inside the harmonic sum's voicing").
+    pub fn note_f0(&self) -> &[f32] {
+        self.note_side.as_ref().map_or(&self.f0, |s| &s.f0)
     }
 
     /// Streaming: forgets the first `d` bins and the per-hop values already binned
@@ -735,6 +867,9 @@ impl PitchTrack {
     pub fn discard(&mut self, d: usize) {
         self.bins.drain(..d.min(self.bins.len()));
         self.f0.clear();
+        if let Some(s) = &mut self.note_side {
+            s.f0.clear();
+        }
         self.level_db.clear();
         self.hop_levels.clear();
     }
@@ -754,6 +889,12 @@ impl PitchTrack {
         self.bins.clear();
         self.skipped_f0 = 0;
         self.skipped_rms = 0;
+        if let Some(s) = &mut self.note_side {
+            s.raw.clear();
+            s.skipped = 0;
+            s.tukey.reset();
+            s.f0.clear();
+        }
     }
 }
 

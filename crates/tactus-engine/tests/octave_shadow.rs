@@ -6,8 +6,7 @@
 //! move the range without that rule, and a clean bass stem keeps the held-note rule.
 
 use tactus_dsp::discretize::{
-    range_quantiles, range_quantiles_held, range_quantiles_kept, Discretizer, HeldRange,
-    RangePrior,
+    range_quantiles, range_quantiles_held, range_quantiles_kept, Discretizer, HeldRange, RangePrior,
 };
 use tactus_engine::profile::Profile;
 use tactus_engine::track::{
@@ -78,7 +77,10 @@ fn a_mixtures_bass_range_leaves_out_its_octave_shadows_offline() {
     let voiced = t.f0.iter().filter(|&&f| f > 0.0).count();
     let low = t.f0.iter().filter(|&&f| f > 0.0 && f < 48.0).count();
     assert!(voiced > 400, "the line is tracked: {voiced} voiced hops");
-    assert!(low * 100 > voiced, "the E1 notes are tracked: {low} of {voiced}");
+    assert!(
+        low * 100 > voiced,
+        "the E1 notes are tracked: {low} of {voiced}"
+    );
     let kept = range_quantiles_kept(
         &t.f0,
         FOLLOW_RANGE_QUANTILE,
@@ -91,7 +93,10 @@ fn a_mixtures_bass_range_leaves_out_its_octave_shadows_offline() {
     assert_eq!(t.hop_levels, levels(&t.f0, kept));
     // The rule matters here: the plain range reaches the E1 notes and moves the levels.
     let plain = range_quantiles(&t.f0, FOLLOW_RANGE_QUANTILE);
-    assert!(plain.unwrap().0 < 48.0 && kept.unwrap().0 > 75.0, "{plain:?} {kept:?}");
+    assert!(
+        plain.unwrap().0 < 48.0 && kept.unwrap().0 > 75.0,
+        "{plain:?} {kept:?}"
+    );
     assert_ne!(t.hop_levels, levels(&t.f0, plain));
     // A clean bass stem keeps the held-note rule and no shadow rule.
     let c = track(Mode::Offline, false, false, &x, 4096);
@@ -138,11 +143,22 @@ fn a_mixtures_streaming_bass_range_leaves_out_its_octave_shadows_hop_by_hop() {
                 .map(|&f| r.update(f).map_or(0, |range| d.level(f, range)))
                 .collect::<Vec<u8>>()
         };
-        assert_eq!(t.hop_levels, oracle(MIX_BASS_SHADOW_HOPS), "register {register}");
-        assert_ne!(t.hop_levels, oracle(0), "register {register}: the rule matters");
+        assert_eq!(
+            t.hop_levels,
+            oracle(MIX_BASS_SHADOW_HOPS),
+            "register {register}"
+        );
+        assert_ne!(
+            t.hop_levels,
+            oracle(0),
+            "register {register}: the rule matters"
+        );
         for chunk in [1, 441, 10_000] {
             let c = track(Mode::Streaming, true, register, &x, chunk);
-            assert_eq!(c.hop_levels, t.hop_levels, "register {register} chunk {chunk}");
+            assert_eq!(
+                c.hop_levels, t.hop_levels,
+                "register {register} chunk {chunk}"
+            );
             assert_eq!(c.bins, t.bins, "register {register} chunk {chunk}");
         }
     }

@@ -1,0 +1,145 @@
+//! Two pitch trackers over one stream: one decides *whether* a hop is voiced, the other
+//! *which* pitch it has ([`VoicingPitchPair`]).
+//!
+//! Why: on a mixture's lead band a learned salience picks the lead's pitch better than the
+//! harmonic sum (it knows a low voice whose fundamental the band lacks, and a chord tone
+//! from the tune), but on a drum kit it has never heard it falls silent where the lead
+//! plays (README, issue 16, "The learned lead's pitch inside the harmonic sum's voicing").
+//! The pair keeps the voicing tracker's decisions and replaces its pitch by the pitch
+//! tracker's wherever both are voiced.
+//!
+//! # Algorithm
+//! Both trackers get the same input, one hop at a time, and emit hop `i` in order. For each
+//! hop: unvoiced when the voicing tracker says so (its estimate unchanged); otherwise the
+//! voicing tracker's estimate with `f0_hz` taken from the pitch tracker when that one is
+//! voiced there, else its own. Both trackers must have the same hop.
+//!
+//! # Latency
+//! The larger of the two trackers' latencies: a hop leaves once both have decided it.
+//! No allocation after construction: the input goes to the trackers a hop at a time, so
+//! the queue between them holds at most the latency difference plus one block of hops.
+
+use std::collections::VecDeque;
+
+use crate::yin::PitchEstimate;
+use crate::{ConfigError, HopStage};
+
+/// See the module docs.
+pub struct VoicingPitchPair {
+    voicing: Box<dyn HopStage<Out = PitchEstimate>>,
+    pitch: Box<dyn HopStage<Out = PitchEstimate>>,
+    a: VecDeque<(usize, PitchEstimate)>,
+    b: VecDeque<(usize, PitchEstimate)>,
+}
+
+impl std::fmt::Debug for VoicingPitchPair {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("VoicingPitchPair")
+            .field("queued", &(self.a.len(), self.b.len()))
+            .finish_non_exhaustive()
+    }
+}
+
+impl VoicingPitchPair {
+    /// The pair of `voicing` (decides whether) and `pitch` (decides which). Errors when
+    /// their hops differ.
+    pub fn new(
+        voicing: Box<dyn HopStage<Out = PitchEstimate>>,
+        pitch: Box<dyn HopStage<Out = PitchEstimate>>,
+    ) -> Result<Self, ConfigError> {
+        if voicing.hop() != pitch.hop() || voicing.hop() == 0 {
+            return Err(ConfigError::invalid(
+                "pitch",
+                "the two trackers of a pair need the same, non-zero hop",
+            ));
+        }
+        let lead = voicing.latency_samples().abs_diff(pitch.latency_samples());
+        let cap = lead / voicing.hop() + 8;
+        Ok(VoicingPitchPair {
+            voicing,
+            pitch,
+            a: VecDeque::with_capacity(cap),
+            b: VecDeque::with_capacity(cap),
+        })
+    }
+
+    /// The merged estimate of one hop (module docs).
+    pub fn merge(voicing: PitchEstimate, pitch: PitchEstimate) -> PitchEstimate {
+        if voicing.is_voiced() && pitch.is_voiced() {
+            PitchEstimate {
+                f0_hz: pitch.f0_hz,
+                ..voicing
+            }
+        } else {
+            voicing
+        }
+    }
+
+    fn drain(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate)) {
+        while let (Some(&(i, va)), Some(&(_, vb))) = (self.a.front(), self.b.front()) {
+            self.a.pop_front();
+            self.b.pop_front();
+            emit(i, Self::merge(va, vb), va);
+        }
+    }
+
+    /// [`HopStage::process`], emitting per hop the merged estimate and the voicing
+    /// tracker's own (for a consumer that wants both, e.g. note onsets from the voicing
+    /// tracker's pitch).
+    pub fn process_both(
+        &mut self,
+        input: &[f32],
+        emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate),
+    ) {
+        let hop = self.voicing.hop();
+        for block in input.chunks(hop) {
+            let (a, b) = (&mut self.a, &mut self.b);
+            self.voicing.process(block, &mut |i, e| a.push_back((i, e)));
+            self.pitch.process(block, &mut |i, e| b.push_back((i, e)));
+            self.drain(emit);
+        }
+    }
+
+    /// [`HopStage::finish`] with both estimates ([`VoicingPitchPair::process_both`]).
+    pub fn finish_both(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate)) {
+        let (a, b) = (&mut self.a, &mut self.b);
+        self.voicing.finish(&mut |i, e| a.push_back((i, e)));
+        self.pitch.finish(&mut |i, e| b.push_back((i, e)));
+        self.drain(emit);
+        // Both emit every hop of the stream, so nothing is left; if one tracker did emit
+        // fewer, the voicing tracker's own estimates end the stream.
+        while let Some((i, e)) = self.a.pop_front() {
+            emit(i, e, e);
+        }
+        self.b.clear();
+    }
+}
+
+impl HopStage for VoicingPitchPair {
+    type Out = PitchEstimate;
+
+    fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, PitchEstimate)) {
+        self.process_both(input, &mut |i, e, _| emit(i, e));
+    }
+
+    fn finish(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
+        self.finish_both(&mut |i, e, _| emit(i, e));
+    }
+
+    fn reset(&mut self) {
+        self.voicing.reset();
+        self.pitch.reset();
+        self.a.clear();
+        self.b.clear();
+    }
+
+    fn latency_samples(&self) -> usize {
+        self.voicing
+            .latency_samples()
+            .max(self.pitch.latency_samples())
+    }
+
+    fn hop(&self) -> usize {
+        self.voicing.hop()
+    }
+}

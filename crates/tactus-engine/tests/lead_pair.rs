@@ -1,0 +1,116 @@
+//! The mix's lead under the learned method (README, "The learned lead's pitch inside the
+//! harmonic sum's voicing"): a voicing/pitch pair whose voicing is the harmonic-sum melody
+//! tracker's, hop for hop, whose pitch is the learned lead salience's where both are voiced,
+//! and whose note onsets read the harmonic sum's own pitch, so that they equal the plain
+//! tracker's, offline and streaming, for any chunking.
+
+use tactus_engine::notes::{NoteRole, PitchNotes};
+use tactus_engine::profile::Profile;
+use tactus_engine::track::PitchTrack;
+use tactus_engine::{Mode, NoteRule, PitchMethod};
+
+mod common;
+use common::SR;
+
+/// A lead over a chord pad: a sung-like line (harmonics with a formant-ish tilt, vibrato,
+/// rests) of 0.25–0.5 s notes over sustained chord tones a sixth and an octave below.
+fn lead_over_chords() -> Vec<f32> {
+    let sr = SR as f64;
+    let notes = [
+        (64.0, 0.4),
+        (67.0, 0.3),
+        (69.0, 0.5),
+        (0.0, 0.2),
+        (72.0, 0.3),
+        (71.0, 0.25),
+        (67.0, 0.5),
+        (0.0, 0.3),
+        (62.0, 0.4),
+        (64.0, 0.4),
+    ];
+    let mut x = Vec::new();
+    let mut ph = 0.0f64;
+    let mut t = 0.0f64;
+    for _ in 0..3 {
+        for &(st, dur) in &notes {
+            let n = (dur * sr) as usize;
+            let f = 440.0 * ((st - 69.0) / 12.0f64).exp2();
+            for i in 0..n {
+                let vib = 1.0 + 0.004 * (std::f64::consts::TAU * 5.5 * i as f64 / sr).sin();
+                let mut s = 0.0;
+                if st > 0.0 {
+                    ph += std::f64::consts::TAU * f * vib / sr;
+                    for h in 1..=8 {
+                        s += 0.08 / h as f64 * (h as f64 * ph).sin();
+                    }
+                }
+                // The pad: A3 and C4, always on.
+                for pf in [220.0, 261.6] {
+                    s += 0.03 * (std::f64::consts::TAU * pf * t).sin();
+                }
+                t += 1.0 / sr;
+                x.push(s as f32);
+            }
+        }
+    }
+    x
+}
+
+fn track(method: PitchMethod, mode: Mode, x: &[f32], chunk: usize) -> (PitchTrack, Vec<bool>) {
+    let (lo, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
+    let geo = common::geo(mode, Profile::Full);
+    let mut t = PitchTrack::new(geo, lo, hi, method, true).unwrap();
+    let mut notes = PitchNotes::new(geo, t.hop(), NoteRule::Attack, NoteRole::default()).unwrap();
+    for b in x.chunks(chunk) {
+        t.process(b);
+        notes.update(&t);
+    }
+    t.finish();
+    notes.update(&t);
+    notes.finish(&t);
+    (t, notes.beats.onsets.clone())
+}
+
+#[test]
+fn the_mix_leads_pair_keeps_the_harmonic_sums_voicing_and_onsets() {
+    let x = lead_over_chords();
+    for mode in [Mode::Offline, Mode::Streaming] {
+        let (shs, shs_onsets) = track(PitchMethod::Shs, mode, &x, 4096);
+        let (pair, pair_onsets) = track(PitchMethod::Learned, mode, &x, 4096);
+        assert_eq!(pair.note_f0(), &shs.f0[..], "{mode:?}: note pitch");
+        assert_eq!(pair_onsets, shs_onsets, "{mode:?}: note onsets");
+        assert!(
+            shs_onsets.iter().filter(|&&o| o).count() >= 10,
+            "{mode:?}: notes found"
+        );
+        assert_eq!(pair.f0.len(), shs.f0.len());
+        // The trackers' raw voicing is the harmonic sum's, hop for hop (offline keeps it).
+        if mode == Mode::Offline {
+            assert_eq!(pair.raw_f0.len(), shs.raw_f0.len());
+            for (i, (&p, &s)) in pair.raw_f0.iter().zip(&shs.raw_f0).enumerate() {
+                assert_eq!(p > 0.0, s > 0.0, "hop {i}: raw voicing");
+            }
+        }
+        let mut differ = 0;
+        for (&p, &s) in pair.f0.iter().zip(&shs.f0) {
+            if p > 0.0 && s > 0.0 && (p / s - 1.0).abs() > 0.01 {
+                differ += 1;
+            }
+            if (p > 0.0) != (s > 0.0) {
+                differ += 1000;
+            }
+        }
+        // The learned pitch is used (voiced hops whose pitch differs from the harmonic sum's
+        // by more than 1 %), and no voicing differs after the gate and fences either.
+        assert!(differ > 0 && differ < 1000, "{mode:?}: {differ}");
+        if mode == Mode::Streaming {
+            for chunk in [1, 441, 10_000] {
+                let (c, o) = track(PitchMethod::Learned, mode, &x, chunk);
+                assert_eq!(c.f0, pair.f0, "chunk {chunk}");
+                assert_eq!(c.note_f0(), pair.note_f0(), "chunk {chunk}");
+                assert_eq!(o, pair_onsets, "chunk {chunk}");
+                assert_eq!(c.bins, pair.bins, "chunk {chunk}");
+            }
+        }
+    }
+}
