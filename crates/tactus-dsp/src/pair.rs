@@ -30,6 +30,7 @@ pub struct VoicingPitchPair {
     pitch: Box<dyn HopStage<Out = PitchEstimate>>,
     a: VecDeque<(usize, PitchEstimate)>,
     b: VecDeque<(usize, PitchEstimate)>,
+    unv_run: usize,
 }
 
 impl std::fmt::Debug for VoicingPitchPair {
@@ -60,6 +61,7 @@ impl VoicingPitchPair {
             pitch,
             a: VecDeque::with_capacity(cap),
             b: VecDeque::with_capacity(cap),
+            unv_run: 0,
         })
     }
 
@@ -76,10 +78,21 @@ impl VoicingPitchPair {
     }
 
     fn drain(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate)) {
+        let and = std::env::var("TR_AND").is_ok();
+        let run: usize = std::env::var("TR_RUN").map_or(0, |v| v.parse().unwrap());
         while let (Some(&(i, va)), Some(&(_, vb))) = (self.a.front(), self.b.front()) {
             self.a.pop_front();
             self.b.pop_front();
-            emit(i, Self::merge(va, vb), va);
+            if vb.is_voiced() {
+                self.unv_run = 0;
+            } else {
+                self.unv_run += 1;
+            }
+            if (and && !vb.is_voiced()) || (run > 0 && self.unv_run >= run) {
+                emit(i, vb, vb);
+            } else {
+                emit(i, Self::merge(va, vb), va);
+            }
         }
     }
 

@@ -995,7 +995,7 @@ impl Tracker {
                 *s = lp.exp();
                 *o = lp.max(floor);
             }
-            let mut lu = logp[m].max(floor);
+            let mut lu = logp[m].max(floor) - std::env::var("TR_NB").map_or(0.0, |v| v.parse::<f32>().unwrap());
             if n.blend > 0.0 {
                 let slot = (n.hops - 1) % n.ring;
                 let sh = &n.shs[slot * m..(slot + 1) * m];
