@@ -14,6 +14,12 @@
 //! voicing tracker's estimate with `f0_hz` taken from the pitch tracker when that one is
 //! voiced there, else its own. Both trackers must have the same hop.
 //!
+//! **Veto** ([`VoicingPitchPair::with_veto`]). Where the pitch tracker is unvoiced the hop is
+//! unvoiced too, in the merged estimate and in the voicing tracker's own as emitted by
+//! [`VoicingPitchPair::process_both`]: on a mixture's lead the harmonic sum keeps a pitch
+//! through the lead's rests while the chords sound, and the learned lead salience knows a
+//! rest (README, "The learned lead's voicing veto").
+//!
 //! # Latency
 //! The larger of the two trackers' latencies: a hop leaves once both have decided it.
 //! No allocation after construction: the input goes to the trackers a hop at a time, so
@@ -30,7 +36,8 @@ pub struct VoicingPitchPair {
     pitch: Box<dyn HopStage<Out = PitchEstimate>>,
     a: VecDeque<(usize, PitchEstimate)>,
     b: VecDeque<(usize, PitchEstimate)>,
-    unv_run: usize,
+    /// [`VoicingPitchPair::with_veto`].
+    veto: bool,
 }
 
 impl std::fmt::Debug for VoicingPitchPair {
@@ -61,8 +68,15 @@ impl VoicingPitchPair {
             pitch,
             a: VecDeque::with_capacity(cap),
             b: VecDeque::with_capacity(cap),
-            unv_run: 0,
+            veto: false,
         })
+    }
+
+    /// The pitch tracker may also veto voicing: a hop is voiced only where both trackers
+    /// are (module docs, "Veto"); both estimates of a vetoed hop are unvoiced.
+    pub fn with_veto(mut self) -> Self {
+        self.veto = true;
+        self
     }
 
     /// The merged estimate of one hop (module docs).
@@ -78,18 +92,12 @@ impl VoicingPitchPair {
     }
 
     fn drain(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate)) {
-        let and = std::env::var("TR_AND").is_ok();
-        let run: usize = std::env::var("TR_RUN").map_or(0, |v| v.parse().unwrap());
         while let (Some(&(i, va)), Some(&(_, vb))) = (self.a.front(), self.b.front()) {
             self.a.pop_front();
             self.b.pop_front();
-            if vb.is_voiced() {
-                self.unv_run = 0;
-            } else {
-                self.unv_run += 1;
-            }
-            if (and && !vb.is_voiced()) || (run > 0 && self.unv_run >= run) {
-                emit(i, vb, vb);
+            if self.veto && !vb.is_voiced() {
+                let off = PitchEstimate { f0_hz: 0.0, ..va };
+                emit(i, off, off);
             } else {
                 emit(i, Self::merge(va, vb), va);
             }

@@ -256,6 +256,11 @@ pub struct ShsConfig {
     /// log-probabilities added to the network's (a product of experts,
     /// `p_net · p_shs^β`; see the module docs, "Learned salience"). 0 = the network alone.
     pub learned_blend: f32,
+    /// With [`ShsConfig::learned`]: nats taken from the network's "no pitch"
+    /// log-probability before decoding, so that the tracker voices more readily than the
+    /// network alone (the lead's voicing veto, [`crate::pair::VoicingPitchPair::with_veto`]).
+    /// 0 = the network's own odds.
+    pub learned_voicing_nats: f32,
 }
 
 /// The power of two nearest `target` samples (rounding down when the next one up is more
@@ -302,6 +307,7 @@ impl ShsConfig {
             register_min_hops: 200,
             learned: false,
             learned_blend: 0.0,
+            learned_voicing_nats: 0.0,
         }
     }
 
@@ -427,6 +433,14 @@ impl ShsConfig {
         }
         if !(self.register_s.is_finite() && self.register_s > 0.0) {
             return Err(ConfigError::invalid("register_s", "must be finite and > 0"));
+        }
+        if !(self.learned_voicing_nats.is_finite()
+            && (0.0..=20.0).contains(&self.learned_voicing_nats))
+        {
+            return Err(ConfigError::invalid(
+                "learned_voicing_nats",
+                "must be in [0, 20]",
+            ));
         }
         if !(self.learned_blend.is_finite() && (0.0..=4.0).contains(&self.learned_blend)) {
             return Err(ConfigError::invalid("learned_blend", "must be in [0, 4]"));
@@ -634,6 +648,8 @@ struct NetState {
     logp: Vec<f32>,
     /// [`ShsConfig::learned_blend`].
     blend: f32,
+    /// [`ShsConfig::learned_voicing_nats`].
+    voicing_nats: f32,
     /// Harmonic-sum salience per frame (ring × m, when `blend` > 0) and its voicing evidence.
     shs: Vec<f32>,
     shs_v: Vec<f32>,
@@ -692,6 +708,7 @@ impl NetState {
             b: vec![0.0; w],
             logp: vec![0.0; m + 1],
             blend: cfg.learned_blend,
+            voicing_nats: cfg.learned_voicing_nats,
             shs: vec![0.0; if cfg.learned_blend > 0.0 { ring * m } else { 0 }],
             shs_v: vec![0.02; ring],
         })
@@ -995,7 +1012,7 @@ impl Tracker {
                 *s = lp.exp();
                 *o = lp.max(floor);
             }
-            let mut lu = logp[m].max(floor) - std::env::var("TR_NB").map_or(0.0, |v| v.parse::<f32>().unwrap());
+            let mut lu = logp[m].max(floor) - n.voicing_nats;
             if n.blend > 0.0 {
                 let slot = (n.hops - 1) % n.ring;
                 let sh = &n.shs[slot * m..(slot + 1) * m];

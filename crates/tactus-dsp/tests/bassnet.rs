@@ -395,3 +395,44 @@ fn no_allocation_after_construction() {
     assert_eq!(n, 0, "allocations in process/finish/reset");
     assert!(sink > 0);
 }
+
+#[test]
+fn voicing_nats_make_the_learned_tracker_voice_more_and_are_checked() {
+    // A bass line with rests and a quiet tail: lowering "no bass" by some nats can only add
+    // voiced hops (a bonus on every voiced state's path).
+    let sr = SR as f32;
+    let mut x = Vec::new();
+    for (k, f) in [55.0f32, 0.0, 73.4, 61.7, 0.0, 49.0]
+        .into_iter()
+        .enumerate()
+    {
+        for i in 0..(0.4 * sr) as usize {
+            let a = if f > 0.0 {
+                0.3 * (-(i as f32) / (0.15 * sr)).exp()
+            } else {
+                0.0
+            };
+            let ph = std::f32::consts::TAU * f * i as f32 / sr;
+            x.push(a * (ph.sin() + 0.5 * (2.0 * ph).sin()) + 1e-4 * (k as f32));
+        }
+    }
+    let voiced = |nats: f32| {
+        let mut c = cfg();
+        c.learned_voicing_nats = nats;
+        let mut t = Shs::new(c).unwrap();
+        let mut n = 0usize;
+        t.process(&x, &mut |_, e| n += usize::from(e.is_voiced()));
+        t.finish(&mut |_, e| n += usize::from(e.is_voiced()));
+        n
+    };
+    let (v0, v3, v10) = (voiced(0.0), voiced(3.0), voiced(10.0));
+    assert!(
+        v0 <= v3 && v3 <= v10 && v0 < v10,
+        "voiced hops {v0} / {v3} / {v10}"
+    );
+    for bad in [-1.0, f32::NAN, 21.0] {
+        let mut c = cfg();
+        c.learned_voicing_nats = bad;
+        assert!(Shs::new(c).is_err(), "{bad}");
+    }
+}

@@ -165,3 +165,67 @@ fn the_pairs_latency_is_the_larger_and_it_streams_without_allocating() {
     c.hop += 1;
     assert!(VoicingPitchPair::new(Box::new(shs()), Box::new(Yin::new(c).unwrap())).is_err());
 }
+
+/// The veto written out: where the pitch tracker is unvoiced, both estimates are unvoiced
+/// (the voicing tracker's with `f0_hz = 0`); elsewhere the plain rule.
+fn vetoed_by_hand(
+    v: &[(usize, PitchEstimate)],
+    p: &[(usize, PitchEstimate)],
+) -> Vec<(usize, PitchEstimate, PitchEstimate)> {
+    v.iter()
+        .zip(p)
+        .map(|(&(i, a), &(_, b))| {
+            if b.f0_hz > 0.0 {
+                let mut e = a;
+                if a.f0_hz > 0.0 {
+                    e.f0_hz = b.f0_hz;
+                }
+                (i, e, a)
+            } else {
+                let mut e = a;
+                e.f0_hz = 0.0;
+                (i, e, e)
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn with_a_veto_the_pitch_trackers_rests_unvoice_both_estimates() {
+    let x = melody();
+    let v = run(&mut shs(), &x, x.len());
+    let p = run(&mut yin(), &x, x.len());
+    let want = vetoed_by_hand(&v, &p);
+    let vetoed = want
+        .iter()
+        .zip(&v)
+        .filter(|(w, (_, a))| a.f0_hz > 0.0 && w.1.f0_hz == 0.0)
+        .count();
+    assert!(vetoed >= 3, "the veto is exercised: {vetoed} hops");
+    for chunk in [1usize, 80, x.len()] {
+        let mut pair = VoicingPitchPair::new(Box::new(shs()), Box::new(yin()))
+            .unwrap()
+            .with_veto();
+        let mut got = Vec::new();
+        for b in x.chunks(chunk) {
+            pair.process_both(b, &mut |i, e, n| got.push((i, e, n)));
+        }
+        pair.finish_both(&mut |i, e, n| got.push((i, e, n)));
+        assert_eq!(got.len(), want.len(), "chunk {chunk}");
+        for (g, w) in got.iter().zip(&want) {
+            assert_eq!(g.0, w.0);
+            assert_eq!(
+                g.1.f0_hz.to_bits(),
+                w.1.f0_hz.to_bits(),
+                "chunk {chunk} hop {}",
+                g.0
+            );
+            assert_eq!(
+                g.2.f0_hz.to_bits(),
+                w.2.f0_hz.to_bits(),
+                "chunk {chunk} hop {}",
+                g.0
+            );
+        }
+    }
+}

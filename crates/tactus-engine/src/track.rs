@@ -195,6 +195,12 @@ pub const MIXTURE_BASS_REGISTER_ST: f32 = 12.0;
 /// 0.848 / 0.793 / 0.729 alone) for another harmonic sum per hop.
 pub const LEARNED_LEAD_BLEND: f32 = 0.0;
 
+/// [`tactus_dsp::shs::ShsConfig::learned_voicing_nats`] of the learned lead salience's
+/// tracker, whose voicing vetoes the harmonic sum's ([`tactus_dsp::pair::VoicingPitchPair::with_veto`];
+/// README, "The learned lead's voicing veto"). Chosen on the tuning mixes and the validation
+/// songs over 0 / 2 / 3 / 4 / 6 (`benches/trials/RULE_lead_pair_voicing.md`).
+pub const LEARNED_LEAD_VOICING_NATS: f32 = 3.0;
+
 /// [`tactus_dsp::shs::ShsConfig::learned_blend`] of the learned bass salience: the weight
 /// of the harmonic sum's observation log-probabilities added to the network's. Chosen on the
 /// tuning halves' mixes (`benches/bass_eval.py --inputs mix`, offline, sung / chorales /
@@ -589,11 +595,12 @@ impl PitchTrack {
                     let mut lc = sc.clone();
                     lc.learned = true;
                     lc.learned_blend = LEARNED_LEAD_BLEND;
+                    lc.learned_voicing_nats = LEARNED_LEAD_VOICING_NATS;
                     lc.contour_gate_db = 0.0;
-                    Tracker::Pair(Box::new(VoicingPitchPair::new(
-                        Box::new(Shs::new(sc)?),
-                        Box::new(Shs::new(lc)?),
-                    )?))
+                    Tracker::Pair(Box::new(
+                        VoicingPitchPair::new(Box::new(Shs::new(sc)?), Box::new(Shs::new(lc)?))?
+                            .with_veto(),
+                    ))
                 } else {
                     Tracker::One(Box::new(Shs::new(sc)?))
                 }
