@@ -96,22 +96,15 @@ fn oracle_forward(or: &Oracle, x: &[f64]) -> Vec<f64> {
     h.iter().map(|v| v - lse).collect()
 }
 
-#[test]
-fn embedded_model_matches_a_separate_f64_reader() {
-    let net = BassNet::embedded();
-    let or = oracle();
-    assert_eq!(net.offsets(), &or.offsets[..]);
-    assert_eq!(
-        net.candidates(),
-        ShsConfig::new(SR, 35.0, 400.0).n_bins().unwrap()
-    );
-    assert_eq!(net.input_len(), or.offsets.len() * BANDS);
-    let mut rng = Rng::new(5);
-    let w = net.width();
+/// `trials` random inputs like the front end's (in [0, 1], many at 0: bands 60 dB down)
+/// through `net` and through the f64 reader `or`: the log-probabilities agree within 1e-3
+/// (f32 sums of ~1,100 products against f64) and the probabilities sum to 1.
+fn check_against_oracle(net: &BassNet, or: &Oracle, seed: u64, trials: usize) {
+    let mut rng = Rng::new(seed);
+    let w = net.width().max(net.input_len());
     let (mut a, mut b) = (vec![0.0f32; w], vec![0.0f32; w]);
     let mut out = vec![0.0f32; net.candidates() + 1];
-    for trial in 0..5 {
-        // Inputs like the front end's: in [0, 1], many at 0 (bands 60 dB down).
+    for trial in 0..trials {
         let x: Vec<f32> = (0..net.input_len())
             .map(|_| {
                 let u = uniform(&mut rng);
@@ -123,9 +116,8 @@ fn embedded_model_matches_a_separate_f64_reader() {
             })
             .collect();
         net.forward(&x, &mut a, &mut b, &mut out);
-        let want = oracle_forward(&or, &x.iter().map(|&v| v as f64).collect::<Vec<_>>());
+        let want = oracle_forward(or, &x.iter().map(|&v| v as f64).collect::<Vec<_>>());
         for (k, (&g, &e)) in out.iter().zip(&want).enumerate() {
-            // f32 sums of ~1,100 products against f64: 1e-3 in log-probability.
             assert!(
                 (g as f64 - e).abs() < 1e-3,
                 "trial {trial} class {k}: {g} vs {e}"
@@ -134,6 +126,19 @@ fn embedded_model_matches_a_separate_f64_reader() {
         let total: f64 = out.iter().map(|&v| (v as f64).exp()).sum();
         assert!((total - 1.0).abs() < 1e-4, "probabilities sum to {total}");
     }
+}
+
+#[test]
+fn embedded_model_matches_a_separate_f64_reader() {
+    let net = BassNet::embedded();
+    let or = oracle();
+    assert_eq!(net.offsets(), &or.offsets[..]);
+    assert_eq!(
+        net.candidates(),
+        ShsConfig::new(SR, 35.0, 400.0).n_bins().unwrap()
+    );
+    assert_eq!(net.input_len(), or.offsets.len() * BANDS);
+    check_against_oracle(net, &or, 5, 5);
 }
 
 #[test]
@@ -151,30 +156,7 @@ fn embedded_lead_model_matches_a_separate_f64_reader() {
         net.candidates(),
         ShsConfig::melody(14_700, 70.0, 1400.0).n_bins().unwrap()
     );
-    let mut rng = Rng::new(9);
-    let w = net.width().max(net.input_len());
-    let (mut a, mut b) = (vec![0.0f32; w], vec![0.0f32; w]);
-    let mut out = vec![0.0f32; net.candidates() + 1];
-    for trial in 0..3 {
-        let x: Vec<f32> = (0..net.input_len())
-            .map(|_| {
-                let u = uniform(&mut rng);
-                if u < 0.3 {
-                    0.0
-                } else {
-                    u as f32
-                }
-            })
-            .collect();
-        net.forward(&x, &mut a, &mut b, &mut out);
-        let want = oracle_forward(&or, &x.iter().map(|&v| v as f64).collect::<Vec<_>>());
-        for (k, (&g, &e)) in out.iter().zip(&want).enumerate() {
-            assert!(
-                (g as f64 - e).abs() < 1e-3,
-                "trial {trial} class {k}: {g} vs {e}"
-            );
-        }
-    }
+    check_against_oracle(net, &or, 9, 3);
 }
 
 #[test]

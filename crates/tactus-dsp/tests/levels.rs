@@ -343,11 +343,24 @@ fn held_by_hand(f: &[f32], k: usize, tol: f32) -> Vec<bool> {
         .collect()
 }
 
-/// A bass line of notes (10–40 hops) whose changes carry, now and then, a run of 4–12 hops
-/// at the common subharmonic (19 semitones below) as the harmonic-sum tracker reports it,
-/// with rests and the wandering line's junk values.
-fn line_with_transition_errors(n: usize, seed: u64) -> Vec<f32> {
-    let junk = wandering_line(n, seed ^ 0x5eed);
+/// Runs of tracker errors in a wandering bass line of notes (10–40 hops, 40–53 semitones),
+/// with rests and, every `junk_every` hops, the wandering line's junk values.
+struct ErrorRuns {
+    /// The run comes before its note (a note change) rather than after it.
+    before: bool,
+    prob: f64,
+    min_len: usize,
+    span: f64,
+    offset_st: f32,
+    jitter_st: f32,
+    jitter_centre: f32,
+    junk_salt: u64,
+    junk_every: usize,
+    junk_at: usize,
+}
+
+fn line_with_error_runs(n: usize, seed: u64, e: &ErrorRuns) -> Vec<f32> {
+    let junk = wandering_line(n, seed ^ e.junk_salt);
     let mut x = seed | 1;
     let mut next = move || {
         x ^= x << 13;
@@ -356,25 +369,54 @@ fn line_with_transition_errors(n: usize, seed: u64) -> Vec<f32> {
         (x >> 11) as f64 / (1u64 << 53) as f64
     };
     let mut f = Vec::with_capacity(n);
+    let run =
+        |f: &mut Vec<f32>, note: f32, next: &mut dyn FnMut() -> f64| {
+            if next() < e.prob {
+                let len = e.min_len + (next() * e.span) as usize;
+                f.extend((0..len).map(|_| {
+                    hz(note + e.offset_st + e.jitter_st * (next() as f32 - e.jitter_centre))
+                }));
+            }
+        };
     while f.len() < n {
         let note = 40.0 + (next() * 14.0).floor() as f32;
-        if next() < 0.4 {
-            let len = 4 + (next() * 9.0) as usize;
-            f.extend((0..len).map(|_| hz(note - 19.0 + 0.3 * next() as f32)));
+        if e.before {
+            run(&mut f, note, &mut next);
         }
         let len = 10 + (next() * 30.0) as usize;
         f.extend((0..len).map(|_| hz(note + 0.4 * (next() as f32 - 0.5))));
+        if !e.before {
+            run(&mut f, note, &mut next);
+        }
         if next() < 0.3 {
             f.extend(std::iter::repeat_n(0.0, (next() * 10.0) as usize));
         }
     }
     f.truncate(n);
     for (i, v) in f.iter_mut().enumerate() {
-        if i % 37 == 5 {
+        if i % e.junk_every == e.junk_at {
             *v = junk[i];
         }
     }
     f
+}
+
+/// A bass line whose changes carry, now and then, a run of 4–12 hops at the common
+/// subharmonic (19 semitones below) as the harmonic-sum tracker reports it.
+fn line_with_transition_errors(n: usize, seed: u64) -> Vec<f32> {
+    let e = ErrorRuns {
+        before: true,
+        prob: 0.4,
+        min_len: 4,
+        span: 9.0,
+        offset_st: -19.0,
+        jitter_st: 0.3,
+        jitter_centre: 0.0,
+        junk_salt: 0x5eed,
+        junk_every: 37,
+        junk_at: 5,
+    };
+    line_with_error_runs(n, seed, &e)
 }
 
 #[test]
@@ -670,38 +712,22 @@ fn shadow_by_hand(f: &[f32], w: usize) -> Vec<bool> {
         .collect()
 }
 
-/// A bass line of notes (10–40 hops, 40–53 semitones) that now and then carries a run of
-/// 5–30 hops of the same note an octave low, where a kick under the note gives the tracker a
-/// subharmonic, with rests and the wandering line's junk values.
+/// A bass line that now and then carries a run of 5–30 hops of the same note an octave low,
+/// where a kick under the note gives the tracker a subharmonic.
 fn line_with_octave_shadows(n: usize, seed: u64) -> Vec<f32> {
-    let junk = wandering_line(n, seed ^ 0xbeef);
-    let mut x = seed | 1;
-    let mut next = move || {
-        x ^= x << 13;
-        x ^= x >> 7;
-        x ^= x << 17;
-        (x >> 11) as f64 / (1u64 << 53) as f64
+    let e = ErrorRuns {
+        before: false,
+        prob: 0.15,
+        min_len: 5,
+        span: 26.0,
+        offset_st: -12.0,
+        jitter_st: 0.6,
+        jitter_centre: 0.5,
+        junk_salt: 0xbeef,
+        junk_every: 41,
+        junk_at: 7,
     };
-    let mut f = Vec::with_capacity(n);
-    while f.len() < n {
-        let note = 40.0 + (next() * 14.0).floor() as f32;
-        let len = 10 + (next() * 30.0) as usize;
-        f.extend((0..len).map(|_| hz(note + 0.4 * (next() as f32 - 0.5))));
-        if next() < 0.15 {
-            let len = 5 + (next() * 26.0) as usize;
-            f.extend((0..len).map(|_| hz(note - 12.0 + 0.6 * (next() as f32 - 0.5))));
-        }
-        if next() < 0.3 {
-            f.extend(std::iter::repeat_n(0.0, (next() * 10.0) as usize));
-        }
-    }
-    f.truncate(n);
-    for (i, v) in f.iter_mut().enumerate() {
-        if i % 41 == 7 {
-            *v = junk[i];
-        }
-    }
-    f
+    line_with_error_runs(n, seed, &e)
 }
 
 #[test]
