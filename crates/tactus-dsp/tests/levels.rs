@@ -507,23 +507,11 @@ fn check_held_range(prior: RangePrior) {
                 let m = held_by_hand(pre, k, tol);
                 let (held, voiced, use_held) = held_rule_by_hand(pre, &m, share, min_hops);
                 used_held |= use_held;
-                let want = if use_held {
-                    padded(range_quantiles(&held, p), voiced)
-                } else {
-                    padded(range_quantiles(pre, p), voiced)
-                };
-                match (got, want) {
-                    (None, None) => {}
-                    (Some((lo, hi)), Some((wlo, whi))) => {
-                        let (lo, hi) = (hz_to_semitones(lo) as f64, hz_to_semitones(hi) as f64);
-                        let cell = 1.0 / 8.0 + 1e-3;
-                        assert!(
-                            (lo - wlo).abs() < cell && (hi - whi).abs() < cell,
-                            "{prior:?} seed {seed} k {k} hop {j}: {lo}..{hi} vs {wlo}..{whi}"
-                        );
-                    }
-                    (g, w) => panic!("seed {seed} k {k} hop {j}: {g:?} vs {w:?}"),
-                }
+                let want = padded(
+                    range_quantiles(if use_held { &held } else { pre }, p),
+                    voiced,
+                );
+                assert_within_a_cell(got, want, &format!("{prior:?} seed {seed} k {k} hop {j}"));
             }
             if k > 0 {
                 assert!(
@@ -828,23 +816,13 @@ fn streaming_shadow_range_is_the_padded_quantile_range_of_the_kept_prefix_within
                         .collect();
                     let (kept, voiced, use_kept) = held_rule_by_hand(pre, &mask, share, min_hops);
                     used |= use_kept;
-                    let want = if use_kept {
-                        padded_by_hand(prior, fade, range_quantiles(&kept, p), voiced)
-                    } else {
-                        padded_by_hand(prior, fade, range_quantiles(pre, p), voiced)
-                    };
-                    match (got, want) {
-                        (None, None) => {}
-                        (Some((lo, hi)), Some((wlo, whi))) => {
-                            let (lo, hi) = (hz_to_semitones(lo) as f64, hz_to_semitones(hi) as f64);
-                            let cell = 1.0 / 8.0 + 1e-3;
-                            assert!(
-                                (lo - wlo).abs() < cell && (hi - whi).abs() < cell,
-                                "{prior:?} seed {seed} k {k} w {w} hop {j}: {lo}..{hi} vs {wlo}..{whi}"
-                            );
-                        }
-                        (g, wnt) => panic!("seed {seed} k {k} w {w} hop {j}: {g:?} vs {wnt:?}"),
-                    }
+                    let kept_or_all = if use_kept { &kept[..] } else { pre };
+                    let want = padded_by_hand(prior, fade, range_quantiles(kept_or_all, p), voiced);
+                    assert_within_a_cell(
+                        got,
+                        want,
+                        &format!("{prior:?} seed {seed} k {k} w {w} hop {j}"),
+                    );
                 }
                 assert!(
                     used,
@@ -883,4 +861,21 @@ fn shadow_range_streams_without_allocating_and_refuses_a_long_window() {
     let fresh = HeldRange::new(20.0, 1.0, 0.01, 0, 1.0, 0.25, 300).unwrap();
     assert!(fresh.clone().with_shadow(MAX_SHADOW_HOPS).is_ok());
     assert!(fresh.with_shadow(MAX_SHADOW_HOPS + 1).is_err());
+}
+
+/// A running range (Hz) within one 1/8-semitone cell of the oracle's (semitones), or both
+/// absent.
+fn assert_within_a_cell(got: Option<(f32, f32)>, want: Option<(f64, f64)>, what: &str) {
+    match (got, want) {
+        (None, None) => {}
+        (Some((lo, hi)), Some((wlo, whi))) => {
+            let (lo, hi) = (hz_to_semitones(lo) as f64, hz_to_semitones(hi) as f64);
+            let cell = 1.0 / 8.0 + 1e-3;
+            assert!(
+                (lo - wlo).abs() < cell && (hi - whi).abs() < cell,
+                "{what}: {lo}..{hi} vs {wlo}..{whi}"
+            );
+        }
+        (g, w) => panic!("{what}: {g:?} vs {w:?}"),
+    }
 }
