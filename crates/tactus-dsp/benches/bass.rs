@@ -5,11 +5,16 @@
 //!   register prior σ 12 semitones) and through the learned salience times the harmonic
 //!   sum^0.3 (the render's default for the spectral separator's bass): what the learned
 //!   salience adds to a 3.5-minute song's bass chain.
-//! * `bassnet_forward`: one network pass (one hop).
+//! * `bassnet_forward`, `leadnet_forward`: one pass of the bass / lead network (one hop).
+//! * `lead_210s/shs` and `lead_210s/pair`: a 210 s melody at the lead chain's 14.7 kHz
+//!   through the harmonic-sum melody tracker alone and through the voicing/pitch pair with
+//!   the lead network's tracker and its veto (the render's default for the spectral
+//!   separator's lead since 2026-11-25): what the learned lead adds to a song's lead chain.
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use tactus_dsp::bassnet::BassNet;
+use tactus_dsp::pair::VoicingPitchPair;
 use tactus_dsp::shs::{Shs, ShsConfig};
 use tactus_dsp::HopStage;
 
@@ -65,19 +70,91 @@ fn song(c: &mut Criterion) {
 }
 
 fn forward(c: &mut Criterion) {
-    let net = BassNet::embedded();
-    let (len, w, out) = (net.input_len(), net.width(), net.candidates() + 1);
-    let x: Vec<f32> = (0..len)
-        .map(|i| ((i * 7919) % 1000) as f32 / 1000.0)
-        .collect();
-    let (mut a, mut b, mut o) = (vec![0.0f32; w], vec![0.0f32; w], vec![0.0f32; out]);
-    c.bench_function("bassnet_forward", |bch| {
-        bch.iter(|| {
-            net.forward(black_box(&x), &mut a, &mut b, &mut o);
-            o[0]
-        })
-    });
+    for (name, net) in [
+        ("bassnet_forward", BassNet::embedded()),
+        ("leadnet_forward", BassNet::embedded_lead()),
+    ] {
+        let (len, w, out) = (
+            net.input_len(),
+            net.width().max(net.input_len()),
+            net.candidates() + 1,
+        );
+        let x: Vec<f32> = (0..len)
+            .map(|i| ((i * 7919) % 1000) as f32 / 1000.0)
+            .collect();
+        let (mut a, mut b, mut o) = (vec![0.0f32; w], vec![0.0f32; w], vec![0.0f32; out]);
+        c.bench_function(name, |bch| {
+            bch.iter(|| {
+                net.forward(black_box(&x), &mut a, &mut b, &mut o);
+                o[0]
+            })
+        });
+    }
 }
 
-criterion_group!(benches, song, forward);
+/// The lead chain's rate and range (44.1 kHz decimated by 3; `Stem::Vocals`).
+const LEAD_SR: u32 = 14_700;
+
+fn melody(seconds: f64) -> Vec<f32> {
+    // Notes changing every 0.4 s over an octave and a half from A3, eight harmonics, rests.
+    let n = (seconds * LEAD_SR as f64) as usize;
+    let mut phase = 0.0f64;
+    (0..n)
+        .map(|i| {
+            let k = i / (LEAD_SR as usize * 2 / 5);
+            if k % 7 == 6 {
+                return 0.0;
+            }
+            let f0 = 220.0 * 2f64.powf(((k * 5) % 18) as f64 / 12.0);
+            phase += std::f64::consts::TAU * f0 / LEAD_SR as f64;
+            let v: f64 = (1..=8).map(|h| (h as f64 * phase).sin() / h as f64).sum();
+            (0.3 * v) as f32
+        })
+        .collect()
+}
+
+fn lead_config() -> ShsConfig {
+    let mut c = ShsConfig::melody(LEAD_SR, 70.0, 1400.0);
+    c.fundamental_ratio = 0.1;
+    c.contour_gate_db = 6.0;
+    c
+}
+
+fn lead(c: &mut Criterion) {
+    let x = melody(210.0);
+    let mut g = c.benchmark_group("lead_210s");
+    g.sample_size(10);
+    for name in ["shs", "pair"] {
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                let mut t: Box<dyn HopStage<Out = tactus_dsp::yin::PitchEstimate>> =
+                    if name == "shs" {
+                        Box::new(Shs::new(lead_config()).unwrap())
+                    } else {
+                        let mut lc = lead_config();
+                        lc.learned = true;
+                        lc.contour_gate_db = 0.0;
+                        lc.learned_voicing_nats = 3.0;
+                        Box::new(
+                            VoicingPitchPair::new(
+                                Box::new(Shs::new(lead_config()).unwrap()),
+                                Box::new(Shs::new(lc).unwrap()),
+                            )
+                            .unwrap()
+                            .with_veto(),
+                        )
+                    };
+                let mut acc = 0.0f32;
+                for ch in x.chunks(4096) {
+                    t.process(black_box(ch), &mut |_, e| acc += e.f0_hz);
+                }
+                t.finish(&mut |_, e| acc += e.f0_hz);
+                acc
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, song, forward, lead);
 criterion_main!(benches);
