@@ -67,6 +67,16 @@
 //! hop `i` is judged once hop `i + max(k, w)` has arrived (no added latency; the range lags
 //! by that many hops, and the first `max(k, w)` hops of a stream never count).
 //!
+//! **Range from held or agreed hops** ([`agree_mask`], [`range_quantiles_kept_or`],
+//! [`HeldRange::update_trusted`], our addition, issue 16). A mixture's lead, tracked by one
+//! tracker for its pitch and a second one for its voicing, follows another instrument or an
+//! octave for short stretches; those set the range's ends. Held notes alone leave them out, but
+//! also a fast line's true extremes (eighths at 132 bpm hold for about 23 hops). A hop
+//! therefore also counts when the second tracker's pitch agrees with it within `tol_st`
+//! semitones: its pitch has two witnesses however short the note. Offline and streaming as
+//! the held range (same fallbacks, same lag); a hop that is neither held nor agreed is left
+//! out.
+//!
 //! **Register prior** ([`RangePrior::Register`], [`PriorRange::with_prior`], our addition,
 //! issue 16). A span prior pads the first notes symmetrically, but where a line starts says
 //! little about which way it will go: a bass line that opens on its lowest roots only climbs.
@@ -259,6 +269,26 @@ pub fn range_quantiles_held(
     range_quantiles_kept(f0_hz, p, k, tol_st, 0, min_share, min_hops)
 }
 
+/// Whether each hop is voiced in both tracks (`other_hz` shorter than `f0_hz`: the missing
+/// hops are unvoiced) with pitches within `tol_st` semitones of each other (module docs,
+/// "Range from held or agreed hops"). Allocates.
+pub fn agree_mask(f0_hz: &[f32], other_hz: &[f32], tol_st: f32) -> Vec<bool> {
+    f0_hz
+        .iter()
+        .enumerate()
+        .map(|(i, &f)| pitches_agree(f, other_hz.get(i).copied().unwrap_or(0.0), tol_st))
+        .collect()
+}
+
+/// One hop of [`agree_mask`]: both voiced and within `tol_st` semitones. No allocation.
+#[inline]
+pub fn pitches_agree(a_hz: f32, b_hz: f32, tol_st: f32) -> bool {
+    match (semitones(a_hz), semitones(b_hz)) {
+        (Some(a), Some(b)) => (a - b).abs() <= tol_st,
+        _ => false,
+    }
+}
+
 /// [`range_quantiles_held`] where a hop must also not be an octave shadow ([`shadow_mask`]
 /// with window `w`) to be kept; `w = 0` is [`range_quantiles_held`], and `k = 0` keeps every
 /// voiced hop that is not a shadow. Allocates.
@@ -271,7 +301,28 @@ pub fn range_quantiles_kept(
     min_share: f32,
     min_hops: u64,
 ) -> Option<(f32, f32)> {
+    range_quantiles_kept_or(f0_hz, &[], p, k, tol_st, w, min_share, min_hops)
+}
+
+/// [`range_quantiles_kept`] where a voiced hop marked in `trusted` (its pitch agreed by a
+/// second tracker, [`agree_mask`]; hops beyond its end are not) counts as held (module docs,
+/// "Range from held or agreed hops"); octave shadows stay out. `trusted = &[]` is
+/// [`range_quantiles_kept`]. Allocates.
+#[allow(clippy::too_many_arguments)]
+pub fn range_quantiles_kept_or(
+    f0_hz: &[f32],
+    trusted: &[bool],
+    p: f32,
+    k: usize,
+    tol_st: f32,
+    w: usize,
+    min_share: f32,
+    min_hops: u64,
+) -> Option<(f32, f32)> {
     let mut mask = held_mask(f0_hz, k, tol_st);
+    for (i, m) in mask.iter_mut().enumerate() {
+        *m |= trusted.get(i).copied().unwrap_or(false) && semitones(f0_hz[i]).is_some();
+    }
     if w > 0 {
         for (m, s) in mask.iter_mut().zip(shadow_mask(f0_hz, w)) {
             *m &= !s;
@@ -298,9 +349,10 @@ pub fn range_quantiles_kept(
 pub struct HeldRange {
     all: PriorRange,
     held: PriorRange,
-    /// Semitones (NaN = unvoiced) and Hz of the last `2·max(k, w) + 1` hops, hop `i` at
+    /// Semitones (NaN = unvoiced), Hz and the trusted flag
+    /// ([`HeldRange::update_trusted`]) of the last `2·max(k, w) + 1` hops, hop `i` at
     /// `i % len`.
-    ring: [(f32, f32); 2 * MAX_SHADOW_HOPS + 1],
+    ring: [(f32, f32, bool); 2 * MAX_SHADOW_HOPS + 1],
     k: usize,
     /// Octave-shadow window ([`HeldRange::with_shadow`]); 0 = off.
     w: usize,
@@ -362,7 +414,7 @@ impl HeldRange {
         Ok(HeldRange {
             all: PriorRange::with_prior(prior, fade_hops, p)?,
             held: PriorRange::with_prior(prior, fade_hops, p)?,
-            ring: [(f32::NAN, 0.0); 2 * MAX_SHADOW_HOPS + 1],
+            ring: [(f32::NAN, 0.0, false); 2 * MAX_SHADOW_HOPS + 1],
             k,
             w: 0,
             tol_st,
@@ -393,6 +445,14 @@ impl HeldRange {
     /// Feeds one hop's pitch; returns the range so far (module docs), `None` until a voiced
     /// value has arrived.
     pub fn update(&mut self, f0_hz: f32) -> Option<(f32, f32)> {
+        self.update_trusted(f0_hz, false)
+    }
+
+    /// As [`HeldRange::update`], where a voiced hop with `trusted` (its pitch agreed by a
+    /// second tracker) counts as held (module docs, "Range from held or agreed hops"; the
+    /// streaming side of [`range_quantiles_kept_or`]). With `k = 0` and `w = 0` every voiced
+    /// hop counts anyway.
+    pub fn update_trusted(&mut self, f0_hz: f32, trusted: bool) -> Option<(f32, f32)> {
         let all = self.all.update(f0_hz);
         if self.k == 0 && self.w == 0 {
             return all;
@@ -403,15 +463,16 @@ impl HeldRange {
         self.held.n += u64::from(st.is_some());
         let m = self.k.max(self.w);
         let len = 2 * m + 1;
-        self.ring[self.n_in % len] = (st.unwrap_or(f32::NAN), f0_hz);
+        self.ring[self.n_in % len] = (st.unwrap_or(f32::NAN), f0_hz, trusted);
         self.n_in += 1;
         if self.n_in >= len {
             // The centre of the last 2m + 1 hops.
             let ci = self.n_in - 1 - m;
-            let (c, f) = self.ring[ci % len];
+            let (c, f, trusted) = self.ring[ci % len];
             let at = |j: usize| self.ring[j % len].0;
             if !c.is_nan()
-                && (ci - self.k..=ci + self.k).all(|j| (at(j) - c).abs() <= self.tol_st)
+                && (trusted
+                    || (ci - self.k..=ci + self.k).all(|j| (at(j) - c).abs() <= self.tol_st))
                 && !(ci - self.w..=ci + self.w).any(|j| (at(j) - (c + 12.0)).abs() <= SHADOW_TOL_ST)
             {
                 self.held.range.update(f);
@@ -431,7 +492,7 @@ impl HeldRange {
     pub fn reset(&mut self) {
         self.all.reset();
         self.held.reset();
-        self.ring = [(f32::NAN, 0.0); 2 * MAX_SHADOW_HOPS + 1];
+        self.ring = [(f32::NAN, 0.0, false); 2 * MAX_SHADOW_HOPS + 1];
         self.n_in = 0;
         self.n_voiced = 0;
         self.n_held = 0;

@@ -3,8 +3,9 @@
 //! pitch track (against an obvious offline oracle, streaming = offline, stated latency).
 
 use tactus_dsp::discretize::{
-    held_mask, range_offline, range_quantiles, range_quantiles_held, range_quantiles_kept,
-    shadow_mask, HeldRange, PriorRange, QuantileRange, RangePrior, MAX_SHADOW_HOPS, SHADOW_TOL_ST,
+    agree_mask, held_mask, pitches_agree, range_offline, range_quantiles, range_quantiles_held,
+    range_quantiles_kept, range_quantiles_kept_or, shadow_mask, HeldRange, PriorRange,
+    QuantileRange, RangePrior, MAX_SHADOW_HOPS, SHADOW_TOL_ST,
 };
 use tactus_dsp::notes::{note_onsets_offline, NoteConfig, NoteOnsets};
 use tactus_dsp::tukey::{reject_outliers_offline, reject_outliers_offline_min_iqr, SlidingTukey};
@@ -878,4 +879,206 @@ fn assert_within_a_cell(got: Option<(f32, f32)>, want: Option<(f64, f64)>, what:
         }
         (g, w) => panic!("{what}: {g:?} vs {w:?}"),
     }
+}
+
+/// A second tracker beside `f`: the same pitch plus a little noise on most hops, another
+/// pitch (2–9 semitones away) on runs of hops, unvoiced on some.
+fn second_tracker(f: &[f32], seed: u64) -> Vec<f32> {
+    let mut x = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+    let mut next = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut off = 0.0f32;
+    let mut left = 0usize;
+    f.iter()
+        .map(|&v| {
+            if left == 0 {
+                let r = next();
+                off = if r < 0.6 {
+                    0.8 * (next() as f32 - 0.5)
+                } else if r < 0.85 {
+                    (2.0 + 7.0 * next() as f32) * if next() < 0.5 { -1.0 } else { 1.0 }
+                } else {
+                    f32::NAN
+                };
+                left = 1 + (next() * 20.0) as usize;
+            }
+            left -= 1;
+            if off.is_nan() || !(v.is_finite() && v > 0.0) {
+                0.0
+            } else {
+                hz(hz_to_semitones(v) + off)
+            }
+        })
+        .collect()
+}
+
+/// Agreement written out: both voiced (finite, > 0), pitches within `tol` semitones (f64).
+fn agree_by_hand(f: &[f32], g: &[f32], tol: f32) -> Vec<bool> {
+    let st = |x: f32| (x.is_finite() && x > 0.0).then(|| hz_to_semitones(x) as f64);
+    (0..f.len())
+        .map(|i| match (st(f[i]), g.get(i).and_then(|&y| st(y))) {
+            (Some(a), Some(b)) => (a - b).abs() <= tol as f64,
+            _ => false,
+        })
+        .collect()
+}
+
+#[test]
+fn agree_mask_is_the_definition_written_out() {
+    for seed in 1..6u64 {
+        let f = line_with_octave_shadows(1500, seed);
+        let g = second_tracker(&f, seed);
+        for tol in [0.25f32, 1.0, 3.0] {
+            let want = agree_by_hand(&f, &g, tol);
+            assert_eq!(agree_mask(&f, &g, tol), want, "seed {seed} tol {tol}");
+            let n = want.iter().filter(|&&a| a).count();
+            assert!(
+                n > 100 && n < f.len() - 100,
+                "seed {seed} tol {tol}: {n} agree"
+            );
+        }
+        // A shorter second track: the hops beyond it do not agree.
+        let short = agree_mask(&f, &g[..700], 1.0);
+        assert!(short[700..].iter().all(|&a| !a));
+        assert_eq!(short[..700], agree_by_hand(&f[..700], &g[..700], 1.0)[..]);
+    }
+    assert!(!pitches_agree(0.0, 0.0, 1.0));
+    assert!(!pitches_agree(f32::NAN, 220.0, 1.0));
+    assert!(pitches_agree(220.0, 220.0, 0.0));
+}
+
+#[test]
+fn range_from_held_or_agreed_hops_keeps_a_fast_lines_extremes_and_drops_foreign_runs() {
+    // A lead in 60–72 whose lowest (58) and highest (75) notes are eighths of 12 hops, too
+    // short to hold 8 hops on each side; the pair's other tracker agrees with them. Every
+    // fifth bar the pitch tracker follows another instrument for 14 hops at 84, where the
+    // other tracker says 72: neither held (too short) nor agreed.
+    let (mut f, mut g) = (Vec::new(), Vec::new());
+    for bar in 0..40 {
+        for (note, len) in [(60.0, 40), (58.0, 12), (64.0, 40), (75.0, 12), (72.0, 40)] {
+            f.extend(std::iter::repeat_n(hz(note), len));
+            g.extend(std::iter::repeat_n(hz(note + 0.1), len));
+        }
+        if bar % 5 == 0 {
+            f.extend(std::iter::repeat_n(hz(84.0), 14));
+            g.extend(std::iter::repeat_n(hz(72.0), 14));
+        }
+    }
+    let st = |r: Option<(f32, f32)>| {
+        let (lo, hi) = r.unwrap();
+        (hz_to_semitones(lo), hz_to_semitones(hi))
+    };
+    let close = |a: (f32, f32), b: (f32, f32)| (a.0 - b.0).abs() < 0.01 && (a.1 - b.1).abs() < 0.01;
+    // Every voiced hop: the foreign runs (112 of 5,912 hops, 1.9 %) set the top.
+    assert!(close(st(range_quantiles(&f, 0.01)), (58.0, 84.0)));
+    // Held notes alone: the eighths are gone, and so are the true extremes.
+    assert!(close(
+        st(range_quantiles_kept(&f, 0.01, 8, 1.0, 0, 0.25, 300)),
+        (60.0, 72.0)
+    ));
+    // Held or agreed: the line's own extremes, without the foreign runs.
+    let trusted = agree_mask(&f, &g, 1.0);
+    let r = range_quantiles_kept_or(&f, &trusted, 0.01, 8, 1.0, 0, 0.25, 300);
+    assert!(close(st(r), (58.0, 75.0)), "{:?}", st(r));
+    // No trusted hops is the held rule; every hop trusted is the plain range.
+    assert_eq!(
+        range_quantiles_kept_or(&f, &[], 0.01, 8, 1.0, 0, 0.25, 300),
+        range_quantiles_kept(&f, 0.01, 8, 1.0, 0, 0.25, 300)
+    );
+    assert_eq!(
+        range_quantiles_kept_or(&f, &vec![true; f.len()], 0.01, 8, 1.0, 0, 0.25, 300),
+        range_quantiles(&f, 0.01)
+    );
+}
+
+#[test]
+fn offline_held_or_agreed_range_is_the_rule_written_out() {
+    for seed in 1..5u64 {
+        let f = line_with_octave_shadows(1500, seed);
+        let g = second_tracker(&f, seed);
+        let trusted = agree_by_hand(&f, &g, 1.0);
+        for (k, w, share, min_hops) in [
+            (8usize, 0usize, 0.25f32, 300u64),
+            (5, 25, 0.25, 50),
+            (0, 25, 0.5, 1),
+            (16, 0, 0.9, 1),
+        ] {
+            let held = held_by_hand(&f, k, 1.0);
+            let shadow = shadow_by_hand(&f, w);
+            let voiced = |x: f32| x.is_finite() && x > 0.0;
+            let mask: Vec<bool> = (0..f.len())
+                .map(|i| (held[i] || (trusted[i] && voiced(f[i]))) && !(w > 0 && shadow[i]))
+                .collect();
+            let (kept, _, use_kept) = held_rule_by_hand(&f, &mask, share, min_hops);
+            let want = range_quantiles(if use_kept { &kept[..] } else { &f[..] }, 0.01);
+            assert_eq!(
+                range_quantiles_kept_or(&f, &trusted, 0.01, k, 1.0, w, share, min_hops),
+                want,
+                "seed {seed} k {k} w {w}"
+            );
+        }
+    }
+}
+
+#[test]
+fn streaming_held_or_agreed_range_is_the_padded_quantile_range_of_the_kept_prefix_within_one_cell()
+{
+    // As the shadow range's oracle, a hop i of the prefix also kept when it is voiced and
+    // trusted (judged at the same lag, max(k, w) hops).
+    let (fade, p) = (300.0f32, 0.01f32);
+    let prior = RangePrior::Register(hz(30.0), hz(50.0));
+    for seed in 1..4u64 {
+        let f = line_with_octave_shadows(1500, seed);
+        let g = second_tracker(&f, seed);
+        let trusted = agree_by_hand(&f, &g, 1.0);
+        for (k, w, share, min_hops) in [
+            (8usize, 0usize, 0.25f32, 300u64),
+            (5, 10, 0.25, 50),
+            (0, 3, 0.5, 1),
+        ] {
+            let mut r = HeldRange::with_prior(prior, fade, p, k, 1.0, share, min_hops)
+                .unwrap()
+                .with_shadow(w)
+                .unwrap();
+            let m = k.max(w);
+            let mut used = false;
+            for j in 0..f.len() {
+                let got = r.update_trusted(f[j], trusted[j]);
+                let pre = &f[..=j];
+                let held = held_by_hand(pre, k, 1.0);
+                let shadow = shadow_by_hand(pre, w);
+                let mask: Vec<bool> = (0..pre.len())
+                    .map(|i| {
+                        i >= m
+                            && i + m < pre.len()
+                            && (held[i] || (trusted[i] && pre[i] > 0.0))
+                            && !(w > 0 && shadow[i])
+                    })
+                    .collect();
+                let (kept, voiced, use_kept) = held_rule_by_hand(pre, &mask, share, min_hops);
+                used |= use_kept;
+                let kept_or_all = if use_kept { &kept[..] } else { pre };
+                let want = padded_by_hand(prior, fade, range_quantiles(kept_or_all, p), voiced);
+                assert_within_a_cell(got, want, &format!("seed {seed} k {k} w {w} hop {j}"));
+            }
+            assert!(
+                used,
+                "seed {seed} k {k} w {w}: the kept range was never used"
+            );
+        }
+    }
+    // Streaming the agreed range allocates nothing.
+    let f = line_with_octave_shadows(3000, 9);
+    let trusted = agree_by_hand(&f, &second_tracker(&f, 9), 1.0);
+    let mut r = HeldRange::new(20.0, 1.0, 0.01, 8, 1.0, 0.25, 300).unwrap();
+    let allocs = tactus_testkit::allocations_during(|| {
+        for (&x, &t) in f.iter().zip(&trusted) {
+            std::hint::black_box(r.update_trusted(x, t));
+        }
+    });
+    assert_eq!(allocs, 0);
 }

@@ -12,7 +12,8 @@
 
 use tactus_dsp::binner::{bin_beats, bin_levels, BeatBinner, LevelBinner};
 use tactus_dsp::discretize::{
-    range_offline, range_quantiles_kept, Discretizer, HeldRange, RangePrior, RunningRange, Scale,
+    agree_mask, pitches_agree, range_offline, range_quantiles_kept_or, Discretizer, HeldRange,
+    RangePrior, RunningRange, Scale,
 };
 use tactus_dsp::flux::{OnsetConfig, OnsetDetector, OnsetFrame};
 use tactus_dsp::median::MedianFilter;
@@ -105,6 +106,17 @@ pub const HELD_TOL_ST: f32 = 1.0;
 /// octave shadows"). Chosen on the tuning mixes and 16 validation songs over 10 / 25 / 50 /
 /// 100 hops (`benches/trials/RULE_octave_shadow_range.md`).
 pub const MIX_BASS_SHADOW_HOPS: usize = 25;
+
+/// `--levels-rule follow` on a mixture's lead tracked by the pair (the spectral separator's
+/// vocals): a hop counts towards the level range when it sits inside a held note, this many
+/// hops on each side within [`HELD_TOL_ST`], or when the pair's voicing tracker agrees with
+/// its pitch within [`AGREE_TOL_ST`] (`tactus_dsp::discretize::range_quantiles_kept_or`;
+/// README, "The mix's lead range from held or agreed hops"). Chosen on the tuning mixes, 16
+/// validation songs and a spent held-out set (`benches/trials/RULE_mix_lead_agree.md`).
+pub const MIX_LEAD_HELD_HOPS: usize = 8;
+
+/// Semitones within which the pair's two trackers agree ([`MIX_LEAD_HELD_HOPS`]).
+pub const AGREE_TOL_ST: f32 = 1.0;
 
 /// Below this share of held hops among the voiced ones every voiced hop sets the range.
 pub const HELD_MIN_SHARE: f32 = 0.25;
@@ -382,16 +394,22 @@ struct LevelChain {
 impl LevelChain {
     /// Hop `i`: returns its pitch after gate and fences and its level; completed bins go to
     /// `bins`.
-    fn push(&mut self, i: usize, rms_db: f32, raw_f0: f32, bins: &mut Vec<u8>) -> (f32, u8, bool) {
+    /// Hop `i`'s gate and fences: its pitch after both, and whether the gate is open.
+    fn fence(&mut self, rms_db: f32, raw_f0: f32) -> (f32, bool) {
         let open = self.gate.process(rms_db);
-        let f0 = self.tukey.process(if open { raw_f0 } else { 0.0 });
+        (self.tukey.process(if open { raw_f0 } else { 0.0 }), open)
+    }
+
+    /// Hop `i`'s level from its fenced pitch `f0` (`trusted`: a second tracker agrees,
+    /// [`HeldRange::update_trusted`]); completed bins go to `bins`.
+    fn level(&mut self, i: usize, f0: f32, trusted: bool, bins: &mut Vec<u8>) -> u8 {
         let range = match self.rule {
             LevelRule::Paper => self.range.update(f0),
-            LevelRule::Follow => self.prior_range.update(f0),
+            LevelRule::Follow => self.prior_range.update_trusted(f0, trusted),
         };
         let level = range.map_or(0, |r| self.disc.level(f0, r));
         self.binner.push(i, level, &mut |_, l| bins.push(l));
-        (f0, level, open)
+        level
     }
 
     fn reset(&mut self) {
@@ -502,6 +520,9 @@ pub struct PitchTrack {
     held_hops: usize,
     /// Octave-shadow window of the range ([`MIX_BASS_SHADOW_HOPS`]; 0 = off).
     shadow_hops: usize,
+    /// A hop whose pitch the pair's voicing tracker agrees with counts as held
+    /// ([`AGREE_TOL_ST`]; a mixture's lead).
+    agree: bool,
     /// f0 per hop after gate and fences (streaming: filled as hops arrive; offline: at the end).
     pub f0: Vec<f32>,
     /// The stem's RMS per hop in dBFS, beside `f0` (same hops, before the gate): what note
@@ -608,8 +629,13 @@ impl PitchTrack {
         };
         let hop_s = hop as f32 / geo.sample_rate as f32;
         // A clean bass stem: the range from held notes (README, "Bass levels from held notes").
+        // A mixture's lead through the pair: from held notes or hops both trackers agree on
+        // (README, "The mix's lead range from held or agreed hops").
+        let agree = mixture && matches!(tracker, Tracker::Pair(_));
         let held_hops = if !mixture && fmax_hz <= BASS_MAX_HZ {
             CLEAN_BASS_HELD_HOPS
+        } else if agree {
+            MIX_LEAD_HELD_HOPS
         } else {
             0
         };
@@ -665,6 +691,7 @@ impl PitchTrack {
             min_iqr_st,
             held_hops,
             shadow_hops,
+            agree,
             f0: Vec::new(),
             level_db: Vec::new(),
             hop_levels: Vec::new(),
@@ -786,13 +813,15 @@ impl PitchTrack {
         // long the stream): `raw_*[j]` is hop `next + j`.
         let ready = self.raw_f0.len().min(self.raw_rms.len());
         for j in 0..ready {
-            let (f0, level, open) =
-                self.chain
-                    .push(self.next, self.raw_rms[j], self.raw_f0[j], &mut self.bins);
+            let (f0, open) = self.chain.fence(self.raw_rms[j], self.raw_f0[j]);
+            let mut trusted = false;
             if let Some(s) = &mut self.note_side {
                 let nf = s.raw.get(j).copied().unwrap_or(0.0);
-                s.f0.push(s.tukey.process(if open { nf } else { 0.0 }));
+                let nf = s.tukey.process(if open { nf } else { 0.0 });
+                s.f0.push(nf);
+                trusted = self.agree && pitches_agree(f0, nf, AGREE_TOL_ST);
             }
+            let level = self.chain.level(self.next, f0, trusted, &mut self.bins);
             self.f0.push(f0);
             self.level_db.push(self.raw_rms[j]);
             self.hop_levels.push(level);
@@ -826,10 +855,15 @@ impl PitchTrack {
             reject_outliers_offline_min_iqr(&mut nf, TUKEY_K, self.min_iqr_st);
             s.f0 = nf;
         }
+        let trusted = match &self.note_side {
+            Some(s) if self.agree => agree_mask(&f0, &s.f0, AGREE_TOL_ST),
+            _ => Vec::new(),
+        };
         let r = match self.geo.level_rule {
             LevelRule::Paper => range_offline(&f0),
-            LevelRule::Follow => range_quantiles_kept(
+            LevelRule::Follow => range_quantiles_kept_or(
                 &f0,
+                &trusted,
                 FOLLOW_RANGE_QUANTILE,
                 self.held_hops,
                 HELD_TOL_ST,

@@ -2,11 +2,19 @@
 //! harmonic sum's voicing", "The learned lead's voicing veto"): a voicing/pitch pair voiced
 //! only where the harmonic-sum melody tracker is (the learned tracker may veto), whose pitch
 //! is the learned lead salience's where both are voiced, and whose note onsets read the
-//! harmonic sum's own pitch, offline and streaming, for any chunking.
+//! harmonic sum's own pitch, offline and streaming, for any chunking. Its level range comes
+//! from held notes or hops both trackers agree on (README, "The mix's lead range from held or
+//! agreed hops"), against `tactus_dsp`'s range functions replayed on the track's two pitches.
 
+use tactus_dsp::discretize::{
+    agree_mask, pitches_agree, range_quantiles_kept_or, Discretizer, HeldRange, RangePrior,
+};
 use tactus_engine::notes::{NoteRole, PitchNotes};
 use tactus_engine::profile::Profile;
-use tactus_engine::track::PitchTrack;
+use tactus_engine::track::{
+    prior_span_st, PitchTrack, AGREE_TOL_ST, FOLLOW_PRIOR_FADE_HOPS, FOLLOW_RANGE_QUANTILE,
+    HELD_MIN_HOPS, HELD_MIN_SHARE, HELD_TOL_ST, MIX_LEAD_HELD_HOPS,
+};
 use tactus_engine::{Mode, NoteRule, PitchMethod};
 
 mod common;
@@ -15,8 +23,7 @@ use common::SR;
 /// A lead over a chord pad: a sung-like line (harmonics with a formant-ish tilt, vibrato,
 /// rests) of 0.25–0.5 s notes over sustained chord tones a sixth and an octave below.
 fn lead_over_chords() -> Vec<f32> {
-    let sr = SR as f64;
-    let notes = [
+    synth_over_chords(&[
         (64.0, 0.4),
         (67.0, 0.3),
         (69.0, 0.5),
@@ -27,12 +34,35 @@ fn lead_over_chords() -> Vec<f32> {
         (0.0, 0.3),
         (62.0, 0.4),
         (64.0, 0.4),
-    ];
+    ])
+}
+
+/// The same line with eighths (0.12 s, 12 hops) as its highest and lowest notes: too short
+/// to be held for 8 hops on each side.
+fn lead_with_short_extremes() -> Vec<f32> {
+    synth_over_chords(&[
+        (64.0, 0.4),
+        (67.0, 0.3),
+        (76.0, 0.12),
+        (69.0, 0.5),
+        (0.0, 0.2),
+        (72.0, 0.3),
+        (60.0, 0.12),
+        (67.0, 0.5),
+        (0.0, 0.3),
+        (62.0, 0.4),
+        (64.0, 0.4),
+    ])
+}
+
+/// Three passes of `notes` (MIDI, seconds; 0 = rest) over the pad.
+fn synth_over_chords(notes: &[(f64, f64)]) -> Vec<f32> {
+    let sr = SR as f64;
     let mut x = Vec::new();
     let mut ph = 0.0f64;
     let mut t = 0.0f64;
     for _ in 0..3 {
-        for &(st, dur) in &notes {
+        for &(st, dur) in notes {
             let n = (dur * sr) as usize;
             let f = 440.0 * ((st - 69.0) / 12.0f64).exp2();
             for i in 0..n {
@@ -139,4 +169,73 @@ fn the_mix_leads_pair_keeps_the_harmonic_sums_pitch_for_onsets_and_may_only_unvo
             }
         }
     }
+}
+
+#[test]
+fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
+    let x = lead_with_short_extremes();
+    let d = Discretizer::default();
+    let (_, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
+    let (t, _) = track(PitchMethod::Learned, Mode::Offline, &x, 4096);
+    let trusted = agree_mask(&t.f0, t.note_f0(), AGREE_TOL_ST);
+    let agreed = trusted.iter().filter(|&&a| a).count();
+    let voiced = t.f0.iter().filter(|&&f| f > 0.0).count();
+    assert!(
+        agreed * 2 > voiced,
+        "{agreed} of {voiced} voiced hops agreed"
+    );
+    let range = range_quantiles_kept_or(
+        &t.f0,
+        &trusted,
+        FOLLOW_RANGE_QUANTILE,
+        MIX_LEAD_HELD_HOPS,
+        HELD_TOL_ST,
+        0,
+        HELD_MIN_SHARE,
+        HELD_MIN_HOPS,
+    );
+    let want: Vec<u8> =
+        t.f0.iter()
+            .map(|&f| range.map_or(0, |r| d.level(f, r)))
+            .collect();
+    assert_eq!(t.hop_levels, want);
+    // The rule matters here: held notes alone lose the low eighth (C4), the agreed hops keep
+    // it. (The high eighth, a leap of nine semitones in 0.12 s, is not tracked closely enough
+    // by both to move the 99th percentile either way.)
+    let held = range_quantiles_kept_or(
+        &t.f0,
+        &[],
+        FOLLOW_RANGE_QUANTILE,
+        MIX_LEAD_HELD_HOPS,
+        HELD_TOL_ST,
+        0,
+        HELD_MIN_SHARE,
+        HELD_MIN_HOPS,
+    );
+    let (a, b) = (range.unwrap(), held.unwrap());
+    assert!(
+        (a.0 / 261.63 - 1.0).abs() < 0.03 && a.0 < b.0 * 0.95,
+        "{a:?} against {b:?}"
+    );
+    // Streaming, hop by hop: the held range fed each hop's agreement.
+    let (s, _) = track(PitchMethod::Learned, Mode::Streaming, &x, 4096);
+    let mut r = HeldRange::with_prior(
+        RangePrior::Span(prior_span_st(hi)),
+        FOLLOW_PRIOR_FADE_HOPS,
+        FOLLOW_RANGE_QUANTILE,
+        MIX_LEAD_HELD_HOPS,
+        HELD_TOL_ST,
+        HELD_MIN_SHARE,
+        HELD_MIN_HOPS,
+    )
+    .unwrap();
+    let want: Vec<u8> =
+        s.f0.iter()
+            .zip(s.note_f0())
+            .map(|(&f, &n)| {
+                r.update_trusted(f, pitches_agree(f, n, AGREE_TOL_ST))
+                    .map_or(0, |range| d.level(f, range))
+            })
+            .collect();
+    assert_eq!(s.hop_levels, want);
 }
