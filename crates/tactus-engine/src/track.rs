@@ -118,6 +118,14 @@ pub const MIX_LEAD_HELD_HOPS: usize = 8;
 /// Semitones within which the pair's two trackers agree ([`MIX_LEAD_HELD_HOPS`]).
 pub const AGREE_TOL_ST: f32 = 1.0;
 
+/// `--levels-rule follow` on the bass band of a mixture: besides leaving out octave shadows
+/// ([`MIX_BASS_SHADOW_HOPS`]), a hop counts toward the level range only inside a held note,
+/// this many hops on each side within [`HELD_TOL_ST`] (README, "The mix's bass range from
+/// held notes"). Chosen over 3 / 5 / 8 hops and shadow windows of 25 / 50 / 100 / 200 on the
+/// tuning mixes, the validation songs and the spent held-out sets
+/// (`benches/trials/RULE_mix_bass_held.md`).
+pub const MIX_BASS_HELD_HOPS: usize = 3;
+
 /// Below this share of held hops among the voiced ones every voiced hop sets the range.
 pub const HELD_MIN_SHARE: f32 = 0.25;
 
@@ -634,6 +642,8 @@ impl PitchTrack {
         let agree = mixture && matches!(tracker, Tracker::Pair(_));
         let held_hops = if !mixture && fmax_hz <= BASS_MAX_HZ {
             CLEAN_BASS_HELD_HOPS
+        } else if mixture && fmax_hz <= BASS_MAX_HZ {
+            MIX_BASS_HELD_HOPS
         } else if agree {
             MIX_LEAD_HELD_HOPS
         } else {

@@ -1,9 +1,11 @@
 //! The mix's bass level range without octave shadows ([`MIX_BASS_SHADOW_HOPS`], README "The
 //! mix's bass range without octave shadows"), through the real bass tracker on audio: a
 //! mixture's bass track places its levels in the range of its own pitch without the hops
-//! whose octave above sounds within 25 hops (offline and streaming, against `tactus_dsp`'s
-//! range functions replayed on the track's pitch), the short low notes in the test line do
-//! move the range without that rule, and a clean bass stem keeps the held-note rule.
+//! whose octave above sounds within 25 hops and outside held notes ([`MIX_BASS_HELD_HOPS`]
+//! on each side; README, "The mix's bass range from held notes") (offline and streaming,
+//! against `tactus_dsp`'s range functions replayed on the track's pitch), the short low notes
+//! in the test line do move the range without that rule, and a clean bass stem keeps the
+//! held-note rule.
 
 use tactus_dsp::discretize::{
     range_quantiles, range_quantiles_held, range_quantiles_kept, Discretizer, HeldRange, RangePrior,
@@ -12,7 +14,7 @@ use tactus_engine::profile::Profile;
 use tactus_engine::track::{
     prior_span_st, Geometry, PitchTrack, BASS_REGISTER_HZ, CLEAN_BASS_HELD_HOPS,
     FOLLOW_PRIOR_FADE_HOPS, FOLLOW_RANGE_QUANTILE, HELD_MIN_HOPS, HELD_MIN_SHARE, HELD_TOL_ST,
-    MIX_BASS_SHADOW_HOPS, REGISTER_FADE_HOPS,
+    MIX_BASS_HELD_HOPS, MIX_BASS_SHADOW_HOPS, REGISTER_FADE_HOPS,
 };
 use tactus_engine::{Mode, PitchMethod};
 
@@ -84,7 +86,7 @@ fn a_mixtures_bass_range_leaves_out_its_octave_shadows_offline() {
     let kept = range_quantiles_kept(
         &t.f0,
         FOLLOW_RANGE_QUANTILE,
-        0,
+        MIX_BASS_HELD_HOPS,
         HELD_TOL_ST,
         MIX_BASS_SHADOW_HOPS,
         HELD_MIN_SHARE,
@@ -130,7 +132,7 @@ fn a_mixtures_streaming_bass_range_leaves_out_its_octave_shadows_hop_by_hop() {
                 prior.0,
                 prior.1,
                 FOLLOW_RANGE_QUANTILE,
-                0,
+                MIX_BASS_HELD_HOPS,
                 HELD_TOL_ST,
                 HELD_MIN_SHARE,
                 HELD_MIN_HOPS,
