@@ -31,6 +31,15 @@
 //! The hop is decided once the frame at the largest offset exists: `max offset · hop`
 //! samples more than the harmonic sum (4 hops = 40 ms for the embedded model), stated by
 //! [`crate::shs::Shs`]'s `latency_samples()`.
+//!
+//! # The lead models and their ensemble
+//! The same network over a mixture's lead band ([`BassNet::embedded_lead`]: 216 bands from
+//! 70 Hz, candidates 70–1400 Hz). A second lead model, the same recipe trained with 80 more
+//! sung songs ([`BassNet::embedded_lead_sung`]), finds sung leads better and instrumental
+//! ones as well; alone it moved a chorale's level range now and then. With
+//! [`crate::shs::ShsConfig::learned_ensemble`] the tracker decodes the mean of the two
+//! models' probabilities, `log(½·p₁ + ½·p₂)` per class (a mixture of experts with equal
+//! weights). Same latency; twice the network's cost.
 
 use crate::drums::Layer;
 use crate::mlp::{read_f32s, read_u32, take};
@@ -59,6 +68,11 @@ static EMBEDDED: &[u8] = include_bytes!("../weights/bassnet.bin");
 /// 70 Hz, candidates 70–1400 Hz; `models/bassnet/README.md`, "The lead model").
 static EMBEDDED_LEAD: &[u8] = include_bytes!("../weights/leadnet.bin");
 
+/// The second embedded lead model: the same recipe trained with 80 more sung songs
+/// (`models/bassnet/README.md`, "The lead ensemble"), averaged with the first
+/// ([`crate::shs::ShsConfig::learned_ensemble`]).
+static EMBEDDED_LEAD_SUNG: &[u8] = include_bytes!("../weights/leadnet_sung.bin");
+
 /// The network and its input layout.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BassNet {
@@ -85,6 +99,16 @@ impl BassNet {
         static MODEL: OnceLock<BassNet> = OnceLock::new();
         // Checked by a unit test, like the bass model.
         MODEL.get_or_init(|| Self::from_bytes(EMBEDDED_LEAD).expect("embedded lead model is valid"))
+    }
+
+    /// The second embedded lead model (parsed once; see [`BassNet::embedded_lead`]), whose
+    /// candidates, bands and offsets are the first's.
+    pub fn embedded_lead_sung() -> &'static BassNet {
+        static MODEL: OnceLock<BassNet> = OnceLock::new();
+        // Checked by a unit test, like the other two.
+        MODEL.get_or_init(|| {
+            Self::from_bytes(EMBEDDED_LEAD_SUNG).expect("embedded sung lead model is valid")
+        })
     }
 
     /// Parses the format written by `models/bassnet/train.py`: `"TACTUSBN"`, then
@@ -217,6 +241,28 @@ impl BassNet {
         let lse = mx + z.iter().map(|&v| (v - mx).exp()).sum::<f32>().ln();
         for (o, &v) in out.iter_mut().zip(z) {
             *o = v - lse;
+        }
+    }
+
+    /// The mean of this model's and `other`'s probabilities, as log-probabilities into `out`:
+    /// `log(½·p₁ + ½·p₂)` per class (module docs, "The lead models and their ensemble");
+    /// `other` must read the same input and have the same classes. `scratch` (one value per
+    /// class) holds `other`'s log-probabilities; `a`, `b` as [`BassNet::forward`]. No
+    /// allocation.
+    pub fn forward_mean(
+        &self,
+        other: &BassNet,
+        input: &[f32],
+        a: &mut [f32],
+        b: &mut [f32],
+        out: &mut [f32],
+        scratch: &mut [f32],
+    ) {
+        self.forward(input, a, b, out);
+        other.forward(input, a, b, scratch);
+        for (l, &l2) in out.iter_mut().zip(scratch.iter()) {
+            let m = l.max(l2);
+            *l = m + (0.5 * ((*l - m).exp() + (l2 - m).exp())).ln();
         }
     }
 }

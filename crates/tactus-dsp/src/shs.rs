@@ -261,6 +261,12 @@ pub struct ShsConfig {
     /// network alone (the lead's voicing veto, [`crate::pair::VoicingPitchPair::with_veto`]).
     /// 0 = the network's own odds.
     pub learned_voicing_nats: f32,
+    /// With [`ShsConfig::learned`] on the lead's grid: the candidates' probabilities are the
+    /// mean of the two embedded lead models' ([`BassNet::embedded_lead`] and
+    /// [`BassNet::embedded_lead_sung`]), `log(½·p₁ + ½·p₂)` per candidate and for "no
+    /// pitch" ([`crate::bassnet`] module docs, "The lead models and their ensemble"). Errors
+    /// on the bass grid. Off by default.
+    pub learned_ensemble: bool,
 }
 
 /// The power of two nearest `target` samples (rounding down when the next one up is more
@@ -308,6 +314,7 @@ impl ShsConfig {
             learned: false,
             learned_blend: 0.0,
             learned_voicing_nats: 0.0,
+            learned_ensemble: false,
         }
     }
 
@@ -646,6 +653,9 @@ struct NetState {
     a: Vec<f32>,
     b: Vec<f32>,
     logp: Vec<f32>,
+    /// The second lead model ([`ShsConfig::learned_ensemble`]) and its log-probabilities.
+    second: Option<&'static BassNet>,
+    logp2: Vec<f32>,
     /// [`ShsConfig::learned_blend`].
     blend: f32,
     /// [`ShsConfig::learned_voicing_nats`].
@@ -684,6 +694,16 @@ impl NetState {
                  (lead) at 3 bins per semitone",
             ));
         };
+        let second = if !cfg.learned_ensemble {
+            None
+        } else if std::ptr::eq(model, BassNet::embedded_lead()) {
+            Some(BassNet::embedded_lead_sung())
+        } else {
+            return Err(ConfigError::invalid(
+                "learned_ensemble",
+                "only the lead's grid (70-1400 Hz) has a second model",
+            ));
+        };
         let bands = model.bands();
         let ring = model.past() + model.future() + 1;
         let w = model.width().max(model.input_len());
@@ -707,6 +727,8 @@ impl NetState {
             a: vec![0.0; w],
             b: vec![0.0; w],
             logp: vec![0.0; m + 1],
+            second,
+            logp2: vec![0.0; if second.is_some() { m + 1 } else { 0 }],
             blend: cfg.learned_blend,
             voicing_nats: cfg.learned_voicing_nats,
             shs: vec![0.0; if cfg.learned_blend > 0.0 { ring * m } else { 0 }],
@@ -737,8 +759,19 @@ impl NetState {
                 dst.copy_from_slice(&self.feats[slot * nb..(slot + 1) * nb]);
             }
         }
-        self.model
-            .forward(&self.input, &mut self.a, &mut self.b, &mut self.logp);
+        match self.second {
+            None => self
+                .model
+                .forward(&self.input, &mut self.a, &mut self.b, &mut self.logp),
+            Some(second) => self.model.forward_mean(
+                second,
+                &self.input,
+                &mut self.a,
+                &mut self.b,
+                &mut self.logp,
+                &mut self.logp2,
+            ),
+        }
     }
 
     fn reset(&mut self) {

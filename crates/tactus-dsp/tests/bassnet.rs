@@ -159,6 +159,137 @@ fn embedded_lead_model_matches_a_separate_f64_reader() {
     check_against_oracle(net, &or, 9, 3);
 }
 
+/// The second lead model's file (`BassNet::embedded_lead_sung`).
+const LEAD_SUNG_WEIGHTS: &[u8] = include_bytes!("../weights/leadnet_sung.bin");
+
+#[test]
+fn embedded_sung_lead_model_matches_a_separate_f64_reader_and_the_first_lead_models_layout() {
+    let (net, first) = (BassNet::embedded_lead_sung(), BassNet::embedded_lead());
+    let or = oracle_of(LEAD_SUNG_WEIGHTS, 216, 70.0);
+    assert_eq!(net.offsets(), &or.offsets[..]);
+    assert_eq!(net.offsets(), first.offsets());
+    assert_eq!(
+        (
+            net.bands(),
+            net.low_hz(),
+            net.cand_fmin_hz(),
+            net.candidates()
+        ),
+        (
+            first.bands(),
+            first.low_hz(),
+            first.cand_fmin_hz(),
+            first.candidates()
+        )
+    );
+    assert_ne!(net, first, "a different model");
+    check_against_oracle(net, &or, 11, 3);
+}
+
+#[test]
+fn the_lead_ensemble_is_the_mean_of_both_models_probabilities() {
+    // `forward_mean` against the two f64 readers: log(½·p₁ + ½·p₂) per class, within 1e-3,
+    // on front-end-like inputs; the mean is a distribution; no allocation.
+    let (n1, n2) = (BassNet::embedded_lead(), BassNet::embedded_lead_sung());
+    let (o1, o2) = (
+        oracle_of(LEAD_WEIGHTS, 216, 70.0),
+        oracle_of(LEAD_SUNG_WEIGHTS, 216, 70.0),
+    );
+    let mut rng = Rng::new(5);
+    let w = n1.width().max(n1.input_len());
+    let (mut a, mut b) = (vec![0.0f32; w], vec![0.0f32; w]);
+    let c = n1.candidates() + 1;
+    let (mut out, mut scratch, mut single) = (vec![0.0f32; c], vec![0.0f32; c], vec![0.0f32; c]);
+    let mut moved = 0usize;
+    for trial in 0..4 {
+        let x: Vec<f32> = (0..n1.input_len())
+            .map(|_| {
+                let u = uniform(&mut rng);
+                if u < 0.3 {
+                    0.0
+                } else {
+                    u as f32
+                }
+            })
+            .collect();
+        let allocs = tactus_testkit::allocations_during(|| {
+            n1.forward_mean(n2, &x, &mut a, &mut b, &mut out, &mut scratch);
+        });
+        assert_eq!(allocs, 0);
+        let xd: Vec<f64> = x.iter().map(|&v| v as f64).collect();
+        let (l1, l2) = (oracle_forward(&o1, &xd), oracle_forward(&o2, &xd));
+        for k in 0..c {
+            let want = (0.5 * l1[k].exp() + 0.5 * l2[k].exp()).ln();
+            assert!(
+                (out[k] as f64 - want).abs() < 1e-3,
+                "trial {trial} class {k}: {} vs {want}",
+                out[k]
+            );
+        }
+        let total: f64 = out.iter().map(|&v| (v as f64).exp()).sum();
+        assert!((total - 1.0).abs() < 1e-4, "probabilities sum to {total}");
+        n1.forward(&x, &mut a, &mut b, &mut single);
+        moved += out
+            .iter()
+            .zip(&single)
+            .filter(|(p, q)| (**p - **q).abs() > 1e-3)
+            .count();
+    }
+    assert!(moved > 0, "the second model changes the output");
+}
+
+#[test]
+fn the_ensemble_needs_the_leads_grid_and_streams_without_allocating() {
+    let mut bass = cfg();
+    bass.learned_ensemble = true;
+    assert!(Shs::new(bass).is_err(), "the bass grid has no second model");
+    // The lead chain's rate and grid, as the engine runs it.
+    let mut lead = ShsConfig::melody(14_700, 70.0, 1400.0);
+    lead.learned = true;
+    lead.learned_ensemble = true;
+    let mut t = Shs::new(lead.clone()).unwrap();
+    // A 330 Hz tone with five harmonics, 2 s.
+    let x: Vec<f32> = (0..14_700 * 2)
+        .map(|i| {
+            let ph = std::f32::consts::TAU * 330.0 * i as f32 / 14_700.0;
+            (1..=5)
+                .map(|h| 0.3 * (h as f32 * ph).sin() / h as f32)
+                .sum::<f32>()
+        })
+        .collect();
+    let mut n = 0usize;
+    t.process(&x[..4096], &mut |_, _| n += 1);
+    let allocs = tactus_testkit::allocations_during(|| {
+        t.process(&x[4096..], &mut |_, _| n += 1);
+    });
+    assert_eq!(allocs, 0);
+    assert!(n > 100, "{n} hops");
+    // Chunking does not change it.
+    let run = |chunk: usize| {
+        let mut t = Shs::new(lead.clone()).unwrap();
+        let mut v = Vec::new();
+        for c in x.chunks(chunk) {
+            t.process(c, &mut |_, e| v.push(e.f0_hz));
+        }
+        t.finish(&mut |_, e| v.push(e.f0_hz));
+        v
+    };
+    let whole = run(x.len());
+    assert_eq!(run(1000), whole);
+    assert_eq!(run(147), whole);
+    let voiced: Vec<f32> = whole.iter().copied().filter(|&f| f > 0.0).collect();
+    assert!(voiced.len() * 2 > whole.len(), "the tone is voiced");
+    let near = voiced
+        .iter()
+        .filter(|&&f| (f / 330.0 - 1.0).abs() < 0.03)
+        .count();
+    assert!(
+        near * 10 >= voiced.len() * 9,
+        "{near} of {} voiced hops at 330 Hz",
+        voiced.len()
+    );
+}
+
 #[test]
 fn bad_model_files_are_errors() {
     for n in [0, 7, 8, 30, WEIGHTS.len() / 2, WEIGHTS.len() - 1] {

@@ -221,6 +221,11 @@ pub const LEARNED_LEAD_BLEND: f32 = 0.0;
 /// songs over 0 / 2 / 3 / 4 / 6 (`benches/trials/RULE_lead_pair_voicing.md`).
 pub const LEARNED_LEAD_VOICING_NATS: f32 = 3.0;
 
+/// [`tactus_dsp::shs::ShsConfig::learned_ensemble`] of the learned lead salience's tracker:
+/// the mean of the committed lead model and the one trained with 80 more sung songs (README,
+/// "The lead ensemble"; `benches/trials/RULE_lead_ensemble.md`).
+pub const LEARNED_LEAD_ENSEMBLE: bool = true;
+
 /// [`tactus_dsp::shs::ShsConfig::learned_blend`] of the learned bass salience: the weight
 /// of the harmonic sum's observation log-probabilities added to the network's. Chosen on the
 /// tuning halves' mixes (`benches/bass_eval.py --inputs mix`, offline, sung / chorales /
@@ -625,6 +630,7 @@ impl PitchTrack {
                     lc.learned = true;
                     lc.learned_blend = LEARNED_LEAD_BLEND;
                     lc.learned_voicing_nats = LEARNED_LEAD_VOICING_NATS;
+                    lc.learned_ensemble = LEARNED_LEAD_ENSEMBLE;
                     lc.contour_gate_db = 0.0;
                     Tracker::Pair(Box::new(
                         VoicingPitchPair::new(Box::new(Shs::new(sc)?), Box::new(Shs::new(lc)?))?
