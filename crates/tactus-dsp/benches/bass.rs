@@ -90,6 +90,24 @@ fn forward(c: &mut Criterion) {
             })
         });
     }
+    // The lead ensemble: both lead models and the mean of their probabilities.
+    let (n1, n2) = (BassNet::embedded_lead(), BassNet::embedded_lead_sung());
+    let (len, w, out) = (
+        n1.input_len(),
+        n1.width().max(n1.input_len()),
+        n1.candidates() + 1,
+    );
+    let x: Vec<f32> = (0..len)
+        .map(|i| ((i * 7919) % 1000) as f32 / 1000.0)
+        .collect();
+    let (mut a, mut b) = (vec![0.0f32; w], vec![0.0f32; w]);
+    let (mut o, mut o2) = (vec![0.0f32; out], vec![0.0f32; out]);
+    c.bench_function("leadnet_ensemble_forward", |bch| {
+        bch.iter(|| {
+            n1.forward_mean(n2, black_box(&x), &mut a, &mut b, &mut o, &mut o2);
+            o[0]
+        })
+    });
 }
 
 /// The lead chain's rate and range (44.1 kHz decimated by 3; `Stem::Vocals`).
@@ -124,7 +142,7 @@ fn lead(c: &mut Criterion) {
     let x = melody(210.0);
     let mut g = c.benchmark_group("lead_210s");
     g.sample_size(10);
-    for name in ["shs", "pair"] {
+    for name in ["shs", "pair", "pair_ensemble"] {
         g.bench_function(name, |b| {
             b.iter(|| {
                 let mut t: Box<dyn HopStage<Out = tactus_dsp::yin::PitchEstimate>> =
@@ -135,6 +153,7 @@ fn lead(c: &mut Criterion) {
                         lc.learned = true;
                         lc.contour_gate_db = 0.0;
                         lc.learned_voicing_nats = 3.0;
+                        lc.learned_ensemble = name == "pair_ensemble";
                         Box::new(
                             VoicingPitchPair::new(
                                 Box::new(Shs::new(lead_config()).unwrap()),
