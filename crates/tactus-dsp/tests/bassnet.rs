@@ -96,6 +96,20 @@ fn oracle_forward(or: &Oracle, x: &[f64]) -> Vec<f64> {
     h.iter().map(|v| v - lse).collect()
 }
 
+/// `n` random values like the front end's: in [0, 1], 30 % of them 0 (bands 60 dB down).
+fn front_like_input(rng: &mut Rng, n: usize) -> Vec<f32> {
+    (0..n)
+        .map(|_| {
+            let u = uniform(rng);
+            if u < 0.3 {
+                0.0
+            } else {
+                u as f32
+            }
+        })
+        .collect()
+}
+
 /// `trials` random inputs like the front end's (in [0, 1], many at 0: bands 60 dB down)
 /// through `net` and through the f64 reader `or`: the log-probabilities agree within 1e-3
 /// (f32 sums of ~1,100 products against f64) and the probabilities sum to 1.
@@ -105,16 +119,7 @@ fn check_against_oracle(net: &BassNet, or: &Oracle, seed: u64, trials: usize) {
     let (mut a, mut b) = (vec![0.0f32; w], vec![0.0f32; w]);
     let mut out = vec![0.0f32; net.candidates() + 1];
     for trial in 0..trials {
-        let x: Vec<f32> = (0..net.input_len())
-            .map(|_| {
-                let u = uniform(&mut rng);
-                if u < 0.3 {
-                    0.0
-                } else {
-                    u as f32
-                }
-            })
-            .collect();
+        let x = front_like_input(&mut rng, net.input_len());
         net.forward(&x, &mut a, &mut b, &mut out);
         let want = oracle_forward(or, &x.iter().map(|&v| v as f64).collect::<Vec<_>>());
         for (k, (&g, &e)) in out.iter().zip(&want).enumerate() {
@@ -202,16 +207,7 @@ fn the_lead_ensemble_is_the_mean_of_both_models_probabilities() {
     let (mut out, mut scratch, mut single) = (vec![0.0f32; c], vec![0.0f32; c], vec![0.0f32; c]);
     let mut moved = 0usize;
     for trial in 0..4 {
-        let x: Vec<f32> = (0..n1.input_len())
-            .map(|_| {
-                let u = uniform(&mut rng);
-                if u < 0.3 {
-                    0.0
-                } else {
-                    u as f32
-                }
-            })
-            .collect();
+        let x = front_like_input(&mut rng, n1.input_len());
         let allocs = tactus_testkit::allocations_during(|| {
             n1.forward_mean(n2, &x, &mut a, &mut b, &mut out, &mut scratch);
         });

@@ -785,52 +785,70 @@ fn range_without_octave_shadows_drops_the_octave_errors_and_keeps_a_real_low_not
 
 #[test]
 fn streaming_shadow_range_is_the_padded_quantile_range_of_the_kept_prefix_within_one_cell() {
-    // Oracle at every hop j: the hops i of the prefix with max(k, w) ≤ i and
-    // i + max(k, w) < j + 1 that are held (k) and not shadows (w), both by hand on the
-    // prefix; then the held-range rule and padding as in `check_held_range`.
-    let (fade, p) = (300.0f32, 0.01f32);
     for prior in [
         RangePrior::Span(20.0),
         RangePrior::Register(hz(30.0), hz(50.0)),
     ] {
         for seed in 1..4u64 {
             let f = line_with_octave_shadows(1500, seed);
-            for (k, w, share, min_hops) in [
-                (0usize, 25usize, 0.25f32, 300u64),
-                (0, 3, 0.5, 1),
-                (5, 10, 0.25, 50),
-                (5, 2, 0.25, 50),
-            ] {
-                let mut r = HeldRange::with_prior(prior, fade, p, k, 1.0, share, min_hops)
-                    .unwrap()
-                    .with_shadow(w)
-                    .unwrap();
-                let m = k.max(w);
-                let mut used = false;
-                for j in 0..f.len() {
-                    let got = r.update(f[j]);
-                    let pre = &f[..=j];
-                    let held = held_by_hand(pre, k, 1.0);
-                    let shadow = shadow_by_hand(pre, w);
-                    let mask: Vec<bool> = (0..pre.len())
-                        .map(|i| i >= m && i + m < pre.len() && held[i] && !shadow[i])
-                        .collect();
-                    let (kept, voiced, use_kept) = held_rule_by_hand(pre, &mask, share, min_hops);
-                    used |= use_kept;
-                    let kept_or_all = if use_kept { &kept[..] } else { pre };
-                    let want = padded_by_hand(prior, fade, range_quantiles(kept_or_all, p), voiced);
-                    assert_within_a_cell(
-                        got,
-                        want,
-                        &format!("{prior:?} seed {seed} k {k} w {w} hop {j}"),
-                    );
-                }
-                assert!(
-                    used,
-                    "seed {seed} k {k} w {w}: the kept range was never used"
-                );
-            }
+            check_streaming_kept_range(
+                prior,
+                &f,
+                None,
+                &[
+                    (0, 25, 0.25, 300),
+                    (0, 3, 0.5, 1),
+                    (5, 10, 0.25, 50),
+                    (5, 2, 0.25, 50),
+                ],
+                &format!("{prior:?} seed {seed}"),
+            );
         }
+    }
+}
+
+/// The streaming kept range against its oracle at every hop j: the hops i of the prefix with
+/// max(k, w) ≤ i and i + max(k, w) < j + 1 that are held (k), or, with `trusted`, voiced and
+/// trusted, and not shadows (w), all by hand on the prefix; then the held-range rule and
+/// padding as in `check_held_range`, within one cell. `trusted = None` feeds
+/// `HeldRange::update`, else `HeldRange::update_trusted`. Each `(k, w, share, min_hops)` must
+/// use the kept range at some hop.
+fn check_streaming_kept_range(
+    prior: RangePrior,
+    f: &[f32],
+    trusted: Option<&[bool]>,
+    configs: &[(usize, usize, f32, u64)],
+    what: &str,
+) {
+    let (fade, p) = (300.0f32, 0.01f32);
+    for &(k, w, share, min_hops) in configs {
+        let mut r = HeldRange::with_prior(prior, fade, p, k, 1.0, share, min_hops)
+            .unwrap()
+            .with_shadow(w)
+            .unwrap();
+        let m = k.max(w);
+        let mut used = false;
+        for j in 0..f.len() {
+            let got = match trusted {
+                None => r.update(f[j]),
+                Some(t) => r.update_trusted(f[j], t[j]),
+            };
+            let pre = &f[..=j];
+            let held = held_by_hand(pre, k, 1.0);
+            let shadow = shadow_by_hand(pre, w);
+            let mask: Vec<bool> = (0..pre.len())
+                .map(|i| {
+                    let agreed = trusted.is_some_and(|t| t[i] && pre[i] > 0.0);
+                    i >= m && i + m < pre.len() && (held[i] || agreed) && !shadow[i]
+                })
+                .collect();
+            let (kept, voiced, use_kept) = held_rule_by_hand(pre, &mask, share, min_hops);
+            used |= use_kept;
+            let kept_or_all = if use_kept { &kept[..] } else { pre };
+            let want = padded_by_hand(prior, fade, range_quantiles(kept_or_all, p), voiced);
+            assert_within_a_cell(got, want, &format!("{what} k {k} w {w} hop {j}"));
+        }
+        assert!(used, "{what} k {k} w {w}: the kept range was never used");
     }
 }
 
@@ -1029,47 +1047,17 @@ fn streaming_held_or_agreed_range_is_the_padded_quantile_range_of_the_kept_prefi
 {
     // As the shadow range's oracle, a hop i of the prefix also kept when it is voiced and
     // trusted (judged at the same lag, max(k, w) hops).
-    let (fade, p) = (300.0f32, 0.01f32);
     let prior = RangePrior::Register(hz(30.0), hz(50.0));
     for seed in 1..4u64 {
         let f = line_with_octave_shadows(1500, seed);
-        let g = second_tracker(&f, seed);
-        let trusted = agree_by_hand(&f, &g, 1.0);
-        for (k, w, share, min_hops) in [
-            (8usize, 0usize, 0.25f32, 300u64),
-            (5, 10, 0.25, 50),
-            (0, 3, 0.5, 1),
-        ] {
-            let mut r = HeldRange::with_prior(prior, fade, p, k, 1.0, share, min_hops)
-                .unwrap()
-                .with_shadow(w)
-                .unwrap();
-            let m = k.max(w);
-            let mut used = false;
-            for j in 0..f.len() {
-                let got = r.update_trusted(f[j], trusted[j]);
-                let pre = &f[..=j];
-                let held = held_by_hand(pre, k, 1.0);
-                let shadow = shadow_by_hand(pre, w);
-                let mask: Vec<bool> = (0..pre.len())
-                    .map(|i| {
-                        i >= m
-                            && i + m < pre.len()
-                            && (held[i] || (trusted[i] && pre[i] > 0.0))
-                            && !(w > 0 && shadow[i])
-                    })
-                    .collect();
-                let (kept, voiced, use_kept) = held_rule_by_hand(pre, &mask, share, min_hops);
-                used |= use_kept;
-                let kept_or_all = if use_kept { &kept[..] } else { pre };
-                let want = padded_by_hand(prior, fade, range_quantiles(kept_or_all, p), voiced);
-                assert_within_a_cell(got, want, &format!("seed {seed} k {k} w {w} hop {j}"));
-            }
-            assert!(
-                used,
-                "seed {seed} k {k} w {w}: the kept range was never used"
-            );
-        }
+        let trusted = agree_by_hand(&f, &second_tracker(&f, seed), 1.0);
+        check_streaming_kept_range(
+            prior,
+            &f,
+            Some(&trusted),
+            &[(8, 0, 0.25, 300), (5, 10, 0.25, 50), (0, 3, 0.5, 1)],
+            &format!("seed {seed}"),
+        );
     }
     // Streaming the agreed range allocates nothing.
     let f = line_with_octave_shadows(3000, 9);
