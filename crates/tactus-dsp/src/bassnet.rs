@@ -329,17 +329,33 @@ impl BassFront {
     /// Bands of `frame` into `out` ([`BassFront::bands`] values); false (and zeros) when the
     /// frame is silent.
     pub fn features(&mut self, frame: &[f32], out: &mut [f32]) -> bool {
+        let peak = self.fft.analyse(frame);
+        let spec = std::mem::take(&mut self.fft.spec);
+        let voiced = self.features_from_spectrum(&spec, peak, out);
+        self.fft.spec = spec;
+        voiced
+    }
+
+    /// [`BassFront::features`] from a spectrum already computed by a [`FrameFft`] of the same
+    /// frame and FFT length (`peak = None`: the frame was silent), as the harmonic sum's own
+    /// is: the same values bit for bit, without a second FFT.
+    pub(crate) fn features_from_spectrum(
+        &mut self,
+        spec: &[realfft::num_complex::Complex<f32>],
+        peak: Option<f32>,
+        out: &mut [f32],
+    ) -> bool {
         let nb = self.ranges.len();
         out[..nb].fill(0.0);
         self.last_peak = 0.0;
-        let Some(peak) = self.fft.analyse(frame) else {
+        let Some(peak) = peak else {
             return false;
         };
         self.last_peak = peak;
         let mut top = f32::NEG_INFINITY;
         for (o, &(lo, hi)) in out.iter_mut().zip(&self.ranges) {
             let mut mx = 0.0f32;
-            for c in &self.fft.spec[lo..=hi] {
+            for c in &spec[lo..=hi] {
                 mx = mx.max(c.re * c.re + c.im * c.im);
             }
             let db = 10.0 * mx.max(1e-24).log10();
@@ -350,5 +366,44 @@ impl BassFront {
             *o = ((*o - top + RANGE_DB) / RANGE_DB).clamp(0.0, 1.0);
         }
         true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{BassFront, BANDS, LOW_HZ};
+    use crate::shs::FrameFft;
+
+    #[test]
+    fn features_from_a_shared_spectrum_are_the_features_bit_for_bit() {
+        // The learned bass tracker hands the network the harmonic sum's spectrum of the same
+        // frame (same frame and FFT length) instead of a second FFT: same bands, same bits,
+        // silent frames included.
+        let (sr, frame, n_fft) = (4900u32, 1024usize, 2048usize);
+        let mut own = BassFront::with_bands(sr, frame, n_fft, BANDS, LOW_HZ).unwrap();
+        let mut shared = BassFront::with_bands(sr, frame, n_fft, BANDS, LOW_HZ).unwrap();
+        let mut fft = FrameFft::new(frame, n_fft);
+        let (mut a, mut b) = (vec![0.0f32; BANDS], vec![0.0f32; BANDS]);
+        for (k, f0) in [41.2f32, 55.0, 98.0, 0.0].into_iter().enumerate() {
+            let x: Vec<f32> = (0..frame)
+                .map(|i| {
+                    let t = i as f32 / sr as f32;
+                    (1..=5)
+                        .map(|h| (std::f32::consts::TAU * f0 * h as f32 * t).sin() / h as f32)
+                        .sum::<f32>()
+                        * 0.3
+                        + 0.01 * ((i * 7919 + k) % 13) as f32 / 13.0 * (f0 > 0.0) as u8 as f32
+                })
+                .collect();
+            let va = own.features(&x, &mut a);
+            let peak = fft.analyse(&x);
+            let vb = shared.features_from_spectrum(&fft.spec, peak, &mut b);
+            assert_eq!(va, vb, "frame {k}");
+            assert_eq!(va, f0 > 0.0, "frame {k}: silent only when it is");
+            assert_eq!(own.last_peak.to_bits(), shared.last_peak.to_bits());
+            for (p, q) in a.iter().zip(&b) {
+                assert_eq!(p.to_bits(), q.to_bits(), "frame {k}");
+            }
+        }
     }
 }

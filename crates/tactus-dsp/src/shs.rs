@@ -746,6 +746,17 @@ impl NetState {
         self.frames += 1;
     }
 
+    /// [`NetState::push`] from the harmonic sum's spectrum of the same frame (same frame and
+    /// FFT length, so the same values), `peak = None` for a silent frame.
+    fn push_spectrum(&mut self, spec: &[Complex<f32>], peak: Option<f32>) {
+        let slot = self.frames % self.ring;
+        let nb = self.model.bands();
+        let f = &mut self.feats[slot * nb..(slot + 1) * nb];
+        self.silent[slot] = !self.front.features_from_spectrum(spec, peak, f);
+        self.peak[slot] = self.front.last_peak;
+        self.frames += 1;
+    }
+
     /// Log-probabilities of hop `h` into `logp` (frames outside `0..frames` are zeros).
     fn infer(&mut self, h: usize) {
         let nb = self.model.bands();
@@ -1003,14 +1014,19 @@ impl Tracker {
             let m = self.m;
             let slot = n.frames % n.ring;
             let dst = &mut n.shs[slot * m..(slot + 1) * m];
-            n.shs_v[slot] = if self.sal.spectrum(frame) {
+            let sounding = self.sal.spectrum(frame);
+            n.shs_v[slot] = if sounding {
                 self.sal.salience(dst)
             } else {
                 dst.fill(0.0);
                 0.02
             };
+            // The network's bands from the same spectrum: one FFT per frame, not two.
+            let peak = sounding.then_some(self.sal.last_peak);
+            n.push_spectrum(&self.sal.fft.spec, peak);
+        } else {
+            n.push(frame);
         }
-        n.push(frame);
         while n.hops + n.future < n.frames {
             self.net_hop(&mut n, emit);
         }
