@@ -108,6 +108,19 @@ fn forward(c: &mut Criterion) {
             o[0]
         })
     });
+    // Eight hops at once, as the tracker runs them inside a block (time per 8 hops).
+    const BATCH: usize = 8;
+    let xs: Vec<f32> = (0..BATCH * len)
+        .map(|i| ((i * 7919) % 1000) as f32 / 1000.0)
+        .collect();
+    let (mut a, mut b) = (vec![0.0f32; BATCH * w], vec![0.0f32; BATCH * w]);
+    let (mut o, mut o2) = (vec![0.0f32; BATCH * out], vec![0.0f32; BATCH * out]);
+    c.bench_function("leadnet_ensemble_forward_batch8", |bch| {
+        bch.iter(|| {
+            n1.forward_mean_batch(n2, black_box(&xs), BATCH, &mut a, &mut b, &mut o, &mut o2);
+            o[0]
+        })
+    });
 }
 
 /// The lead chain's rate and range (44.1 kHz decimated by 3; `Stem::Vocals`).

@@ -236,11 +236,29 @@ impl BassNet {
     /// [`BassNet::width`] values. Writes the log-softmax over `candidates + 1` classes into
     /// `out`.
     pub fn forward(&self, input: &[f32], a: &mut [f32], b: &mut [f32], out: &mut [f32]) {
-        let z = crate::mlp::run_layers(&self.layers, input, a, b);
-        let mx = z.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-        let lse = mx + z.iter().map(|&v| (v - mx).exp()).sum::<f32>().ln();
-        for (o, &v) in out.iter_mut().zip(z) {
-            *o = v - lse;
+        self.forward_batch(input, 1, a, b, out);
+    }
+
+    /// [`BassNet::forward`] on `count` inputs at once (`inputs`: `count` ×
+    /// [`BassNet::input_len`] values; `a`, `b`: `count` × [`BassNet::width`]; `out`: `count`
+    /// × `candidates + 1`): row `h` of `out` is [`BassNet::forward`] of input `h`, bit for
+    /// bit, and each weight is read once for the batch. No allocation.
+    pub fn forward_batch(
+        &self,
+        inputs: &[f32],
+        count: usize,
+        a: &mut [f32],
+        b: &mut [f32],
+        out: &mut [f32],
+    ) {
+        let z = crate::mlp::run_layers_batch(&self.layers, inputs, count, a, b);
+        let k = self.candidates + 1;
+        for (zr, or) in z.chunks_exact(k).zip(out.chunks_exact_mut(k)).take(count) {
+            let mx = zr.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            let lse = mx + zr.iter().map(|&v| (v - mx).exp()).sum::<f32>().ln();
+            for (o, &v) in or.iter_mut().zip(zr) {
+                *o = v - lse;
+            }
         }
     }
 
@@ -258,9 +276,27 @@ impl BassNet {
         out: &mut [f32],
         scratch: &mut [f32],
     ) {
-        self.forward(input, a, b, out);
-        other.forward(input, a, b, scratch);
-        for (l, &l2) in out.iter_mut().zip(scratch.iter()) {
+        self.forward_mean_batch(other, input, 1, a, b, out, scratch);
+    }
+
+    /// [`BassNet::forward_mean`] on `count` inputs at once, shaped as
+    /// [`BassNet::forward_batch`] (`scratch`: `count` × `candidates + 1`): row `h` is
+    /// [`BassNet::forward_mean`] of input `h`, bit for bit. No allocation.
+    #[allow(clippy::too_many_arguments)] // the batch's shapes, as forward_mean's
+    pub fn forward_mean_batch(
+        &self,
+        other: &BassNet,
+        inputs: &[f32],
+        count: usize,
+        a: &mut [f32],
+        b: &mut [f32],
+        out: &mut [f32],
+        scratch: &mut [f32],
+    ) {
+        self.forward_batch(inputs, count, a, b, out);
+        other.forward_batch(inputs, count, a, b, scratch);
+        let k = count * (self.candidates + 1);
+        for (l, &l2) in out[..k].iter_mut().zip(&scratch[..k]) {
             let m = l.max(l2);
             *l = m + (0.5 * ((*l - m).exp() + (l2 - m).exp())).ln();
         }

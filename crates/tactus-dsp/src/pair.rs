@@ -9,7 +9,7 @@
 //! tracker's wherever both are voiced.
 //!
 //! # Algorithm
-//! Both trackers get the same input, one hop at a time, and emit hop `i` in order. For each
+//! Both trackers get the same input, a block at a time, and emit hop `i` in order. For each
 //! hop: unvoiced when the voicing tracker says so (its estimate unchanged); otherwise the
 //! voicing tracker's estimate with `f0_hz` taken from the pitch tracker when that one is
 //! voiced there, else its own. Both trackers must have the same hop.
@@ -22,13 +22,19 @@
 //!
 //! # Latency
 //! The larger of the two trackers' latencies: a hop leaves once both have decided it.
-//! No allocation after construction: the input goes to the trackers a hop at a time, so
-//! the queue between them holds at most the latency difference plus one block of hops.
+//! No allocation after construction: the input goes to the trackers [`BLOCK_HOPS`] hops at a
+//! time, so the queue between them holds at most the latency difference plus that block.
+//! (A block of several hops lets a learned tracker run its network on several hops at
+//! once; a hop at a time would cost it about twice as much. Every hop still leaves in the
+//! call that makes it ready, so the block adds no latency.)
 
 use std::collections::VecDeque;
 
 use crate::yin::PitchEstimate;
 use crate::{ConfigError, HopStage};
+
+/// Hops of input handed to both trackers at a time (module docs, "Latency").
+pub const BLOCK_HOPS: usize = 32;
 
 /// See the module docs.
 pub struct VoicingPitchPair {
@@ -62,7 +68,7 @@ impl VoicingPitchPair {
             ));
         }
         let lead = voicing.latency_samples().abs_diff(pitch.latency_samples());
-        let cap = lead / voicing.hop() + 8;
+        let cap = lead / voicing.hop() + BLOCK_HOPS + 8;
         Ok(VoicingPitchPair {
             voicing,
             pitch,
@@ -113,7 +119,7 @@ impl VoicingPitchPair {
         emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate),
     ) {
         let hop = self.voicing.hop();
-        for block in input.chunks(hop) {
+        for block in input.chunks(hop * BLOCK_HOPS) {
             let (a, b) = (&mut self.a, &mut self.b);
             self.voicing.process(block, &mut |i, e| a.push_back((i, e)));
             self.pitch.process(block, &mut |i, e| b.push_back((i, e)));

@@ -634,6 +634,26 @@ struct Tracker {
     net: Option<Box<NetState>>,
 }
 
+/// [`Tracker::step`] as a [`crate::simd::Kernel`], so that it is compiled for AVX2 too.
+struct Step<'a> {
+    tracker: &'a mut Tracker,
+    slot: usize,
+    l_unvoiced: f32,
+}
+
+impl crate::simd::Kernel for Step<'_> {
+    type Out = ();
+    #[inline(always)]
+    fn run(self) {
+        self.tracker.step(self.slot, self.l_unvoiced);
+    }
+}
+
+/// Hops the learned salience runs through its network together (see
+/// [`crate::mlp::run_layers_batch`]); a block's last hops run as a smaller batch when the
+/// block ends, so the outputs, and when they leave, are those of one hop at a time.
+const NET_BATCH: usize = 8;
+
 /// The learned salience's front end, context ring and scratch.
 struct NetState {
     model: &'static BassNet,
@@ -647,8 +667,11 @@ struct NetState {
     frames: usize,
     /// Hops handed to the Viterbi (each `future` frames after its own).
     hops: usize,
+    /// Hops whose network input is assembled (`hops..queued` wait in the batch).
+    queued: usize,
     future: usize,
-    /// The network's input, scratch and log-probabilities for one hop.
+    /// The network's inputs for up to [`NET_BATCH`] hops, its scratch and log-probabilities
+    /// per hop (`NET_BATCH` rows each).
     input: Vec<f32>,
     a: Vec<f32>,
     b: Vec<f32>,
@@ -705,8 +728,11 @@ impl NetState {
             ));
         };
         let bands = model.bands();
-        let ring = model.past() + model.future() + 1;
+        // Room for the context of every hop of a batch: a hop's silence, peak and
+        // harmonic sum are read when its batch runs, up to `NET_BATCH` frames later.
+        let ring = model.past() + model.future() + 1 + NET_BATCH;
         let w = model.width().max(model.input_len());
+        let k = m + 1;
         Ok(NetState {
             model,
             front: BassFront::with_bands(
@@ -722,13 +748,14 @@ impl NetState {
             ring,
             frames: 0,
             hops: 0,
+            queued: 0,
             future: model.future(),
-            input: vec![0.0; model.input_len()],
-            a: vec![0.0; w],
-            b: vec![0.0; w],
-            logp: vec![0.0; m + 1],
+            input: vec![0.0; NET_BATCH * model.input_len()],
+            a: vec![0.0; NET_BATCH * w],
+            b: vec![0.0; NET_BATCH * w],
+            logp: vec![0.0; NET_BATCH * k],
             second,
-            logp2: vec![0.0; if second.is_some() { m + 1 } else { 0 }],
+            logp2: vec![0.0; if second.is_some() { NET_BATCH * k } else { 0 }],
             blend: cfg.learned_blend,
             voicing_nats: cfg.learned_voicing_nats,
             shs: vec![0.0; if cfg.learned_blend > 0.0 { ring * m } else { 0 }],
@@ -757,11 +784,21 @@ impl NetState {
         self.frames += 1;
     }
 
-    /// Log-probabilities of hop `h` into `logp` (frames outside `0..frames` are zeros).
-    fn infer(&mut self, h: usize) {
+    /// Hops waiting in the batch.
+    fn pending(&self) -> usize {
+        self.queued - self.hops
+    }
+
+    /// Assembles hop `queued`'s input (frames outside `0..frames` are zeros) into the
+    /// batch's next row.
+    fn queue(&mut self) {
+        let h = self.queued;
         let nb = self.model.bands();
+        let len = self.model.input_len();
+        let row = self.pending();
+        let input = &mut self.input[row * len..(row + 1) * len];
         for (k, &o) in self.model.offsets().iter().enumerate() {
-            let dst = &mut self.input[k * nb..(k + 1) * nb];
+            let dst = &mut input[k * nb..(k + 1) * nb];
             let j = h as i64 + i64::from(o);
             if j < 0 || j >= self.frames as i64 {
                 dst.fill(0.0);
@@ -770,13 +807,24 @@ impl NetState {
                 dst.copy_from_slice(&self.feats[slot * nb..(slot + 1) * nb]);
             }
         }
+        self.queued += 1;
+    }
+
+    /// Log-probabilities of every waiting hop into `logp`, one row each.
+    fn infer(&mut self) {
+        let count = self.pending();
         match self.second {
-            None => self
-                .model
-                .forward(&self.input, &mut self.a, &mut self.b, &mut self.logp),
-            Some(second) => self.model.forward_mean(
+            None => self.model.forward_batch(
+                &self.input,
+                count,
+                &mut self.a,
+                &mut self.b,
+                &mut self.logp,
+            ),
+            Some(second) => self.model.forward_mean_batch(
                 second,
                 &self.input,
+                count,
                 &mut self.a,
                 &mut self.b,
                 &mut self.logp,
@@ -788,6 +836,7 @@ impl NetState {
     fn reset(&mut self) {
         self.frames = 0;
         self.hops = 0;
+        self.queued = 0;
         self.silent.fill(true);
     }
 }
@@ -1027,8 +1076,11 @@ impl Tracker {
         } else {
             n.push(frame);
         }
-        while n.hops + n.future < n.frames {
-            self.net_hop(&mut n, emit);
+        while n.queued + n.future < n.frames {
+            n.queue();
+            if n.pending() == NET_BATCH {
+                self.run_batch(&mut n, emit);
+            }
         }
         self.net = Some(n);
     }
@@ -1038,20 +1090,50 @@ impl Tracker {
         let Some(mut n) = self.net.take() else {
             return;
         };
-        while n.hops < n.frames {
-            self.net_hop(&mut n, emit);
+        while n.queued < n.frames {
+            n.queue();
+            if n.pending() == NET_BATCH {
+                self.run_batch(&mut n, emit);
+            }
         }
+        self.run_batch(&mut n, emit);
         self.net = Some(n);
     }
 
-    /// Hop `n.hops` through the network, then the Viterbi.
-    fn net_hop(&mut self, n: &mut NetState, emit: &mut dyn FnMut(usize, PitchEstimate)) {
-        n.infer(n.hops);
+    /// Runs the hops waiting in the batch, if any (the end of a block: whatever a block
+    /// makes ready leaves with it, so batching adds no latency).
+    fn flush_batch(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
+        let Some(mut n) = self.net.take() else {
+            return;
+        };
+        self.run_batch(&mut n, emit);
+        self.net = Some(n);
+    }
+
+    /// The waiting hops through the network together, then each through the Viterbi in
+    /// order.
+    fn run_batch(&mut self, n: &mut NetState, emit: &mut dyn FnMut(usize, PitchEstimate)) {
+        if n.pending() == 0 {
+            return;
+        }
+        n.infer();
+        for row in 0..n.pending() {
+            self.net_hop(n, row, emit);
+        }
+    }
+
+    /// Hop `n.hops`, whose log-probabilities are row `row` of `n.logp`, through the Viterbi.
+    fn net_hop(
+        &mut self,
+        n: &mut NetState,
+        row: usize,
+        emit: &mut dyn FnMut(usize, PitchEstimate),
+    ) {
         let slot = n.hops % n.ring;
         let (silent, peak) = (n.silent[slot], n.peak[slot]);
         n.hops += 1;
         let m = self.m;
-        let logp = &n.logp[..];
+        let logp = &n.logp[row * (m + 1)..(row + 1) * (m + 1)];
         let (v, l_unvoiced) = if silent {
             self.s.fill(0.0);
             (0.02, self.observe(0.02))
@@ -1126,7 +1208,11 @@ impl Tracker {
             self.delta[..m].copy_from_slice(&self.obs);
             self.delta[m] = l_unvoiced;
         } else {
-            self.step(slot, l_unvoiced);
+            crate::simd::with_avx2(Step {
+                tracker: self,
+                slot,
+                l_unvoiced,
+            });
         }
         self.hops_seen = t + 1;
         if t >= self.lag {
@@ -1152,6 +1238,7 @@ impl Tracker {
 
     /// One Viterbi step into `next` (then swapped into `delta`), backpointers into `slot`.
     #[allow(clippy::needless_range_loop)] // k indexes delta, next, obs and bp alike
+    #[inline(always)] // compiled inside `simd::with_avx2`'s frame (`Step`)
     fn step(&mut self, slot: usize, l_unvoiced: f32) {
         let m = self.m;
         let j = self.max_jump;
@@ -1329,6 +1416,7 @@ impl HopStage for Shs {
     fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, PitchEstimate)) {
         let tracker = &mut self.tracker;
         self.framer.push(input, |_, fr| tracker.on_frame(fr, emit));
+        self.tracker.flush_batch(emit);
     }
 
     fn finish(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
