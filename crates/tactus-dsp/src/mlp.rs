@@ -120,7 +120,7 @@ pub(crate) fn run_layers_batch<'a>(
     for (li, l) in layers.iter().enumerate() {
         let relu = li != last;
         let (n_in, n_out) = (l.n_in, l.n_out);
-        if crate::simd::dense(&l.w, &l.b, n_in, n_out, src, count, dst, relu) {
+        if crate::simd::dense(l, src, count, dst, relu) {
             std::mem::swap(&mut src, &mut dst);
             continue;
         }

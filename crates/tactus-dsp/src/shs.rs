@@ -1516,11 +1516,30 @@ mod tests {
                 }
                 let (want, want_bp) = step_by_hand(&t, -1.0);
                 let slot = trial % t.ring;
-                t.step(slot, -1.0);
-                let bp = &t.bp[slot * (m + 1)..(slot + 1) * (m + 1)];
-                assert_eq!(bp, &want_bp[..], "{fmin}-{fmax} jump {jump} trial {trial}");
-                for (k, (w, d)) in want.iter().zip(&t.delta).enumerate() {
-                    assert_eq!(w.to_bits(), d.to_bits(), "bin {k}");
+                // Both builds of the step: as compiled for the baseline CPU, and inside
+                // `simd::with_avx2`'s frame, as the tracker runs it (the same frame as the
+                // first where the CPU lacks AVX2).
+                let delta = t.delta.clone();
+                for path in ["baseline", "with_avx2"] {
+                    t.delta.copy_from_slice(&delta);
+                    if path == "baseline" {
+                        t.step(slot, -1.0);
+                    } else {
+                        crate::simd::with_avx2(Step {
+                            tracker: &mut t,
+                            slot,
+                            l_unvoiced: -1.0,
+                        });
+                    }
+                    let bp = &t.bp[slot * (m + 1)..(slot + 1) * (m + 1)];
+                    assert_eq!(
+                        bp,
+                        &want_bp[..],
+                        "{path} {fmin}-{fmax} jump {jump} trial {trial}"
+                    );
+                    for (k, (w, d)) in want.iter().zip(&t.delta).enumerate() {
+                        assert_eq!(w.to_bits(), d.to_bits(), "{path} bin {k}");
+                    }
                 }
             }
         }

@@ -26,6 +26,8 @@
 
 #![allow(unsafe_code)]
 
+use crate::drums::Layer;
+
 /// True when the AVX2 kernel can run here (cached by the standard library).
 pub(crate) fn avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
@@ -65,29 +67,19 @@ pub(crate) fn with_avx2<K: Kernel>(k: K) -> K::Out {
     k.run()
 }
 
-/// One dense layer over `count` inputs: `dst[h·n_out + r] = dot8(w[r], src[h], b[r])`, then
+/// Layer `l` over `count` inputs: `dst[h·n_out + r] = dot8(w[r], src[h], b[r])`, then
 /// `max(0)` when `relu`, for `h < count`, `r < n_out`. Returns false (and does nothing)
 /// when the CPU lacks AVX2; the caller then runs the portable loop.
-#[allow(clippy::too_many_arguments)] // the layer's shape, spelled out
-pub(crate) fn dense(
-    w: &[f32],
-    b: &[f32],
-    n_in: usize,
-    n_out: usize,
-    src: &[f32],
-    count: usize,
-    dst: &mut [f32],
-    relu: bool,
-) -> bool {
+pub(crate) fn dense(l: &Layer, src: &[f32], count: usize, dst: &mut [f32], relu: bool) -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         if avx2() {
             // SAFETY: the CPU has AVX2 (checked on the line above).
-            unsafe { x86::dense_avx2(w, b, n_in, n_out, src, count, dst, relu) };
+            unsafe { x86::dense_avx2(l, src, count, dst, relu) };
             return true;
         }
     }
-    let _ = (w, b, n_in, n_out, src, count, dst, relu);
+    let _ = (l, src, count, dst, relu);
     false
 }
 
@@ -114,17 +106,14 @@ mod x86 {
     /// # Safety
     /// The CPU must have AVX2.
     #[target_feature(enable = "avx2")]
-    #[allow(clippy::too_many_arguments)]
     pub(super) unsafe fn dense_avx2(
-        w: &[f32],
-        b: &[f32],
-        n_in: usize,
-        n_out: usize,
+        l: &super::Layer,
         src: &[f32],
         count: usize,
         dst: &mut [f32],
         relu: bool,
     ) {
+        let (w, b, n_in, n_out) = (&l.w[..], &l.b[..], l.n_in, l.n_out);
         // Every pointer below stays inside these lengths.
         assert!(w.len() >= n_out * n_in && b.len() >= n_out);
         assert!(src.len() >= count * n_in && dst.len() >= count * n_out);
@@ -167,23 +156,20 @@ mod x86 {
 
 #[cfg(test)]
 mod tests {
+    use crate::drums::Layer;
     use crate::mlp::dot8;
 
     #[test]
     fn avx2_dense_equals_dot8_bit_for_bit() {
         if !super::avx2() {
             // Without AVX2 the kernel must decline, so that the portable loop runs.
-            let mut out = [0f32; 1];
-            assert!(!super::dense(
-                &[1.0],
-                &[0.0],
-                1,
-                1,
-                &[1.0],
-                1,
-                &mut out,
-                false
-            ));
+            let l = Layer {
+                n_in: 1,
+                n_out: 1,
+                w: vec![1.0],
+                b: vec![0.0],
+            };
+            assert!(!super::dense(&l, &[1.0], 1, &mut [0.0], false));
             return;
         }
         let mut seed = 0x9e37_79b9u32;
@@ -197,23 +183,24 @@ mod tests {
         // remainders), values of mixed sign and scale so that the order of the adds shows.
         for (n_in, n_out) in [(864usize, 7usize), (13, 5), (8, 3), (5, 2), (129, 9)] {
             for count in 1..=9 {
-                let w: Vec<f32> = (0..n_in * n_out)
-                    .map(|i| rnd() * (1 + i % 7) as f32)
-                    .collect();
-                let b: Vec<f32> = (0..n_out).map(|_| rnd()).collect();
+                let l = Layer {
+                    n_in,
+                    n_out,
+                    w: (0..n_in * n_out)
+                        .map(|i| rnd() * (1 + i % 7) as f32)
+                        .collect(),
+                    b: (0..n_out).map(|_| rnd()).collect(),
+                };
                 let x: Vec<f32> = (0..count * n_in)
                     .map(|i| rnd() * 1e3f32.powi((i % 3) as i32 - 1))
                     .collect();
                 for relu in [false, true] {
                     let mut got = vec![f32::NAN; count * n_out];
-                    assert!(super::dense(&w, &b, n_in, n_out, &x, count, &mut got, relu));
+                    assert!(super::dense(&l, &x, count, &mut got, relu));
                     for h in 0..count {
                         for r in 0..n_out {
-                            let s = dot8(
-                                &w[r * n_in..(r + 1) * n_in],
-                                &x[h * n_in..(h + 1) * n_in],
-                                b[r],
-                            );
+                            let row = &l.w[r * n_in..(r + 1) * n_in];
+                            let s = dot8(row, &x[h * n_in..(h + 1) * n_in], l.b[r]);
                             let want = if relu { s.max(0.0) } else { s };
                             assert_eq!(
                                 got[h * n_out + r].to_bits(),
