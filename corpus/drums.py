@@ -1333,6 +1333,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", required=True)
     ap.add_argument("--songs", type=int, default=12, help="songs per family (default 12)")
+    ap.add_argument("--first", type=int, default=0,
+                    help="render only song indices from this one up to --songs (default 0)")
     ap.add_argument("--families", default=",".join(FAMILIES))
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--force", action="store_true", help="re-render songs that exist")
@@ -1358,7 +1360,7 @@ def main():
         if f not in FAMILIES:
             sys.exit(f"unknown family {f!r}; known: {', '.join(FAMILIES)}")
     os.makedirs(args.out, exist_ok=True)
-    tasks = [(f, i, args.out, args.force) for i in range(args.songs) for f in fams]
+    tasks = [(f, i, args.out, args.force) for i in range(args.first, args.songs) for f in fams]
     counts = {f: 0 for f in fams}
     ready_written = False
     t0 = time.time()

@@ -584,6 +584,8 @@ def main():
                     help="instead of the six songs: N further four-part chorales of music21's Bach "
                          "corpus (never those six), programs and tempo drawn per song from the six's "
                          "(seeded), for training learned models")
+    ap.add_argument("--skip", type=int, default=0, metavar="K",
+                    help="with --extra: render only the extra chorales from the K-th on (a later held-out set)")
     ap.add_argument("--small", action="store_true", help=f"the committed fixture set: {len(SMALL_SONGS)} songs x {SMALL_SECONDS:g} s, FLAC")
     ap.add_argument("--format", choices=("wav", "flac"), default=None, help="audio format (default wav, flac with --small)")
     ap.add_argument("--verify", action="store_true", help="after generating, check audio against truth")
@@ -614,7 +616,7 @@ def main():
         os.makedirs(args.out, exist_ok=True)
         songs = [s for s in SONGS if (not args.small) or s[0] in SMALL_SONGS]
         if args.extra:
-            songs = extra_songs(args.extra)
+            songs = extra_songs(args.extra)[args.skip:]
         for name, work, bpm, vp, bp, op, seed in songs:
             d = build_song(sf2, name, work, bpm, vp, bp, op, seed, args.out,
                            SMALL_SECONDS if args.small else None, fmt, tmp)
