@@ -111,6 +111,13 @@ impl BassNet {
         })
     }
 
+    /// The lead ensemble's models besides [`BassNet::embedded_lead`]
+    /// ([`crate::shs::ShsConfig::learned_ensemble`]; module docs, "The lead models and their
+    /// ensemble").
+    pub fn embedded_lead_others() -> Vec<&'static BassNet> {
+        vec![Self::embedded_lead_sung()]
+    }
+
     /// Parses the format written by `models/bassnet/train.py`: `"TACTUSBN"`, then
     /// little-endian u32 `version = 1, bands, bins_per_semitone`, f32 `low_hz, range_db`,
     /// u32 `n_offsets`, i32 `offsets[n_offsets]`, u32 `candidates`, f32 `cand_fmin_hz`,
@@ -293,12 +300,42 @@ impl BassNet {
         out: &mut [f32],
         scratch: &mut [f32],
     ) {
-        self.forward_batch(inputs, count, a, b, out);
-        other.forward_batch(inputs, count, a, b, scratch);
+        self.forward_ensemble_batch(&[other], inputs, count, a, b, out, scratch);
+    }
+
+    /// The mean of this model's and every one of `others`' probabilities over `count`
+    /// inputs, as log-probabilities into `out`: `log(Σᵢ pᵢ / n)` per class over the `n =
+    /// 1 + others.len()` models, computed as `m + ln(Σᵢ exp(lᵢ − m) / n)` with `m` the
+    /// largest log-probability (for two models the very bits of [`BassNet::forward_mean`]).
+    /// `scratch` holds `others.len()` × `count` × `candidates + 1` values; the rest as
+    /// [`BassNet::forward_batch`]. No allocation.
+    #[allow(clippy::too_many_arguments)] // the batch's shapes
+    pub fn forward_ensemble_batch(
+        &self,
+        others: &[&BassNet],
+        inputs: &[f32],
+        count: usize,
+        a: &mut [f32],
+        b: &mut [f32],
+        out: &mut [f32],
+        scratch: &mut [f32],
+    ) {
         let k = count * (self.candidates + 1);
-        for (l, &l2) in out[..k].iter_mut().zip(&scratch[..k]) {
-            let m = l.max(l2);
-            *l = m + (0.5 * ((*l - m).exp() + (l2 - m).exp())).ln();
+        self.forward_batch(inputs, count, a, b, out);
+        for (o, s) in others.iter().zip(scratch.chunks_exact_mut(k)) {
+            o.forward_batch(inputs, count, a, b, s);
+        }
+        let n = (1 + others.len()) as f32;
+        for (i, l) in out[..k].iter_mut().enumerate() {
+            let mut m = *l;
+            for j in 0..others.len() {
+                m = m.max(scratch[j * k + i]);
+            }
+            let mut sum = (*l - m).exp();
+            for j in 0..others.len() {
+                sum += (scratch[j * k + i] - m).exp();
+            }
+            *l = m + (sum / n).ln();
         }
     }
 }

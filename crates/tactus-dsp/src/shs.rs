@@ -676,8 +676,9 @@ struct NetState {
     a: Vec<f32>,
     b: Vec<f32>,
     logp: Vec<f32>,
-    /// The second lead model ([`ShsConfig::learned_ensemble`]) and its log-probabilities.
-    second: Option<&'static BassNet>,
+    /// The lead ensemble's other models ([`ShsConfig::learned_ensemble`]; empty: none) and
+    /// their log-probabilities (`others.len() × NET_BATCH` rows).
+    others: Vec<&'static BassNet>,
     logp2: Vec<f32>,
     /// [`ShsConfig::learned_blend`].
     blend: f32,
@@ -717,10 +718,10 @@ impl NetState {
                  (lead) at 3 bins per semitone",
             ));
         };
-        let second = if !cfg.learned_ensemble {
-            None
+        let others = if !cfg.learned_ensemble {
+            Vec::new()
         } else if std::ptr::eq(model, BassNet::embedded_lead()) {
-            Some(BassNet::embedded_lead_sung())
+            BassNet::embedded_lead_others()
         } else {
             return Err(ConfigError::invalid(
                 "learned_ensemble",
@@ -754,8 +755,8 @@ impl NetState {
             a: vec![0.0; NET_BATCH * w],
             b: vec![0.0; NET_BATCH * w],
             logp: vec![0.0; NET_BATCH * k],
-            second,
-            logp2: vec![0.0; if second.is_some() { NET_BATCH * k } else { 0 }],
+            logp2: vec![0.0; others.len() * NET_BATCH * k],
+            others,
             blend: cfg.learned_blend,
             voicing_nats: cfg.learned_voicing_nats,
             shs: vec![0.0; if cfg.learned_blend > 0.0 { ring * m } else { 0 }],
@@ -813,23 +814,19 @@ impl NetState {
     /// Log-probabilities of every waiting hop into `logp`, one row each.
     fn infer(&mut self) {
         let count = self.pending();
-        match self.second {
-            None => self.model.forward_batch(
-                &self.input,
-                count,
-                &mut self.a,
-                &mut self.b,
-                &mut self.logp,
-            ),
-            Some(second) => self.model.forward_mean_batch(
-                second,
+        if self.others.is_empty() {
+            self.model
+                .forward_batch(&self.input, count, &mut self.a, &mut self.b, &mut self.logp)
+        } else {
+            self.model.forward_ensemble_batch(
+                &self.others,
                 &self.input,
                 count,
                 &mut self.a,
                 &mut self.b,
                 &mut self.logp,
                 &mut self.logp2,
-            ),
+            )
         }
     }
 
