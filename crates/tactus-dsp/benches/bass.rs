@@ -121,6 +121,24 @@ fn forward(c: &mut Criterion) {
             o[0]
         })
     });
+    // The default's ensemble since 2026-11-28: the first lead model and both others
+    // (`BassNet::embedded_lead_others`), 8 hops at once (time per 8 hops).
+    let others = BassNet::embedded_lead_others();
+    let mut o3 = vec![0.0f32; others.len() * BATCH * out];
+    c.bench_function("leadnet_ensemble3_forward_batch8", |bch| {
+        bch.iter(|| {
+            n1.forward_ensemble_batch(
+                &others,
+                black_box(&xs),
+                BATCH,
+                &mut a,
+                &mut b,
+                &mut o,
+                &mut o3,
+            );
+            o[0]
+        })
+    });
 }
 
 /// The lead chain's rate and range (44.1 kHz decimated by 3; `Stem::Vocals`).

@@ -34,12 +34,14 @@
 //!
 //! # The lead models and their ensemble
 //! The same network over a mixture's lead band ([`BassNet::embedded_lead`]: 216 bands from
-//! 70 Hz, candidates 70–1400 Hz). A second lead model, the same recipe trained with 80 more
-//! sung songs ([`BassNet::embedded_lead_sung`]), finds sung leads better and instrumental
-//! ones as well; alone it moved a chorale's level range now and then. With
-//! [`crate::shs::ShsConfig::learned_ensemble`] the tracker decodes the mean of the two
-//! models' probabilities, `log(½·p₁ + ½·p₂)` per class (a mixture of experts with equal
-//! weights). Same latency; twice the network's cost.
+//! 70 Hz, candidates 70–1400 Hz). Two more lead models share its recipe: one trained with 80
+//! more sung songs ([`BassNet::embedded_lead_sung`]), which finds sung leads better and
+//! instrumental ones as well but alone moved a chorale's level range now and then, and one
+//! trained with another seed on 180 other songs ([`BassNet::embedded_lead_3`]). With
+//! [`crate::shs::ShsConfig::learned_ensemble`] the tracker decodes the mean of the three
+//! models' probabilities, `log(Σᵢ pᵢ / 3)` per class (a mixture of experts with equal
+//! weights; [`BassNet::forward_ensemble_batch`]). Same latency; three times the network's
+//! cost.
 
 use crate::drums::Layer;
 use crate::mlp::{read_f32s, read_u32, take};
@@ -72,6 +74,10 @@ static EMBEDDED_LEAD: &[u8] = include_bytes!("../weights/leadnet.bin");
 /// (`models/bassnet/README.md`, "The lead ensemble"), averaged with the first
 /// ([`crate::shs::ShsConfig::learned_ensemble`]).
 static EMBEDDED_LEAD_SUNG: &[u8] = include_bytes!("../weights/leadnet_sung.bin");
+
+/// The third embedded lead model: the lead recipe with another seed on other songs
+/// (`models/bassnet/README.md`, "The lead ensemble's third member").
+static EMBEDDED_LEAD_3: &[u8] = include_bytes!("../weights/leadnet_3.bin");
 
 /// The network and its input layout.
 #[derive(Clone, Debug, PartialEq)]
@@ -115,7 +121,17 @@ impl BassNet {
     /// ([`crate::shs::ShsConfig::learned_ensemble`]; module docs, "The lead models and their
     /// ensemble").
     pub fn embedded_lead_others() -> Vec<&'static BassNet> {
-        vec![Self::embedded_lead_sung()]
+        vec![Self::embedded_lead_sung(), Self::embedded_lead_3()]
+    }
+
+    /// The third embedded lead model (parsed once; see [`BassNet::embedded_lead_others`]),
+    /// whose candidates, bands and offsets are the first's.
+    pub fn embedded_lead_3() -> &'static BassNet {
+        static MODEL: OnceLock<BassNet> = OnceLock::new();
+        // Checked by a unit test, like the other three.
+        MODEL.get_or_init(|| {
+            Self::from_bytes(EMBEDDED_LEAD_3).expect("embedded third lead model is valid")
+        })
     }
 
     /// Parses the format written by `models/bassnet/train.py`: `"TACTUSBN"`, then

@@ -262,10 +262,10 @@ pub struct ShsConfig {
     /// 0 = the network's own odds.
     pub learned_voicing_nats: f32,
     /// With [`ShsConfig::learned`] on the lead's grid: the candidates' probabilities are the
-    /// mean of the two embedded lead models' ([`BassNet::embedded_lead`] and
-    /// [`BassNet::embedded_lead_sung`]), `log(½·p₁ + ½·p₂)` per candidate and for "no
-    /// pitch" ([`crate::bassnet`] module docs, "The lead models and their ensemble"). Errors
-    /// on the bass grid. Off by default.
+    /// mean of the embedded lead models' ([`BassNet::embedded_lead`] and
+    /// [`BassNet::embedded_lead_others`]: three since 2026-11-28), `log(Σᵢ pᵢ / n)` per
+    /// candidate and for "no pitch" ([`crate::bassnet`] module docs, "The lead models and
+    /// their ensemble"). Errors on the bass grid. Off by default.
     pub learned_ensemble: bool,
 }
 

@@ -167,10 +167,25 @@ fn embedded_lead_model_matches_a_separate_f64_reader() {
 /// The second lead model's file (`BassNet::embedded_lead_sung`).
 const LEAD_SUNG_WEIGHTS: &[u8] = include_bytes!("../weights/leadnet_sung.bin");
 
+/// The third lead model's file (`BassNet::embedded_lead_3`).
+const LEAD_3_WEIGHTS: &[u8] = include_bytes!("../weights/leadnet_3.bin");
+
 #[test]
 fn embedded_sung_lead_model_matches_a_separate_f64_reader_and_the_first_lead_models_layout() {
-    let (net, first) = (BassNet::embedded_lead_sung(), BassNet::embedded_lead());
-    let or = oracle_of(LEAD_SUNG_WEIGHTS, 216, 70.0);
+    check_lead_member(BassNet::embedded_lead_sung(), LEAD_SUNG_WEIGHTS, 11);
+}
+
+#[test]
+fn embedded_third_lead_model_matches_a_separate_f64_reader_and_the_first_lead_models_layout() {
+    check_lead_member(BassNet::embedded_lead_3(), LEAD_3_WEIGHTS, 13);
+    assert_ne!(BassNet::embedded_lead_3(), BassNet::embedded_lead_sung());
+}
+
+/// A lead ensemble member: its file read by the f64 oracle, and the first lead model's
+/// front end, context and classes.
+fn check_lead_member(net: &BassNet, weights: &[u8], seed: u64) {
+    let first = BassNet::embedded_lead();
+    let or = oracle_of(weights, 216, 70.0);
     assert_eq!(net.offsets(), &or.offsets[..]);
     assert_eq!(net.offsets(), first.offsets());
     assert_eq!(
@@ -188,50 +203,103 @@ fn embedded_sung_lead_model_matches_a_separate_f64_reader_and_the_first_lead_mod
         )
     );
     assert_ne!(net, first, "a different model");
-    check_against_oracle(net, &or, 11, 3);
+    check_against_oracle(net, &or, seed, 3);
 }
 
 #[test]
-fn the_lead_ensemble_is_the_mean_of_both_models_probabilities() {
-    // `forward_mean` against the two f64 readers: log(½·p₁ + ½·p₂) per class, within 1e-3,
-    // on front-end-like inputs; the mean is a distribution; no allocation.
-    let (n1, n2) = (BassNet::embedded_lead(), BassNet::embedded_lead_sung());
-    let (o1, o2) = (
+fn the_lead_ensemble_is_the_mean_of_its_models_probabilities() {
+    // `forward_ensemble_batch` with the embedded members against their f64 readers:
+    // log(Σᵢ pᵢ / n) per class, within 1e-3, on front-end-like inputs, three hops at once;
+    // each hop's row is the same bits as that hop alone; the mean is a distribution; no
+    // allocation. For two members it is `forward_mean`, bit for bit.
+    let n1 = BassNet::embedded_lead();
+    let others = BassNet::embedded_lead_others();
+    assert_eq!(others.len(), 2, "the sung model and the third");
+    assert!(std::ptr::eq(others[0], BassNet::embedded_lead_sung()));
+    assert!(std::ptr::eq(others[1], BassNet::embedded_lead_3()));
+    let oracles = [
         oracle_of(LEAD_WEIGHTS, 216, 70.0),
         oracle_of(LEAD_SUNG_WEIGHTS, 216, 70.0),
-    );
+        oracle_of(LEAD_3_WEIGHTS, 216, 70.0),
+    ];
+    const HOPS: usize = 3;
     let mut rng = Rng::new(5);
-    let w = n1.width().max(n1.input_len());
+    let (len, c) = (n1.input_len(), n1.candidates() + 1);
+    let w = HOPS * n1.width().max(len);
     let (mut a, mut b) = (vec![0.0f32; w], vec![0.0f32; w]);
-    let c = n1.candidates() + 1;
-    let (mut out, mut scratch, mut single) = (vec![0.0f32; c], vec![0.0f32; c], vec![0.0f32; c]);
+    let mut out = vec![0.0f32; HOPS * c];
+    let mut scratch = vec![0.0f32; others.len() * HOPS * c];
+    let (mut one, mut one_scratch) = (vec![0.0f32; c], vec![0.0f32; others.len() * c]);
+    let (mut single, mut pair, mut pair_scratch) =
+        (vec![0.0f32; c], vec![0.0f32; c], vec![0.0f32; c]);
     let mut moved = 0usize;
-    for trial in 0..4 {
-        let x = front_like_input(&mut rng, n1.input_len());
+    for trial in 0..3 {
+        let x: Vec<f32> = (0..HOPS)
+            .flat_map(|_| front_like_input(&mut rng, len))
+            .collect();
         let allocs = tactus_testkit::allocations_during(|| {
-            n1.forward_mean(n2, &x, &mut a, &mut b, &mut out, &mut scratch);
+            n1.forward_ensemble_batch(&others, &x, HOPS, &mut a, &mut b, &mut out, &mut scratch);
         });
         assert_eq!(allocs, 0);
-        let xd: Vec<f64> = x.iter().map(|&v| v as f64).collect();
-        let (l1, l2) = (oracle_forward(&o1, &xd), oracle_forward(&o2, &xd));
-        for k in 0..c {
-            let want = (0.5 * l1[k].exp() + 0.5 * l2[k].exp()).ln();
-            assert!(
-                (out[k] as f64 - want).abs() < 1e-3,
-                "trial {trial} class {k}: {} vs {want}",
-                out[k]
+        for h in 0..HOPS {
+            let xh = &x[h * len..(h + 1) * len];
+            let got = &out[h * c..(h + 1) * c];
+            n1.forward_ensemble_batch(&others, xh, 1, &mut a, &mut b, &mut one, &mut one_scratch);
+            for (p, q) in got.iter().zip(&one) {
+                assert_eq!(
+                    p.to_bits(),
+                    q.to_bits(),
+                    "trial {trial} hop {h}: batch and alone"
+                );
+            }
+            let xd: Vec<f64> = xh.iter().map(|&v| v as f64).collect();
+            let ls: Vec<Vec<f64>> = oracles.iter().map(|o| oracle_forward(o, &xd)).collect();
+            for k in 0..c {
+                let want = (ls.iter().map(|l| l[k].exp()).sum::<f64>() / ls.len() as f64).ln();
+                assert!(
+                    (got[k] as f64 - want).abs() < 1e-3,
+                    "trial {trial} hop {h} class {k}: {} vs {want}",
+                    got[k]
+                );
+            }
+            let total: f64 = got.iter().map(|&v| (v as f64).exp()).sum();
+            assert!((total - 1.0).abs() < 1e-4, "probabilities sum to {total}");
+            n1.forward(xh, &mut a, &mut b, &mut single);
+            moved += got
+                .iter()
+                .zip(&single)
+                .filter(|(p, q)| (**p - **q).abs() > 1e-3)
+                .count();
+            // Two members: the general path is `forward_mean`'s arithmetic.
+            n1.forward_mean(others[0], xh, &mut a, &mut b, &mut pair, &mut pair_scratch);
+            n1.forward_ensemble_batch(
+                &others[..1],
+                xh,
+                1,
+                &mut a,
+                &mut b,
+                &mut one,
+                &mut one_scratch,
             );
+            for (p, q) in pair.iter().zip(&one) {
+                assert_eq!(
+                    p.to_bits(),
+                    q.to_bits(),
+                    "trial {trial} hop {h}: two members"
+                );
+            }
+            let want2: Vec<f64> = (0..c)
+                .map(|k| (0.5 * ls[0][k].exp() + 0.5 * ls[1][k].exp()).ln())
+                .collect();
+            for k in 0..c {
+                assert!(
+                    (pair[k] as f64 - want2[k]).abs() < 1e-3,
+                    "two members, class {k}"
+                );
+            }
         }
-        let total: f64 = out.iter().map(|&v| (v as f64).exp()).sum();
-        assert!((total - 1.0).abs() < 1e-4, "probabilities sum to {total}");
-        n1.forward(&x, &mut a, &mut b, &mut single);
-        moved += out
-            .iter()
-            .zip(&single)
-            .filter(|(p, q)| (**p - **q).abs() > 1e-3)
-            .count();
     }
-    assert!(moved > 0, "the second model changes the output");
+    assert!(moved > 0, "the other models change the output");
 }
 
 #[test]
