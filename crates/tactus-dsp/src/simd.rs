@@ -179,10 +179,10 @@ mod tests {
             seed ^= seed << 5;
             (seed as f32 / u32::MAX as f32) * 2.0 - 1.0
         };
-        // Inputs a multiple of eight and not, one to nine hops (batches of four and their
+        // Inputs a multiple of eight and not, one to seventeen hops (batches of four and their
         // remainders), values of mixed sign and scale so that the order of the adds shows.
         for (n_in, n_out) in [(864usize, 7usize), (13, 5), (8, 3), (5, 2), (129, 9)] {
-            for count in 1..=9 {
+            for count in 1..=17 {
                 let l = Layer {
                     n_in,
                     n_out,
