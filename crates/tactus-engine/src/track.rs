@@ -51,9 +51,9 @@ pub enum PitchMethod {
     /// stems (the data it was trained on). On the bass range: the bass model times the
     /// harmonic sum ([`LEARNED_BASS_BLEND`]), decoded like [`PitchMethod::Shs`]. Above it
     /// (the lead): a [`tactus_dsp::pair::VoicingPitchPair`] whose harmonic-sum tracker
-    /// decides whether a hop is voiced (and gives the note onsets their pitch,
-    /// [`PitchTrack::note_f0`]) and whose lead-model tracker ([`LEARNED_LEAD_BLEND`])
-    /// decides which pitch.
+    /// decides whether a hop is voiced (its own pitch, [`PitchTrack::voicing_f0`], marks
+    /// the hops the level range trusts) and whose lead-model tracker
+    /// ([`LEARNED_LEAD_BLEND`]) decides which pitch; note onsets read the pair's pitch.
     Learned,
     /// [`PitchMethod::Learned`] for the spectral separator's bass and lead (vocals) stems,
     /// [`PitchMethod::Shs`] for other basses and leads (supplied stems, other separators),
@@ -463,7 +463,7 @@ impl<F: HopFilter> Reset for F {
 }
 
 /// The tracker of a [`PitchTrack`]: one, or a voicing/pitch pair whose voicing tracker's
-/// own pitch is kept for note onsets ([`PitchTrack::note_f0`]).
+/// own pitch is kept beside the pair's ([`PitchTrack::voicing_f0`]).
 enum Tracker {
     One(Box<dyn HopStage<Out = PitchEstimate>>),
     Pair(Box<VoicingPitchPair>),
@@ -500,8 +500,8 @@ impl Tracker {
     }
 }
 
-/// A pair's voicing-tracker pitch through the same gate decisions and its own fences: what
-/// note onsets read ([`PitchTrack::note_f0`]).
+/// A pair's voicing-tracker pitch through the same gate decisions and its own fences
+/// ([`PitchTrack::voicing_f0`]), against which the level range checks agreement.
 struct NoteSide {
     /// Raw voicing-tracker pitch per hop (kept like `PitchTrack::raw_f0`).
     raw: Vec<f32>,
@@ -912,10 +912,11 @@ impl PitchTrack {
                 .map_or(0, |s| s.raw.len() + s.f0.len())
     }
 
-    /// The pitch that note onsets read, per hop (after gate and fences): [`PitchTrack::f0`],
-    /// or for a voicing/pitch pair its voicing tracker's own pitch (README, "The learned
-    /// lead's pitch inside the harmonic sum's voicing").
-    pub fn note_f0(&self) -> &[f32] {
+    /// For a voicing/pitch pair its voicing tracker's own pitch, per hop (after gate and
+    /// fences), which the lead's level range compares with [`PitchTrack::f0`] ("agreed
+    /// hops"); for one tracker, [`PitchTrack::f0`]. Note onsets read [`PitchTrack::f0`] in
+    /// both cases (since 2026-11-28, `benches/trials/RULE_lead_onsets_pair.md`).
+    pub fn voicing_f0(&self) -> &[f32] {
         self.note_side.as_ref().map_or(&self.f0, |s| &s.f0)
     }
 
