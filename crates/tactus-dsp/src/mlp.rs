@@ -119,19 +119,29 @@ pub(crate) fn run_layers_batch<'a>(
     let (mut src, mut dst) = (a, b);
     for (li, l) in layers.iter().enumerate() {
         let relu = li != last;
-        let (n_in, n_out) = (l.n_in, l.n_out);
-        if crate::simd::dense(l, src, count, dst, relu) {
-            std::mem::swap(&mut src, &mut dst);
-            continue;
-        }
-        for (r, (row, &bias)) in l.w.chunks_exact(n_in).zip(&l.b).enumerate() {
-            for h in 0..count {
-                let s = dot8(row, &src[h * n_in..(h + 1) * n_in], bias);
-                dst[h * n_out + r] = if relu { s.max(0.0) } else { s };
-            }
+        if !crate::simd::dense(l, src, count, dst, relu) {
+            dense_portable(l, src, count, dst, relu);
         }
         std::mem::swap(&mut src, &mut dst);
     }
     let n = layers[last].n_out;
     &src[..count * n]
+}
+
+/// Layer `l` over `count` inputs as the portable build runs it (no AVX2): row by row, hop by
+/// hop, each output one [`dot8`]; `dst[h·n_out + r]`, then `max(0)` when `relu`.
+pub(crate) fn dense_portable(
+    l: &crate::drums::Layer,
+    src: &[f32],
+    count: usize,
+    dst: &mut [f32],
+    relu: bool,
+) {
+    let (n_in, n_out) = (l.n_in, l.n_out);
+    for (r, (row, &bias)) in l.w.chunks_exact(n_in).zip(&l.b).enumerate() {
+        for h in 0..count {
+            let s = dot8(row, &src[h * n_in..(h + 1) * n_in], bias);
+            dst[h * n_out + r] = if relu { s.max(0.0) } else { s };
+        }
+    }
 }

@@ -197,6 +197,12 @@ mod tests {
                 for relu in [false, true] {
                     let mut got = vec![f32::NAN; count * n_out];
                     assert!(super::dense(&l, &x, count, &mut got, relu));
+                    // The portable layer, which a CPU without AVX2 runs: the same bits.
+                    let mut portable = vec![f32::NAN; count * n_out];
+                    crate::mlp::dense_portable(&l, &x, count, &mut portable, relu);
+                    for (i, (g, p)) in got.iter().zip(&portable).enumerate() {
+                        assert_eq!(g.to_bits(), p.to_bits(), "portable, output {i}");
+                    }
                     for h in 0..count {
                         for r in 0..n_out {
                             let row = &l.w[r * n_in..(r + 1) * n_in];
