@@ -117,7 +117,15 @@ fn forward(c: &mut Criterion) {
     let (mut o, mut o2) = (vec![0.0f32; BATCH * out], vec![0.0f32; BATCH * out]);
     c.bench_function("leadnet_ensemble_forward_batch8", |bch| {
         bch.iter(|| {
-            n1.forward_mean_batch(n2, black_box(&xs), BATCH, &mut a, &mut b, &mut o, &mut o2);
+            n1.forward_ensemble_batch(
+                &[n2],
+                black_box(&xs),
+                BATCH,
+                &mut a,
+                &mut b,
+                &mut o,
+                &mut o2,
+            );
             o[0]
         })
     });

@@ -299,24 +299,7 @@ impl BassNet {
         out: &mut [f32],
         scratch: &mut [f32],
     ) {
-        self.forward_mean_batch(other, input, 1, a, b, out, scratch);
-    }
-
-    /// [`BassNet::forward_mean`] on `count` inputs at once, shaped as
-    /// [`BassNet::forward_batch`] (`scratch`: `count` × `candidates + 1`): row `h` is
-    /// [`BassNet::forward_mean`] of input `h`, bit for bit. No allocation.
-    #[allow(clippy::too_many_arguments)] // the batch's shapes, as forward_mean's
-    pub fn forward_mean_batch(
-        &self,
-        other: &BassNet,
-        inputs: &[f32],
-        count: usize,
-        a: &mut [f32],
-        b: &mut [f32],
-        out: &mut [f32],
-        scratch: &mut [f32],
-    ) {
-        self.forward_ensemble_batch(&[other], inputs, count, a, b, out, scratch);
+        self.forward_ensemble_batch(&[other], input, 1, a, b, out, scratch);
     }
 
     /// The mean of this model's and every one of `others`' probabilities over `count`

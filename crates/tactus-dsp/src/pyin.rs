@@ -384,11 +384,7 @@ impl Tracker {
                 self.delta[m + k] = l_unvoiced;
             }
         } else {
-            crate::simd::with_avx2(Step {
-                tracker: self,
-                slot,
-                l_unvoiced,
-            });
+            crate::simd::viterbi_step(self, slot, l_unvoiced);
         }
         self.hops_seen = t + 1;
         if t >= self.lag {
@@ -405,7 +401,7 @@ impl Tracker {
     /// One Viterbi step from `delta` (hop t − 1) to `next`, then swapped into `delta`;
     /// backpointers of hop t go to ring slot `slot`. `obs_voiced` holds hop t's voiced
     /// log-observations, `l_unvoiced` its unvoiced one.
-    #[inline(always)] // compiled inside `simd::with_avx2`'s frame (`Step`)
+    #[inline(always)] // compiled inside `simd::viterbi_step`'s AVX2 frame
     fn viterbi_step(&mut self, slot: usize, l_unvoiced: f32) {
         let m = self.n_bins;
         let bp = &mut self.bp[slot * 2 * m..(slot + 1) * 2 * m];
@@ -621,19 +617,10 @@ pub fn pyin_offline(samples: &[f32], cfg: &PyinConfig) -> Result<Vec<PitchEstima
     Ok(out)
 }
 
-/// [`Tracker::viterbi_step`] as a [`crate::simd::Kernel`], so that its compare-and-select
-/// loops are compiled for AVX2 where the CPU has it (the same bits either way).
-struct Step<'a> {
-    tracker: &'a mut Tracker,
-    slot: usize,
-    l_unvoiced: f32,
-}
-
-impl crate::simd::Kernel for Step<'_> {
-    type Out = ();
+impl crate::simd::ViterbiStep for Tracker {
     #[inline(always)]
-    fn run(self) {
-        self.tracker.viterbi_step(self.slot, self.l_unvoiced);
+    fn step(&mut self, slot: usize, l_unvoiced: f32) {
+        self.viterbi_step(slot, l_unvoiced);
     }
 }
 
@@ -711,14 +698,10 @@ mod tests {
                 let l_unvoiced = -((rnd() % 3) as f32);
                 let (want_next, want_bp) = naive_step(&t, l_unvoiced);
                 let slot = round % t.ring;
-                // Odd rounds: the step as the tracker runs it, inside `simd::with_avx2`'s
+                // Odd rounds: the step as the tracker runs it, inside `simd::viterbi_step`'s AVX2
                 // frame; even rounds: as compiled for the baseline CPU.
                 if round % 2 == 1 {
-                    crate::simd::with_avx2(super::Step {
-                        tracker: &mut t,
-                        slot,
-                        l_unvoiced,
-                    });
+                    crate::simd::viterbi_step(&mut t, slot, l_unvoiced);
                 } else {
                     t.viterbi_step(slot, l_unvoiced);
                 }

@@ -634,18 +634,10 @@ struct Tracker {
     net: Option<Box<NetState>>,
 }
 
-/// [`Tracker::step`] as a [`crate::simd::Kernel`], so that it is compiled for AVX2 too.
-struct Step<'a> {
-    tracker: &'a mut Tracker,
-    slot: usize,
-    l_unvoiced: f32,
-}
-
-impl crate::simd::Kernel for Step<'_> {
-    type Out = ();
+impl crate::simd::ViterbiStep for Tracker {
     #[inline(always)]
-    fn run(self) {
-        self.tracker.step(self.slot, self.l_unvoiced);
+    fn step(&mut self, slot: usize, l_unvoiced: f32) {
+        Tracker::step(self, slot, l_unvoiced);
     }
 }
 
@@ -1205,11 +1197,7 @@ impl Tracker {
             self.delta[..m].copy_from_slice(&self.obs);
             self.delta[m] = l_unvoiced;
         } else {
-            crate::simd::with_avx2(Step {
-                tracker: self,
-                slot,
-                l_unvoiced,
-            });
+            crate::simd::viterbi_step(self, slot, l_unvoiced);
         }
         self.hops_seen = t + 1;
         if t >= self.lag {
@@ -1235,7 +1223,7 @@ impl Tracker {
 
     /// One Viterbi step into `next` (then swapped into `delta`), backpointers into `slot`.
     #[allow(clippy::needless_range_loop)] // k indexes delta, next, obs and bp alike
-    #[inline(always)] // compiled inside `simd::with_avx2`'s frame (`Step`)
+    #[inline(always)] // compiled inside `simd::viterbi_step`'s AVX2 frame
     fn step(&mut self, slot: usize, l_unvoiced: f32) {
         let m = self.m;
         let j = self.max_jump;
@@ -1514,19 +1502,15 @@ mod tests {
                 let (want, want_bp) = step_by_hand(&t, -1.0);
                 let slot = trial % t.ring;
                 // Both builds of the step: as compiled for the baseline CPU, and inside
-                // `simd::with_avx2`'s frame, as the tracker runs it (the same frame as the
+                // `simd::viterbi_step`, as the tracker runs it (the same frame as the
                 // first where the CPU lacks AVX2).
                 let delta = t.delta.clone();
-                for path in ["baseline", "with_avx2"] {
+                for path in ["baseline", "viterbi_step"] {
                     t.delta.copy_from_slice(&delta);
                     if path == "baseline" {
                         t.step(slot, -1.0);
                     } else {
-                        crate::simd::with_avx2(Step {
-                            tracker: &mut t,
-                            slot,
-                            l_unvoiced: -1.0,
-                        });
+                        crate::simd::viterbi_step(&mut t, slot, -1.0);
                     }
                     let bp = &t.bp[slot * (m + 1)..(slot + 1) * (m + 1)];
                     assert_eq!(

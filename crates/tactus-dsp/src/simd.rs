@@ -1,6 +1,6 @@
 //! The crate's only `unsafe` code: the embedded networks' dense layer compiled for AVX2,
-//! chosen at run time when the CPU has it, and [`with_avx2`], which compiles a hot loop
-//! written in plain Rust (a [`Kernel`]) for AVX2 as well.
+//! chosen at run time when the CPU has it, and [`viterbi_step`], which compiles the trackers'
+//! Viterbi steps, written in plain Rust, for AVX2 as well.
 //!
 //! # Why
 //! A dense layer is a dot product per weight row ([`crate::mlp::dot8`]): eight lanes, each
@@ -40,31 +40,29 @@ pub(crate) fn avx2() -> bool {
     }
 }
 
-/// A piece of work for [`with_avx2`]; `run` must be `#[inline(always)]`, and so must what
-/// it calls, to be compiled inside the AVX2 frame.
-pub(crate) trait Kernel {
-    /// What the work returns.
-    type Out;
-    /// Does the work.
-    fn run(self) -> Self::Out;
+/// A tracker whose Viterbi step [`viterbi_step`] compiles for AVX2: `step` must be
+/// `#[inline(always)]`, and so must what it calls, to be compiled inside the AVX2 frame.
+pub(crate) trait ViterbiStep {
+    /// One Viterbi step into backpointer slot `slot`, `l_unvoiced` the hop's unvoiced
+    /// log-observation.
+    fn step(&mut self, slot: usize, l_unvoiced: f32);
 }
 
-/// Runs `k`, compiled for AVX2 when the CPU has it (else as it is). For loops whose
-/// vectorised form needs AVX2's instructions: the Viterbi step's select of the better
-/// predecessor becomes `vblendvps`, where SSE2 has no blend and stores lane by lane. Only
-/// the instructions change, never the arithmetic: Rust does not contract `a * b + c` into a
-/// fused multiply-add or reorder float operations, so the results are the same bits on both
-/// paths (the pinned render outputs check this end to end).
+/// Runs `tracker`'s Viterbi step, compiled for AVX2 when the CPU has it (else as it is): its
+/// select of the better predecessor becomes `vblendvps`, where SSE2 has no blend and stores
+/// lane by lane. Only the instructions change, never the arithmetic: Rust does not contract
+/// `a * b + c` into a fused multiply-add or reorder float operations, so the results are the
+/// same bits on both paths (the step tests run both against their oracles).
 #[inline(always)]
-pub(crate) fn with_avx2<K: Kernel>(k: K) -> K::Out {
+pub(crate) fn viterbi_step<T: ViterbiStep>(tracker: &mut T, slot: usize, l_unvoiced: f32) {
     #[cfg(target_arch = "x86_64")]
     {
         if avx2() {
             // SAFETY: the CPU has AVX2 (checked on the line above).
-            return unsafe { x86::frame_avx2(k) };
+            return unsafe { x86::step_avx2(tracker, slot, l_unvoiced) };
         }
     }
-    k.run()
+    tracker.step(slot, l_unvoiced)
 }
 
 /// Layer `l` over `count` inputs: `dst[h·n_out + r] = dot8(w[r], src[h], b[r])`, then
@@ -89,13 +87,17 @@ mod x86 {
         __m256, _mm256_add_ps, _mm256_loadu_ps, _mm256_mul_ps, _mm256_setzero_ps, _mm256_storeu_ps,
     };
 
-    /// Runs `k` in a frame compiled for AVX2, so that `k.run()`, inlined here, is too.
+    /// `tracker.step` in a frame compiled for AVX2, so that the step, inlined here, is too.
     ///
     /// # Safety
     /// The CPU must have AVX2.
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn frame_avx2<K: super::Kernel>(k: K) -> K::Out {
-        k.run()
+    pub(super) unsafe fn step_avx2<T: super::ViterbiStep>(
+        tracker: &mut T,
+        slot: usize,
+        l_unvoiced: f32,
+    ) {
+        tracker.step(slot, l_unvoiced)
     }
 
     /// Inputs met by one weight row at a time.
