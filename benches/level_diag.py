@@ -28,7 +28,7 @@ import os
 
 import numpy as np
 
-from range_replay import bins, st, truth_levels, within_1
+from range_replay import binned_pitch, bins, st, truth_levels, within_1
 
 
 def levels_in(s, lo, hi, n=8):
@@ -42,16 +42,9 @@ def levels_in(s, lo, hi, n=8):
     return out
 
 
-def true_range(f0, hop_s, bin_s=0.1):
+def true_range(f0, hop_s):
     """The lowest and highest binned true pitch, in semitones (`truth_levels`' range)."""
-    bin_of = lambda i: int(math.floor(i * hop_s / bin_s + 1e-9))  # noqa: E731
-    nb = bin_of(len(f0) - 1) + 1
-    members, counts = [[] for _ in range(nb)], [0] * nb
-    for i, f in enumerate(f0):
-        counts[bin_of(i)] += 1
-        if f > 0:
-            members[bin_of(i)].append(f)
-    v = [st(sorted(m)[(len(m) - 1) // 2]) for m, c in zip(members, counts) if m and 2 * len(m) >= c]
+    v = [st(x) for x in binned_pitch(f0, hop_s) if x > 0]
     return (min(v), max(v)) if v else None
 
 

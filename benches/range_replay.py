@@ -28,8 +28,9 @@ def st(f):
     return 69.0 + 12.0 * math.log2(f / 440.0)
 
 
-def truth_levels(f0, hop_s, bin_s=0.1, levels=8):
-    """`tactus_eval::levels::{bin_pitch, discretize}`."""
+def binned_pitch(f0, hop_s, bin_s=0.1):
+    """`tactus_eval::levels::bin_pitch`: per bin the lower median of its voiced hops when at
+    least half of them are voiced, else 0."""
     bin_of = lambda i: int(math.floor(i * hop_s / bin_s + 1e-9))  # noqa: E731
     nb = bin_of(len(f0) - 1) + 1
     members, counts = [[] for _ in range(nb)], [0] * nb
@@ -37,8 +38,13 @@ def truth_levels(f0, hop_s, bin_s=0.1, levels=8):
         counts[bin_of(i)] += 1
         if f > 0:
             members[bin_of(i)].append(f)
-    binned = [sorted(v)[(len(v) - 1) // 2] if v and 2 * len(v) >= c else 0.0
-              for v, c in zip(members, counts)]
+    return [sorted(v)[(len(v) - 1) // 2] if v and 2 * len(v) >= c else 0.0
+            for v, c in zip(members, counts)]
+
+
+def truth_levels(f0, hop_s, bin_s=0.1, levels=8):
+    """`tactus_eval::levels::{bin_pitch, discretize}`."""
+    binned = binned_pitch(f0, hop_s, bin_s)
     v = [st(x) for x in binned if x > 0]
     lo, hi = min(v), max(v)
     return np.array([0 if x <= 0 else 1 if hi <= lo else
