@@ -92,13 +92,28 @@ def whiten(mel):
     return (mel.astype(np.float64) - np.log(out + WHITEN_EPS)).astype(np.float32)
 
 
+BACK = False  # --backing: a second view, the separator's backing (bass + vocals + other)
+CEIL = 6.0  # the backing view's ceiling over the drum window's maximum, nepers
+
+
 def prep(mel):
-    """Network inputs before standardisation: whitening (if any), then the context."""
-    return context(whiten(mel))
+    """Network inputs before standardisation: whitening (if any), then the context. With
+    BACK, mel holds the drum view's BANDS columns and then the backing's; the backing's
+    context is normalised by the drum window's maximum and clipped to [FLOOR, CEIL]."""
+    if not BACK:
+        return context(whiten(mel))
+    d, b = mel[:, :BANDS], mel[:, BANDS:]
+    xd = context(whiten(d), raw=True)
+    xb = context(b, raw=True)
+    m = xd.max(axis=1, keepdims=True)
+    xd = np.maximum(xd - m, np.float32(FLOOR))
+    xb = np.clip(xb - m, np.float32(FLOOR), np.float32(CEIL))
+    return np.concatenate([xd, xb], axis=1).astype(np.float32)
 
 
-def context(mel):
-    """Network inputs for every hop: frames i-PAST..i+FUTURE, normalised as in drums.rs."""
+def context(mel, raw=False):
+    """Network inputs for every hop: frames i-PAST..i+FUTURE, normalised as in drums.rs
+    (raw: not normalised)."""
     n = mel.shape[0]
     pad_before = np.full((PAST, BANDS), LOG_FLOOR, np.float32)
     last = mel[-1:] if n else np.full((1, BANDS), LOG_FLOOR, np.float32)
@@ -107,6 +122,8 @@ def context(mel):
     win = PAST + 1 + FUTURE
     idx = np.arange(n)[:, None] + np.arange(win)[None, :]
     x = m[idx].reshape(n, win * BANDS)
+    if raw:
+        return x
     x = np.maximum(x - x.max(axis=1, keepdims=True), np.float32(FLOOR))
     return x.astype(np.float32)
 
@@ -178,6 +195,13 @@ def load(items, data, conds):
     def one(job):
         (fam, s, sd), c = job
         mel = features(sd, c, os.path.join(data, ".features", fam, f"{s}.{c}.f32"))
+        if BACK:
+            if c == "sep":
+                back = features(sd, "back", os.path.join(data, ".features", fam, f"{s}.back.f32"))
+                n = min(len(mel), len(back))
+                mel = np.concatenate([mel[:n], back[:n]], axis=1)
+            else:
+                mel = np.concatenate([mel, np.full_like(mel, LOG_FLOOR)], axis=1)
         with open(os.path.join(sd, "truth.json")) as f:
             truth = json.load(f)
         return (fam, s, c, mel, truth)
@@ -265,6 +289,10 @@ def augment(x, rng):
     (+-6 dB), a shift of +-SHIFT mel bands (drums tuned differently), then the window
     normalisation of drums.rs again."""
     b = x.shape[0]
+    xb = None
+    if BACK:
+        half = x.shape[1] // 2
+        x, xb = x[:, :half], x[:, half:].reshape(b, -1, BANDS)
     win = x.shape[1] // BANDS
     z = x.reshape(b, win, BANDS).copy()
     z = retune(z, rng)
@@ -279,7 +307,17 @@ def augment(x, rng):
                 * np.cos(np.pi * k * (pos + 1) / 2) for k in (2, 3, 4))
     z = z + tilt + bumps
     z = z.reshape(b, -1)
-    return np.maximum(z - z.max(axis=1, keepdims=True), np.float32(FLOOR))
+    m = z.max(axis=1, keepdims=True)
+    z = np.maximum(z - m, np.float32(FLOOR))
+    if xb is None:
+        return z
+    # The backing: the same EQ, then the drum window's new maximum; floor-level bins stay
+    # at the floor.
+    floor = xb <= FLOOR + 1e-6
+    zb = (xb + tilt + bumps).reshape(b, -1) - m
+    zb = np.clip(zb, np.float32(FLOOR), np.float32(CEIL))
+    zb[floor.reshape(b, -1)] = np.float32(FLOOR)
+    return np.concatenate([z, zb], axis=1)
 
 
 def with_flux(x):
@@ -444,6 +482,11 @@ def write_model(path, ps, mean, std, thr):
             f.write(struct.pack("<f", FLOOR))
             f.write(struct.pack("<I", 1 if FLUX else 0))
             f.write(struct.pack("<f", WHITEN))
+        elif BACK:  # version 2 with feature set 2: mel + the backing's mel, then CEIL
+            f.write(struct.pack("<6I", 2, BANDS, PAST, FUTURE, 4, len(layers)))
+            f.write(struct.pack("<f", FLOOR))
+            f.write(struct.pack("<I", 2))
+            f.write(struct.pack("<f", CEIL))
         elif FLUX:  # version 2: a u32 input-feature set follows the floor (1: mel + flux)
             f.write(struct.pack("<6I", 2, BANDS, PAST, FUTURE, 4, len(layers)))
             f.write(struct.pack("<f", FLOOR))
@@ -466,12 +509,16 @@ def read_model(path):
     ver, bands, past, fut, ncls, nl = struct.unpack_from("<6I", buf, 8)
     (floor,) = struct.unpack_from("<f", buf, 32)
     off = 36
-    global FLUX, WHITEN, PAST, FUTURE
-    FLUX, WHITEN, PAST, FUTURE = False, 0.0, past, fut
+    global FLUX, WHITEN, PAST, FUTURE, BACK, CEIL
+    FLUX, WHITEN, PAST, FUTURE, BACK = False, 0.0, past, fut, False
     if ver >= 2:
         (feat,) = struct.unpack_from("<I", buf, off)
         off += 4
         FLUX = feat == 1
+        BACK = feat == 2
+        if BACK:
+            (CEIL,) = struct.unpack_from("<f", buf, off)
+            off += 4
     if ver >= 3:
         (WHITEN,) = struct.unpack_from("<f", buf, off)
         off += 4
@@ -509,7 +556,7 @@ def report(ps, thr, sets):
 
 
 def main():
-    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX, WHITEN
+    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX, WHITEN, BACK
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
     ap.add_argument("--epochs", type=int, default=20)
@@ -547,7 +594,11 @@ def main():
     ap.add_argument("--whiten", type=float, default=0.0,
                     help="input: subtract each band's running mean power over this many seconds "
                          "(adaptive whitening; 0: none)")
+    ap.add_argument("--backing", action="store_true",
+                    help="input: also the separator's backing (bass + vocals + other) beside "
+                         "its drum stem, as a second view (silent for a supplied drum stem)")
     a = ap.parse_args()
+    BACK = a.backing
     if not os.path.exists(dumper_path()):
         sys.exit("build the feature dumper first: cargo build --release -p tactus-engine --example drum_features")
     conds = a.conds.split(",")

@@ -16,6 +16,11 @@
 //!    Models with the *flux* input (file version 2) append, for every pair of consecutive
 //!    context frames, the positive difference `max(0, x[t][b] - x[t-1][b])` of those
 //!    normalised values (`(past + future) · bands` more inputs): where the spectrum rises.
+//!    Models with the *backing* input (file version 2, feature set 2) append a second view:
+//!    the mel frames of the backing a separator leaves beside its drum stem (bass + vocals
+//!    + other), same context, minus the *drum* window's maximum and clipped to
+//!    `[floor, ceil]`, so that a note change of the backing can be told from a hit. Where
+//!    there is no backing (a supplied drum stem) the view is silence, as in training.
 //! 4. **Network**: a multilayer perceptron, ReLU hidden layers, one sigmoid per class.
 //!    The input standardisation (training mean and standard deviation) is folded into the
 //!    first layer's weights. The weights are trained by `models/drums/train.py` on kits
@@ -93,6 +98,9 @@ pub struct DrumModel {
     pub floor: f32,
     /// Whether the input also carries the positive first difference of the frames (step 3).
     pub flux: bool,
+    /// `Some(ceil)`: the input also carries a second view, the backing beside the drum stem
+    /// (step 3), normalised by the drum window's maximum and clipped to `[floor, ceil]`.
+    pub backing: Option<f32>,
     /// Convolutional front layers (file version 4), run before the dense ones; `None` for a
     /// perceptron.
     pub conv: Option<ConvNet>,
@@ -218,7 +226,8 @@ impl DrumModel {
     /// Parses the binary format written by `models/drums/train.py`:
     /// `"TACTUSDR"`, then little-endian u32 `version (1 or 2), bands, past, future,
     /// classes = 4, layers`, f32 `floor`, in version 2 only a u32 input feature set
-    /// (0: mel, 1: mel + flux), then per layer u32 `n_in, n_out`, f32 `w[n_out·n_in],
+    /// (0: mel, 1: mel + flux, 2: mel + backing, followed by the backing's f32 `ceil`),
+    /// then per layer u32 `n_in, n_out`, f32 `w[n_out·n_in],
     /// b[n_out]`, and f32 `thresholds[4]`.
     ///
     /// An ensemble file (`models/drums/train_cnn.py --combine`) is `"TACTUSDE"`, u32
@@ -248,19 +257,31 @@ impl DrumModel {
         let classes = read_u32(b, WHAT)? as usize;
         let n_layers = read_u32(b, WHAT)? as usize;
         let floor = read_f32s(b, 1, WHAT)?[0];
-        let flux = if version == 2 {
+        let (flux, backing) = if version == 2 {
             match read_u32(b, WHAT)? {
-                0 => false,
-                1 => true,
+                0 => (false, None),
+                1 => (true, None),
+                2 => {
+                    let ceil = read_f32s(b, 1, WHAT)?[0];
+                    if !(ceil.is_finite() && ceil > floor) {
+                        return Err(ConfigError::invalid(
+                            "drum model",
+                            "the backing's ceiling must be finite and above the floor",
+                        ));
+                    }
+                    (false, Some(ceil))
+                }
                 f => {
                     return Err(ConfigError::invalid(
                         "drum model",
-                        format!("input feature set {f} is not supported (0: mel, 1: mel + flux)"),
+                        format!(
+                            "input feature set {f} is not supported (0: mel, 1: mel + flux, 2: mel + backing)"
+                        ),
                     ))
                 }
             }
         } else {
-            false
+            (false, None)
         };
         if classes != CLASSES {
             return Err(ConfigError::invalid("drum model", "must have 4 classes"));
@@ -269,7 +290,9 @@ impl DrumModel {
             return Err(ConfigError::invalid("drum model", "implausible shape"));
         }
         let frames = past + 1 + future;
-        let mut n_in0 = bands * frames + if flux { bands * (past + future) } else { 0 };
+        let mut n_in0 = bands * frames
+            + if flux { bands * (past + future) } else { 0 }
+            + if backing.is_some() { bands * frames } else { 0 };
         let conv = if version == 4 {
             let (net, flat) = read_conv(b, frames, bands)?;
             n_in0 = flat;
@@ -295,6 +318,7 @@ impl DrumModel {
             future,
             floor,
             flux,
+            backing,
             conv,
             layers,
             thresholds: [t[0], t[1], t[2], t[3]],
@@ -336,8 +360,8 @@ impl DrumModel {
         }
         let mut first = models.remove(0);
         let same = |m: &DrumModel| {
-            (m.bands, m.past, m.future, m.flux)
-                == (first.bands, first.past, first.future, first.flux)
+            (m.bands, m.past, m.future, m.flux, m.backing)
+                == (first.bands, first.past, first.future, first.flux, first.backing)
                 && m.floor == first.floor
         };
         if !models.iter().all(same) {
@@ -382,14 +406,19 @@ impl DrumModel {
     }
 
     /// Values in one network input: the window, plus `bands · (past + future)` flux values
-    /// if [`DrumModel::flux`].
+    /// if [`DrumModel::flux`], plus the backing's window if [`DrumModel::backing`].
     pub fn input_len(&self) -> usize {
         let flux = if self.flux {
             self.bands * (self.past + self.future)
         } else {
             0
         };
-        self.window_len() + flux
+        let backing = if self.backing.is_some() {
+            self.window_len()
+        } else {
+            0
+        };
+        self.window_len() + flux + backing
     }
 
     /// Step 3 of the module docs: `window` holds `past + 1 + future` mel frames
@@ -407,6 +436,22 @@ impl DrumModel {
             for ((o, &p), &q) in d.iter_mut().zip(prev).zip(next) {
                 *o = (q - p).max(0.0);
             }
+        }
+    }
+
+    /// [`DrumModel::assemble`] for a model with the backing view: `backing` holds the
+    /// backing's mel frames of the same hops as `window`; its normalised values (the drum
+    /// window's maximum subtracted, clipped to `[floor, ceil]`) follow the drum view's. For
+    /// any other model `backing` is ignored.
+    pub fn assemble_with_backing(&self, window: &[f32], backing: &[f32], input: &mut [f32]) {
+        self.assemble(window, input);
+        let Some(ceil) = self.backing else {
+            return;
+        };
+        let m = window.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        let n = window.len();
+        for (o, &v) in input[n..2 * n].iter_mut().zip(backing) {
+            *o = (v - m).clamp(self.floor, ceil);
         }
     }
 
@@ -586,13 +631,23 @@ impl Picker {
 /// Streaming per-instrument drum transcriber. See the module docs.
 pub struct DrumTranscriber {
     mel: MelBank,
+    /// The backing's front end, for a model with the backing view.
+    back_mel: Option<MelBank>,
+    /// Backing frames computed ahead of the drum stem's (at most one sub-block's worth).
+    back_queue: Vec<f32>,
     core: Core,
 }
+
+/// Samples per step when a drum block and its backing are fed together: both front ends
+/// see the same sub-block in turn, so at most this many samples' frames wait in the queue.
+const BACKING_STEP: usize = 4096;
 
 struct Core {
     model: DrumModel,
     /// The last `past + 1 + future` mel frames, oldest first (shifted by hand).
     window: Vec<f32>,
+    /// The backing's frames of the same hops (silence without a backing).
+    back_window: Vec<f32>,
     input: Vec<f32>,
     a: Vec<f32>,
     b: Vec<f32>,
@@ -606,18 +661,34 @@ struct Core {
 }
 
 impl Core {
-    fn push_frame(&mut self, bands: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
+    /// One mel frame of the drum signal and, for a backing model, the backing's frame of
+    /// the same hop (`None`: silence).
+    fn push_frame(
+        &mut self,
+        bands: &[f32],
+        back: Option<&[f32]>,
+        emit: &mut dyn FnMut(usize, DrumFrame),
+    ) {
         let n = self.model.bands;
         self.window.copy_within(n.., 0);
         let len = self.window.len();
         self.window[len - n..].copy_from_slice(bands);
+        if self.model.backing.is_some() {
+            self.back_window.copy_within(n.., 0);
+            let tail = &mut self.back_window[len - n..];
+            match back {
+                Some(b) => tail.copy_from_slice(b),
+                None => tail.fill(LOG_FLOOR.ln()),
+            }
+        }
         self.frames += 1;
         // The window now ends at frame `frames - 1`, so it is centred (at `past`) on hop
         // `frames - 1 - future`.
         if self.frames > self.model.future {
             let i = self.frames - 1 - self.model.future;
             debug_assert_eq!(i, self.next);
-            self.model.assemble(&self.window, &mut self.input);
+            self.model
+                .assemble_with_backing(&self.window, &self.back_window, &mut self.input);
             let act = self
                 .model
                 .forward(&self.input, &mut self.a, &mut self.b, &mut self.c);
@@ -636,6 +707,7 @@ impl Core {
 
     fn reset(&mut self) {
         self.window.fill(LOG_FLOOR.ln());
+        self.back_window.fill(LOG_FLOOR.ln());
         self.pickers = [Picker::NEW; CLASSES];
         self.frames = 0;
         self.next = 0;
@@ -657,12 +729,22 @@ impl DrumTranscriber {
                 format!("has {} bands, the front end {}", model.bands, cfg.bands),
             ));
         }
-        let hop = cfg.hop;
+        let (hop, cfg_bands) = (cfg.hop, cfg.bands);
+        let back_mel = match model.backing {
+            Some(_) => Some(MelBank::new(cfg.clone())?),
+            None => None,
+        };
         let mel = MelBank::new(cfg)?;
         let widest = model.scratch_len();
         let min_gap = ((0.05 * sample_rate as f64) / hop as f64).ceil() as usize;
+        let back_len = if model.backing.is_some() {
+            model.window_len()
+        } else {
+            0
+        };
         let mut core = Core {
             window: vec![0.0; model.window_len()],
+            back_window: vec![0.0; back_len],
             input: vec![0.0; model.input_len()],
             a: vec![0.0; widest],
             b: vec![0.0; widest],
@@ -674,7 +756,17 @@ impl DrumTranscriber {
             next: 0,
         };
         core.reset();
-        Ok(DrumTranscriber { mel, core })
+        let queue = if back_mel.is_some() {
+            (BACKING_STEP / hop + 2) * cfg_bands
+        } else {
+            0
+        };
+        Ok(DrumTranscriber {
+            mel,
+            back_mel,
+            back_queue: Vec::with_capacity(queue),
+            core,
+        })
     }
 
     /// The model in use.
@@ -682,28 +774,76 @@ impl DrumTranscriber {
         &self.core.model
     }
 
-    /// Feeds a block; calls `emit(hop, frame)` for every decided hop, in order.
+    /// Whether the model reads a backing beside the drum signal
+    /// ([`DrumTranscriber::process_with_backing`]).
+    pub fn wants_backing(&self) -> bool {
+        self.back_mel.is_some()
+    }
+
+    /// Feeds a block; calls `emit(hop, frame)` for every decided hop, in order. A model with
+    /// the backing view sees silence as the backing (a supplied, clean drum stem).
     pub fn process_frames(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
         let core = &mut self.core;
         self.mel
-            .process_bands(input, &mut |_, bands| core.push_frame(bands, emit));
+            .process_bands(input, &mut |_, bands| core.push_frame(bands, None, emit));
+    }
+
+    /// Feeds a block of the drum signal and the same span of its backing (the separator's
+    /// other stems, summed); `backing` must be as long as `input`. A model without the
+    /// backing view ignores it. A stream is fed either always with a backing or never.
+    pub fn process_with_backing(
+        &mut self,
+        input: &[f32],
+        backing: &[f32],
+        emit: &mut dyn FnMut(usize, DrumFrame),
+    ) {
+        let Some(back_mel) = self.back_mel.as_mut() else {
+            return self.process_frames(input, emit);
+        };
+        debug_assert_eq!(input.len(), backing.len());
+        let n = self.core.model.bands;
+        let (queue, core) = (&mut self.back_queue, &mut self.core);
+        for (x, b) in input.chunks(BACKING_STEP).zip(backing.chunks(BACKING_STEP)) {
+            back_mel.process_bands(b, &mut |_, bands| queue.extend_from_slice(bands));
+            let mut k = 0;
+            self.mel.process_bands(x, &mut |_, bands| {
+                let back = queue.get(k * n..(k + 1) * n);
+                core.push_frame(bands, back, emit);
+                k += 1;
+            });
+            queue.clear();
+        }
     }
 
     /// Ends the stream: emits every remaining hop (`n.div_ceil(hop)` in all), holding the
     /// last mel frame for the look-ahead frames past the end.
     pub fn finish_frames(&mut self, emit: &mut dyn FnMut(usize, DrumFrame)) {
-        let core = &mut self.core;
-        self.mel
-            .finish_bands(&mut |_, bands| core.push_frame(bands, emit));
+        let n = self.core.model.bands;
+        let (queue, core) = (&mut self.back_queue, &mut self.core);
+        if let Some(back_mel) = self.back_mel.as_mut() {
+            back_mel.finish_bands(&mut |_, bands| queue.extend_from_slice(bands));
+        }
+        let mut k = 0;
+        self.mel.finish_bands(&mut |_, bands| {
+            let back = queue.get(k * n..(k + 1) * n);
+            core.push_frame(bands, back, emit);
+            k += 1;
+        });
+        queue.clear();
         // Every hop has its mel frame now; the last `future` hops still wait for frames
-        // past the end: hold the last one.
+        // past the end: hold the last one (of both views).
         let total = core.frames;
-        let n = core.model.bands;
         let len = core.window.len();
         let mut last = [0f32; 512];
         last[..n].copy_from_slice(&core.window[len - n..]);
+        let mut last_back = [0f32; 512];
+        let has_back = core.model.backing.is_some();
+        if has_back {
+            last_back[..n].copy_from_slice(&core.back_window[len - n..]);
+        }
         while core.next < total {
-            core.push_frame(&last[..n], emit);
+            let back = has_back.then_some(&last_back[..n]);
+            core.push_frame(&last[..n], back, emit);
         }
     }
 }
@@ -721,6 +861,10 @@ impl HopStage for DrumTranscriber {
 
     fn reset(&mut self) {
         self.mel.reset();
+        if let Some(m) = self.back_mel.as_mut() {
+            m.reset();
+        }
+        self.back_queue.clear();
         self.core.reset();
     }
 

@@ -354,7 +354,24 @@ fn naive_conv(m: &DrumModel, net: &ConvNet, input: &[f64]) -> Vec<f64> {
 }
 
 /// Step 3 of `drums.rs` written the obvious way: window minus its maximum, clipped at the
-/// floor; with flux, then `max(0, x[t][b] - x[t-1][b])` for t = 1.., b = 0.. .
+/// floor; with flux, then `max(0, x[t][b] - x[t-1][b])` for t = 1.., b = 0..; with the
+/// backing, then every backing value minus the drum window's maximum, clipped to
+/// `[floor, ceil]`.
+#[allow(clippy::needless_range_loop)]
+fn naive_assemble_with(m: &DrumModel, window: &[f32], backing: &[f32]) -> Vec<f64> {
+    let mut out = naive_assemble(m, window);
+    if let Some(ceil) = m.backing {
+        let top = window
+            .iter()
+            .fold(f64::NEG_INFINITY, |a, &v| a.max(v as f64));
+        assert_eq!(backing.len(), window.len());
+        for &v in backing {
+            out.push((v as f64 - top).max(m.floor as f64).min(ceil as f64));
+        }
+    }
+    out
+}
+
 #[allow(clippy::needless_range_loop)]
 fn naive_assemble(m: &DrumModel, window: &[f32]) -> Vec<f64> {
     let top = window
@@ -397,9 +414,42 @@ fn random_flux_model() -> DrumModel {
         future,
         floor: -16.0,
         flux: true,
+        backing: None,
         conv: None,
         layers,
         thresholds: [0.5; CLASSES],
+        members: Vec::new(),
+    }
+}
+
+/// A random model with the backing view (feature set 2), with random thresholds low enough
+/// that it fires, whatever the embedded files use.
+fn random_backing_model() -> DrumModel {
+    let mut rng = Rng(17);
+    let (bands, past, future) = (48, 7, 4);
+    let n_in = 2 * bands * (past + 1 + future);
+    let mut layers = Vec::new();
+    // Scales that keep most units alive on inputs in [-16, 6], so the output follows the
+    // input (a dead network would pass every comparison below).
+    // (`next_f32` is uniform on [-1, 1).)
+    for (i, o, ws, b0) in [(n_in, 32, 0.02, 2.0), (32, 16, 0.3, 0.0), (16, CLASSES, 0.5, 0.0)] {
+        layers.push(Layer {
+            n_in: i,
+            n_out: o,
+            w: (0..i * o).map(|_| rng.next_f32() * ws).collect(),
+            b: (0..o).map(|_| b0 + 0.5 * rng.next_f32()).collect(),
+        });
+    }
+    DrumModel {
+        bands,
+        past,
+        future,
+        floor: -16.0,
+        flux: false,
+        backing: Some(6.0),
+        conv: None,
+        layers,
+        thresholds: [0.3, 0.4, 0.5, 0.6],
         members: Vec::new(),
     }
 }
@@ -460,6 +510,7 @@ fn random_conv_model(kb2: usize, pool: (usize, usize)) -> DrumModel {
         future,
         floor: -16.0,
         flux: false,
+        backing: None,
         conv: Some(ConvNet {
             mean,
             std,
@@ -476,6 +527,7 @@ fn forward_matches_naive_f64() {
     forward_matches_naive(DrumModel::embedded());
     forward_matches_naive(DrumModel::embedded_live());
     forward_matches_naive(random_flux_model());
+    forward_matches_naive(random_backing_model());
     forward_matches_naive(random_conv_model(3, (1, 2)));
     forward_matches_naive(random_conv_model(7, (2, 3)));
     let mut ens = DrumModel::embedded();
@@ -496,9 +548,17 @@ fn forward_matches_naive(m: DrumModel) {
         let window: Vec<f32> = (0..m.window_len())
             .map(|_| -25.0 + 25.0 * rng.next_f32())
             .collect();
+        // The backing spreads from far under the floor to far over the ceiling.
+        let backing: Vec<f32> = (0..m.window_len())
+            .map(|_| -30.0 + 40.0 * rng.next_f32())
+            .collect();
         let mut input = vec![0f32; m.input_len()];
-        m.assemble(&window, &mut input);
-        let want = naive_assemble(&m, &window);
+        if m.backing.is_some() {
+            m.assemble_with_backing(&window, &backing, &mut input);
+        } else {
+            m.assemble(&window, &mut input);
+        }
+        let want = naive_assemble_with(&m, &window, &backing);
         assert_eq!(want.len(), input.len());
         for (k, (&got, &want)) in input.iter().zip(&want).enumerate() {
             assert!(
@@ -695,7 +755,7 @@ fn silence_and_hard_inputs() {
 fn no_allocation_while_processing() {
     let mut rng = Rng(13);
     let x = groove(&mut rng);
-    for model in [DrumModel::embedded(), random_flux_model()] {
+    for model in [DrumModel::embedded(), random_flux_model(), random_backing_model()] {
         let mut t = DrumTranscriber::with_model(SR, model).unwrap();
         t.process(&x[..4096], &mut |_, _| {});
         let before = allocs();
@@ -707,4 +767,128 @@ fn no_allocation_while_processing() {
         assert_eq!(allocs() - before, 0, "allocations after construction");
         assert!(n > 300);
     }
+    // With a backing, in blocks up to 4 times the transcriber's internal step.
+    let back: Vec<f32> = (0..x.len()).map(|i| 0.3 * (i as f32 * 0.02).sin()).collect();
+    let mut t = DrumTranscriber::with_model(SR, random_backing_model()).unwrap();
+    t.process_with_backing(&x[..4096], &back[..4096], &mut |_, _| {});
+    let before = allocs();
+    let mut n = 0;
+    for (c, b) in x[4096..].chunks(16_384).zip(back[4096..].chunks(16_384)) {
+        t.process_with_backing(c, b, &mut |_, _| n += 1);
+    }
+    t.finish(&mut |_, _| n += 1);
+    assert_eq!(allocs() - before, 0, "allocations after construction (backing)");
+    assert!(n > 300);
+}
+
+fn transcribe_backing(model: &DrumModel, x: &[f32], back: &[f32], chunk: usize) -> Vec<DrumFrame> {
+    let mut t = DrumTranscriber::with_model(SR, model.clone()).unwrap();
+    assert!(t.wants_backing());
+    let mut out = Vec::new();
+    for (c, b) in x.chunks(chunk.max(1)).zip(back.chunks(chunk.max(1))) {
+        t.process_with_backing(c, b, &mut |i, f| {
+            assert_eq!(i, out.len());
+            out.push(f)
+        });
+    }
+    t.finish(&mut |i, f| {
+        assert_eq!(i, out.len());
+        out.push(f)
+    });
+    out
+}
+
+/// A backing: a chord whose notes change every 0.3 s (attacks of their own).
+fn chord_backing(len: usize) -> Vec<f32> {
+    (0..len)
+        .map(|i| {
+            let t = i as f32 / SR as f32;
+            let step = (t / 0.3) as usize;
+            let f0 = [110.0f32, 147.0, 131.0, 165.0][step % 4];
+            let env = (-(t % 0.3) * 6.0).exp();
+            let mut v = 0.0;
+            for h in 1..6 {
+                v += (2.0 * std::f32::consts::PI * f0 * h as f32 * t).sin() / h as f32;
+            }
+            0.2 * env * v
+        })
+        .collect()
+}
+
+#[test]
+fn backing_view_matches_an_offline_oracle_for_any_chunking() {
+    // The transcriber with a backing against the obvious way: both signals' mel frames
+    // computed whole, the context windows cut out by hand (silence before the start, the
+    // last frame held after the end), the input assembled by the f64 oracle and run
+    // through the f64 network.
+    let m = random_backing_model();
+    let mut rng = Rng(19);
+    let x = groove(&mut rng);
+    let back = chord_backing(x.len());
+    let cfg = MelConfig::drums(SR);
+    let (dm, bm) = (mel_fast(&x, &cfg, x.len()), mel_fast(&back, &cfg, x.len()));
+    assert_eq!(dm.len(), bm.len());
+    let n = dm.len();
+    let frames = m.past + 1 + m.future;
+    let floor_frame = vec![LOG_FLOOR.ln(); m.bands];
+    let frame = |v: &Vec<Vec<f32>>, k: isize| -> Vec<f32> {
+        if k < 0 {
+            floor_frame.clone()
+        } else {
+            v[(k as usize).min(n - 1)].clone()
+        }
+    };
+    let whole = transcribe_backing(&m, &x, &back, x.len());
+    assert_eq!(whole.len(), x.len().div_ceil(441));
+    assert_eq!(whole.len(), n);
+    let mut fired = [0usize; CLASSES];
+    for (i, f) in whole.iter().enumerate() {
+        let (mut w, mut b) = (Vec::new(), Vec::new());
+        for k in 0..frames {
+            let j = i as isize - m.past as isize + k as isize;
+            w.extend(frame(&dm, j));
+            b.extend(frame(&bm, j));
+        }
+        let input: Vec<f32> = naive_assemble_with(&m, &w, &b)
+            .iter()
+            .map(|&v| v as f32)
+            .collect();
+        let want = naive_forward(&m, &input);
+        for c in 0..CLASSES {
+            assert!(
+                (f.activation[c] as f64 - want[c]).abs() < 1e-4,
+                "hop {i} class {c}: {} vs {}",
+                f.activation[c],
+                want[c]
+            );
+            fired[c] += f.onset[c] as usize;
+        }
+    }
+    assert!(fired.iter().sum::<usize>() > 0, "the random model never fired");
+    let spread = (0..CLASSES)
+        .map(|c| {
+            let (lo, hi) = whole.iter().fold((1f32, 0f32), |(lo, hi), f| {
+                (lo.min(f.activation[c]), hi.max(f.activation[c]))
+            });
+            hi - lo
+        })
+        .fold(0f32, f32::max);
+    assert!(spread > 0.1, "the random model does not follow its input: {spread}");
+    for chunk in [1usize, 441, 1000, 4096, 5000, 20_000] {
+        assert_eq!(transcribe_backing(&m, &x, &back, chunk), whole, "chunk {chunk}");
+    }
+    // The backing matters (a mutation that drops it fails), and silence as the backing
+    // is what a transcriber fed without one sees.
+    let without = transcribe_with(&m, &x, 4096);
+    assert_ne!(without, whole);
+    let zeros = vec![0f32; x.len()];
+    assert_eq!(transcribe_backing(&m, &x, &zeros, 3000), without);
+    // Reset reproduces.
+    let mut t = DrumTranscriber::with_model(SR, m.clone()).unwrap();
+    t.process_with_backing(&x[..9_000], &back[..9_000], &mut |_, _| {});
+    t.reset();
+    let mut again = Vec::new();
+    t.process_with_backing(&x, &back, &mut |_, f| again.push(f));
+    t.finish(&mut |_, f| again.push(f));
+    assert_eq!(again, whole);
 }

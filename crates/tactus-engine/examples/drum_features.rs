@@ -8,6 +8,8 @@
 //! * `sep`: INPUT is a mix; the embedded spectral separator's drum stem is used (what the
 //!   default render feeds the transcriber).
 //! * `mix`: INPUT is a mix, downmixed to mono (the transcriber on the mix itself).
+//! * `back`: INPUT is a mix; the separator's other stems (bass + vocals + other), the
+//!   backing beside its drum stem.
 //!
 //! Every input then goes through the engine's drum denoiser (30 Hz high-pass + 3-sample
 //! median). OUT is little-endian f32, one row of `bands` values per 10 ms hop; with MODEL (a
@@ -52,6 +54,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             sep.finish(&mut out);
             out.take(Stem::Drums)
         }
+        "back" => backing(&d.left, &d.right, sr)?,
         m => return Err(format!("unknown mode {m}").into()),
     };
     let mut den = Denoise::new(30.0, sr)?;
@@ -60,8 +63,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(model) = args.get(4) {
         let model = DrumModel::from_bytes(&std::fs::read(model)?)?;
         let mut t = DrumTranscriber::with_model(sr, model)?;
-        for c in x.chunks(88_200) {
-            t.process(c, &mut |_, f| rows.extend_from_slice(&f.activation));
+        if t.wants_backing() && mode == "sep" {
+            // The render's input: the separated drum stem with the backing beside it.
+            let mut back = backing(&d.left, &d.right, sr)?;
+            Denoise::new(30.0, sr)?.process_inplace(&mut back);
+            for (c, b) in x.chunks(88_200).zip(back.chunks(88_200)) {
+                t.process_with_backing(c, b, &mut |_, f| rows.extend_from_slice(&f.activation));
+            }
+        } else {
+            for c in x.chunks(88_200) {
+                t.process(c, &mut |_, f| rows.extend_from_slice(&f.activation));
+            }
         }
         t.finish(&mut |_, f| rows.extend_from_slice(&f.activation));
     } else {
@@ -77,4 +89,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     f.flush()?;
     Ok(())
+}
+
+/// The backing the spectral separator leaves beside its drum stem: bass + vocals + other,
+/// summed (what the engine feeds a transcriber with the backing view).
+fn backing(left: &[f32], right: &[f32], sr: u32) -> Result<Vec<f32>, Box<dyn std::error::Error>> {
+    let stems = StemSet::default()
+        .with(Stem::Bass)
+        .with(Stem::Vocals)
+        .with(Stem::Other);
+    let mut sep = SpectralSeparator::new(sr, stems, SpectralConfig::default())?;
+    let mut out = StemOutput::with_capacity(stems, left.len());
+    for (l, r) in left.chunks(88_200).zip(right.chunks(88_200)) {
+        sep.process(l, r, &mut out);
+    }
+    sep.finish(&mut out);
+    let (b, v, o) = (out.take(Stem::Bass), out.take(Stem::Vocals), out.take(Stem::Other));
+    Ok(b.iter().zip(&v).zip(&o).map(|((b, v), o)| b + v + o).collect())
 }

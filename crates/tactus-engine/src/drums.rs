@@ -134,11 +134,22 @@ impl AdtTrack {
 }
 
 impl Detector {
-    fn process(&mut self, block: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
+    fn process(
+        &mut self,
+        block: &[f32],
+        backing: Option<&[f32]>,
+        emit: &mut dyn FnMut(usize, DrumFrame),
+    ) {
         match self {
-            Detector::Embedded(d) => d.process(block, emit),
+            Detector::Embedded(d) => match backing {
+                Some(b) => d.process_with_backing(block, b, emit),
+                None => d.process(block, emit),
+            },
             #[cfg(feature = "onnx")]
-            Detector::AdtLib(a) => a.process(block, emit),
+            Detector::AdtLib(a) => {
+                let _ = backing;
+                a.process(block, emit)
+            }
         }
     }
 
@@ -290,10 +301,22 @@ impl ClassTrack {
         self.det.latency_samples().max(self.rms.latency_samples())
     }
 
-    /// Feeds a block of the drum signal.
-    pub fn process(&mut self, block: &[f32]) {
+    /// Whether the detector reads the backing beside the drum signal (a model with the
+    /// backing view, [`tactus_dsp::drums::DrumModel::backing`]).
+    pub fn wants_backing(&self) -> bool {
+        match &self.det {
+            Detector::Embedded(d) => d.wants_backing(),
+            #[cfg(feature = "onnx")]
+            Detector::AdtLib(_) => false,
+        }
+    }
+
+    /// Feeds a block of the drum signal and, where there is one, the same span of the
+    /// backing a separator left beside it (`None`: a clean drum stem; a stream is fed
+    /// either always with a backing or never).
+    pub fn process(&mut self, block: &[f32], backing: Option<&[f32]>) {
         let (raw, strength) = (&mut self.raw, &mut self.raw_strength);
-        self.det.process(block, &mut |_, f: DrumFrame| {
+        self.det.process(block, backing, &mut |_, f: DrumFrame| {
             raw.push(f.onset);
             strength.push(f.activation);
         });

@@ -143,6 +143,10 @@ struct StemChain {
     classes: Option<ClassTrack>,
     /// Classes the map shows (the transcriber computes all four).
     class_bands: Vec<Band>,
+    /// The backing beside a separated drum stem (bass + vocals + other), denoised like the
+    /// drum stem, for a transcriber that reads it ([`ClassTrack::wants_backing`]).
+    back_denoise: Denoise,
+    back_buf: Vec<f32>,
     samples: usize,
     t_denoise: Duration,
     t_pitch: Duration,
@@ -252,6 +256,8 @@ impl StemChain {
             bands: chains,
             classes,
             class_bands,
+            back_denoise: Denoise::new(hp, geo.sample_rate)?,
+            back_buf: Vec::new(),
             samples: 0,
             t_denoise: Duration::ZERO,
             t_pitch: Duration::ZERO,
@@ -260,12 +266,29 @@ impl StemChain {
         })
     }
 
-    fn process(&mut self, block: &[f32]) {
+    /// Whether this chain's transcriber reads the backing beside its stem.
+    fn wants_backing(&self) -> bool {
+        self.classes.as_ref().is_some_and(ClassTrack::wants_backing)
+    }
+
+    /// Feeds one block of the stem; `backing`: the separator's other stems of the same
+    /// span (bass, vocals, other), for a drum chain whose transcriber reads them.
+    fn process(&mut self, block: &[f32], backing: Option<[&[f32]; 3]>) {
         self.samples += block.len();
         let t = Instant::now();
         self.buf.clear();
         self.buf.extend_from_slice(block);
         self.denoise.process_inplace(&mut self.buf);
+        let backing = match backing {
+            Some([b, v, o]) if self.wants_backing() => {
+                self.back_buf.clear();
+                self.back_buf
+                    .extend(b.iter().zip(v).zip(o).map(|((b, v), o)| b + v + o));
+                self.back_denoise.process_inplace(&mut self.back_buf);
+                Some(&self.back_buf[..])
+            }
+            _ => None,
+        };
         self.t_denoise += t.elapsed();
         if let Some(p) = &mut self.pitch {
             let t = Instant::now();
@@ -283,7 +306,7 @@ impl StemChain {
         }
         if let Some(c) = &mut self.classes {
             let t = Instant::now();
-            c.process(&self.buf);
+            c.process(&self.buf, backing);
             self.t_classes += t.elapsed();
         }
         for b in &mut self.bands {
@@ -380,6 +403,7 @@ impl StemChain {
 
     fn reset(&mut self) {
         self.denoise.reset();
+        self.back_denoise.reset();
         self.samples = 0;
         if let Some(p) = &mut self.pitch {
             p.reset();
@@ -442,28 +466,33 @@ fn feed(
     supplied: &[(Stem, &[f32])],
     parallel: bool,
 ) {
-    let inputs: Vec<(&mut StemChain, &[f32])> = chains
+    type Input<'a> = (&'a mut StemChain, &'a [f32], Option<[&'a [f32]; 3]>);
+    let inputs: Vec<Input> = chains
         .iter_mut()
         .map(|c| {
             let stem = c.stem;
-            let input = supplied
-                .iter()
-                .find(|(s, _)| *s == stem)
-                .map(|(_, x)| *x)
-                .unwrap_or_else(|| sep_out.get(stem));
-            (c, input)
+            let given = supplied.iter().find(|(s, _)| *s == stem).map(|(_, x)| *x);
+            let input = given.unwrap_or_else(|| sep_out.get(stem));
+            // A separated drum stem comes with the backing the separator left beside it.
+            let backing = (given.is_none() && stem == Stem::Drums && c.wants_backing())
+                .then(|| {
+                    let parts = [Stem::Bass, Stem::Vocals, Stem::Other].map(|s| sep_out.get(s));
+                    parts.iter().all(|p| p.len() == input.len()).then_some(parts)
+                })
+                .flatten();
+            (c, input, backing)
         })
         .collect();
-    let big = inputs.iter().map(|(_, x)| x.len()).max().unwrap_or(0) >= PARALLEL_MIN_BLOCK;
+    let big = inputs.iter().map(|(_, x, _)| x.len()).max().unwrap_or(0) >= PARALLEL_MIN_BLOCK;
     if parallel && big && inputs.len() > 1 {
         std::thread::scope(|s| {
-            for (c, x) in inputs {
-                s.spawn(move || c.process(x));
+            for (c, x, b) in inputs {
+                s.spawn(move || c.process(x, b));
             }
         });
     } else {
-        for (c, x) in inputs {
-            c.process(x);
+        for (c, x, b) in inputs {
+            c.process(x, b);
         }
     }
 }
@@ -590,11 +619,18 @@ impl Engine {
                     p.set_advance_hops(crate::track::SPECTRAL_PITCH_ADVANCE_HOPS);
                 }
             }
+            let wants_backing = chain.wants_backing();
             chains.push(chain);
             let on_mix =
                 stem == Stem::Drums && cfg.profile == Profile::Live && profile::DRUMS_ON_MIX;
             if !cfg.supplied.contains(stem) && !on_mix {
                 separated = separated.with(stem);
+                // The drum transcriber's backing view: the spectral separator's other stems
+                // (trained on those; other separators' drum stems go without it, as clean
+                // stems do).
+                if wants_backing && cfg.separator == SeparatorChoice::Spectral {
+                    separated = separated.with(Stem::Bass).with(Stem::Vocals).with(Stem::Other);
+                }
             }
         }
         let separator: Option<Box<dyn Separator>> = if separated.is_empty() {
