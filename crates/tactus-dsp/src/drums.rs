@@ -979,8 +979,22 @@ mod tests {
         // The layer must match the feature set's input length.
         let e = DrumModel::from_bytes(&v2(1, 6)).unwrap_err().to_string();
         assert!(e.contains("do not chain"), "{e}");
-        let e = DrumModel::from_bytes(&v2(2, 10)).unwrap_err().to_string();
-        assert!(e.contains("input feature set 2"), "{e}");
+        let e = DrumModel::from_bytes(&v2(3, 10)).unwrap_err().to_string();
+        assert!(e.contains("input feature set 3"), "{e}");
+        // Feature set 2, the backing: its ceiling follows, then 6 window + 6 backing values.
+        let backing = |ceil: f32, n_in: u32| {
+            let mut v = v2(2, n_in);
+            let at = 8 + 6 * 4 + 4 + 4;
+            v.splice(at..at, ceil.to_le_bytes());
+            v
+        };
+        let m = DrumModel::from_bytes(&backing(6.0, 12)).unwrap();
+        assert_eq!((m.backing, m.flux), (Some(6.0), false));
+        assert_eq!((m.window_len(), m.input_len()), (6, 12));
+        let e = DrumModel::from_bytes(&backing(6.0, 6)).unwrap_err().to_string();
+        assert!(e.contains("do not chain"), "{e}");
+        let e = DrumModel::from_bytes(&backing(-20.0, 12)).unwrap_err().to_string();
+        assert!(e.contains("ceiling"), "{e}");
         let mut v3 = v2(1, 10);
         v3[8] = 3;
         let e = DrumModel::from_bytes(&v3).unwrap_err().to_string();
