@@ -277,7 +277,9 @@ fn a_backing_model_reads_the_separators_other_stems_in_time() {
         (rng >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
     };
     let starts: Vec<f64> = (0..10).map(|k| 0.5 + 0.6 * k as f64).collect();
-    let pitches = [110.0, 165.0, 131.0, 196.0, 147.0, 220.0, 123.0, 175.0, 139.0, 247.0];
+    let pitches = [
+        110.0, 165.0, 131.0, 196.0, 147.0, 220.0, 123.0, 175.0, 139.0, 247.0,
+    ];
     let n = (7.0 * sr as f64) as usize;
     let x: Vec<f32> = (0..n)
         .map(|i| {
@@ -345,7 +347,10 @@ fn a_backing_model_reads_the_separators_other_stems_in_time() {
             .iter()
             .filter(|&&s| on_mix.iter().any(|&t| (t - s).abs() <= 0.05))
             .count();
-        assert!(found >= 9, "{mode}: {found} of 10 note starts found: {on_mix:?}");
+        assert!(
+            found >= 9,
+            "{mode}: {found} of 10 note starts found: {on_mix:?}"
+        );
         assert!(
             on_mix.iter().all(|&t| near(t)),
             "{mode}: kicks away from the note starts: {on_mix:?}"
@@ -353,5 +358,8 @@ fn a_backing_model_reads_the_separators_other_stems_in_time() {
     }
     let stem = format!("drums={}", wav.display());
     let clean = kicks("clean", &["--stem".as_ref(), stem.as_ref()]);
-    assert!(clean.is_empty(), "a supplied drum stem has no backing: {clean:?}");
+    assert!(
+        clean.is_empty(),
+        "a supplied drum stem has no backing: {clean:?}"
+    );
 }

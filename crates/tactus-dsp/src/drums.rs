@@ -17,8 +17,9 @@
 //!    context frames, the positive difference `max(0, x[t][b] - x[t-1][b])` of those
 //!    normalised values (`(past + future) · bands` more inputs): where the spectrum rises.
 //!    Models with the *backing* input (file version 2, feature set 2) append a second view:
-//!    the mel frames of the backing a separator leaves beside its drum stem (bass + vocals
-//!    + other), same context, minus the *drum* window's maximum and clipped to
+//!    the mel frames of the backing a separator leaves beside its drum stem (its bass,
+//!    vocals and other stems summed), same context, minus the *drum* window's maximum and
+//!    clipped to
 //!    `[floor, ceil]`, so that a note change of the backing can be told from a hit. Where
 //!    there is no backing (a supplied drum stem) the view is silence, as in training.
 //! 4. **Network**: a multilayer perceptron, ReLU hidden layers, one sigmoid per class.
@@ -361,7 +362,13 @@ impl DrumModel {
         let mut first = models.remove(0);
         let same = |m: &DrumModel| {
             (m.bands, m.past, m.future, m.flux, m.backing)
-                == (first.bands, first.past, first.future, first.flux, first.backing)
+                == (
+                    first.bands,
+                    first.past,
+                    first.future,
+                    first.flux,
+                    first.backing,
+                )
                 && m.floor == first.floor
         };
         if !models.iter().all(same) {
@@ -991,9 +998,13 @@ mod tests {
         let m = DrumModel::from_bytes(&backing(6.0, 12)).unwrap();
         assert_eq!((m.backing, m.flux), (Some(6.0), false));
         assert_eq!((m.window_len(), m.input_len()), (6, 12));
-        let e = DrumModel::from_bytes(&backing(6.0, 6)).unwrap_err().to_string();
+        let e = DrumModel::from_bytes(&backing(6.0, 6))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("do not chain"), "{e}");
-        let e = DrumModel::from_bytes(&backing(-20.0, 12)).unwrap_err().to_string();
+        let e = DrumModel::from_bytes(&backing(-20.0, 12))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("ceiling"), "{e}");
         let mut v3 = v2(1, 10);
         v3[8] = 3;

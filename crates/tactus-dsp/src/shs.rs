@@ -65,6 +65,20 @@
 //!    default; the engine turns it on (σ = 12 semitones) for the bass of a mix, where on
 //!    the tuning songs it moved bass RPA from 0.80 / 0.85 / 0.89 to 0.82 / 0.89 / 0.90
 //!    (sung, chorales, timgm mixes; `benches/bass_eval.py`).
+//! 9. **Attack alignment** (`attack_rise_db` > 0, harmonic sum only). A soundfont's lead
+//!    or choir patch holds the old note's release over the new note's slow attack, so the
+//!    decoded change comes 50–150 ms after the note starts (README, "The clean chorales'
+//!    and instrumental leads' late note changes"). When hop `h` is decided (at `t = h +
+//!    lag_hops`) as a voiced note `A`, the provisional path backtracked from the best state
+//!    at `t` is read for the hops after `h`: if it leaves `A` for a note `B` in one step of
+//!    at least a semitone, every hop up to that jump voiced and sounding, `B` held for
+//!    [`ATTACK_HOLD_HOPS`] hops (within a bin), and the frame's band level (the mean
+//!    power over the searched band, in dB of the input's units) rises from `h` to the
+//!    jump by at least `attack_rise_db` in all and falls by no more than that from one hop
+//!    to the next, hop `h` reports `B` (refined on its own salience). The decoded state
+//!    still drives everything else (contour voicing, register, the Viterbi), and
+//!    [`Shs::process_both`] gives both. No latency is added: only the lag is read. Off by
+//!    default; the engine turns it on (0.5 dB) for a lead that comes as its own stem.
 //!
 //! ## Defaults ([`ShsConfig::new`])
 //! Range 35–400 Hz (the bass stem of docs/design.md); hop 10 ms; frame = the power of two nearest
@@ -267,6 +281,12 @@ pub struct ShsConfig {
     /// candidate and for "no pitch" ([`crate::bassnet`] module docs, "The lead models and
     /// their ensemble"). Errors on the bass grid. Off by default.
     pub learned_ensemble: bool,
+    /// Attack alignment of a clean lead's note changes (module docs, step 9): a decided
+    /// voiced hop reports the note the provisional path jumps to within the lag when the
+    /// frame's band level rises from the hop to the jump by at least this many dB (and
+    /// falls by no more than that in any one hop). 0 turns it off. Harmonic sum only (a
+    /// learned salience has no band level here).
+    pub attack_rise_db: f32,
 }
 
 /// The power of two nearest `target` samples (rounding down when the next one up is more
@@ -315,6 +335,7 @@ impl ShsConfig {
             learned_blend: 0.0,
             learned_voicing_nats: 0.0,
             learned_ensemble: false,
+            attack_rise_db: 0.0,
         }
     }
 
@@ -455,6 +476,9 @@ impl ShsConfig {
         if self.lag_hops > 1 << 20 {
             return Err(ConfigError::invalid("lag_hops", "too large"));
         }
+        if !(self.attack_rise_db.is_finite() && (0.0..=40.0).contains(&self.attack_rise_db)) {
+            return Err(ConfigError::invalid("attack_rise_db", "must be in [0, 40]"));
+        }
         Ok(m)
     }
 
@@ -482,6 +506,8 @@ struct Salience {
     fund_ratio: f32,
     /// Peak of the last frame before normalisation (its level).
     last_peak: f32,
+    /// Mean power over the searched band of the last frame (normalised frame).
+    last_band_power: f32,
 }
 
 impl std::fmt::Debug for Salience {
@@ -535,6 +561,7 @@ impl Salience {
             compress: cfg.compress,
             fund_ratio: cfg.fundamental_ratio,
             last_peak: 0.0,
+            last_band_power: 0.0,
         }
     }
 
@@ -549,7 +576,23 @@ impl Salience {
             let p = c.re * c.re + c.im * c.im;
             *m = if e == 0.5 { p.sqrt() } else { p.powf(e) };
         }
+        let (b0, b1) = self.band;
+        self.last_band_power =
+            self.mag[b0..=b1].iter().map(|&a| a * a).sum::<f32>() / (b1 + 1 - b0) as f32;
         true
+    }
+
+    /// Band level of the last frame in dB, in the input's units (step 9): the mean power
+    /// over the searched band (of `|X_k|^compress`). Power rather than magnitude: a frame
+    /// that holds the end of one note and the start of the next has more spectral peaks but
+    /// not more energy, so a change at a constant level is no rise.
+    fn band_level_db(&self) -> f32 {
+        let a = self.last_band_power * self.last_peak * self.last_peak;
+        if a > 1e-24 {
+            10.0 * a.log10()
+        } else {
+            SILENT_DB
+        }
     }
 
     /// Salience per candidate into `out`; returns the voicing evidence V.
@@ -593,6 +636,15 @@ impl Salience {
     }
 }
 
+/// The tracker's output per hop: (hop, reported estimate, decoded estimate).
+type Emit<'a> = dyn FnMut(usize, PitchEstimate, PitchEstimate) + 'a;
+
+/// Band level of a silent frame, dB.
+const SILENT_DB: f32 = -240.0;
+
+/// Hops the note a change jumps to must hold for the attack alignment (step 9).
+pub const ATTACK_HOLD_HOPS: usize = 3;
+
 /// Everything but the framer, so the framer's callback can borrow it.
 #[derive(Debug)]
 struct Tracker {
@@ -628,6 +680,12 @@ struct Tracker {
     next_emit: usize,
     /// Frame peak per hop (ring), so that the contour level is in the input's units.
     peak_ring: Vec<f32>,
+    /// Band level per hop in dB (ring), for the attack alignment (step 9).
+    level_ring: Vec<f32>,
+    /// [`ShsConfig::attack_rise_db`].
+    attack_db: f32,
+    /// A jump of at least this many bins is a change of note (a semitone).
+    note_jump_bins: usize,
     contour: ContourGate,
     register: Register,
     /// The learned salience's state, when [`ShsConfig::learned`].
@@ -912,6 +970,9 @@ impl Tracker {
             hops_seen: 0,
             next_emit: 0,
             peak_ring: vec![0.0; ring],
+            level_ring: vec![SILENT_DB; ring],
+            attack_db: if cfg.learned { 0.0 } else { cfg.attack_rise_db },
+            note_jump_bins: cfg.bins_per_semitone as usize,
             register: Register {
                 k: if cfg.register_sigma_st > 0.0 {
                     let sigma = f64::from(cfg.register_sigma_st) * f64::from(cfg.bins_per_semitone);
@@ -1007,6 +1068,45 @@ impl Tracker {
         sum / n as f64 >= reference - gate_db
     }
 
+    /// Step 9, the attack alignment: the state `hop` reports, given its decided `state` and
+    /// the provisional path after it (`ahead`, oldest first, at most the lag). `state`
+    /// itself unless the path leaves it for another note `B` in one step of at least a
+    /// semitone, every hop up to that jump voiced and sounding, `B` held for
+    /// [`ATTACK_HOLD_HOPS`] hops (within a bin), and the band level rising from `hop` to
+    /// the jump: no hop-to-hop fall beyond `attack_db`, at least `attack_db` in all. Then
+    /// `B`.
+    fn aligned_state(&self, hop: usize, state: usize, ahead: &[u16]) -> usize {
+        let m = self.m;
+        if self.attack_db <= 0.0 || state >= m || self.silent[hop % self.ring] {
+            return state;
+        }
+        let level = |h: usize| self.level_ring[h % self.ring];
+        let mut prev = state;
+        for (k, &s) in ahead.iter().enumerate() {
+            let (s, h) = (s as usize, hop + 1 + k);
+            if s >= m || self.silent[h % self.ring] {
+                return state;
+            }
+            if level(h) < level(h - 1) - self.attack_db {
+                return state;
+            }
+            if s.abs_diff(prev) >= self.note_jump_bins {
+                let held = ahead.get(k..k + ATTACK_HOLD_HOPS).is_some_and(|run| {
+                    run.iter()
+                        .all(|&x| (x as usize) < m && (x as usize).abs_diff(s) <= 1)
+                });
+                let rise = level(h) - level(hop);
+                return if held && rise >= self.attack_db {
+                    s
+                } else {
+                    state
+                };
+            }
+            prev = s;
+        }
+        state
+    }
+
     /// The register's running mean takes in the decided `state` of `hop` when it is voiced.
     fn note_register(&mut self, hop: usize, state: usize) {
         if self.register.k > 0.0 && state < self.m && !self.silent[hop % self.ring] {
@@ -1044,7 +1144,7 @@ impl Tracker {
 
     /// The learned salience: frame `frames` arrives; the hop `future` frames before it
     /// goes to the Viterbi.
-    fn on_net_frame(&mut self, frame: &[f32], emit: &mut dyn FnMut(usize, PitchEstimate)) {
+    fn on_net_frame(&mut self, frame: &[f32], emit: &mut Emit) {
         let Some(mut n) = self.net.take() else {
             return;
         };
@@ -1075,7 +1175,7 @@ impl Tracker {
     }
 
     /// The hops still waiting for future frames (the stream has ended).
-    fn drain_net(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
+    fn drain_net(&mut self, emit: &mut Emit) {
         let Some(mut n) = self.net.take() else {
             return;
         };
@@ -1091,7 +1191,7 @@ impl Tracker {
 
     /// Runs the hops waiting in the batch, if any (the end of a block: whatever a block
     /// makes ready leaves with it, so batching adds no latency).
-    fn flush_batch(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
+    fn flush_batch(&mut self, emit: &mut Emit) {
         let Some(mut n) = self.net.take() else {
             return;
         };
@@ -1101,7 +1201,7 @@ impl Tracker {
 
     /// The waiting hops through the network together, then each through the Viterbi in
     /// order.
-    fn run_batch(&mut self, n: &mut NetState, emit: &mut dyn FnMut(usize, PitchEstimate)) {
+    fn run_batch(&mut self, n: &mut NetState, emit: &mut Emit) {
         if n.pending() == 0 {
             return;
         }
@@ -1112,12 +1212,7 @@ impl Tracker {
     }
 
     /// Hop `n.hops`, whose log-probabilities are row `row` of `n.logp`, through the Viterbi.
-    fn net_hop(
-        &mut self,
-        n: &mut NetState,
-        row: usize,
-        emit: &mut dyn FnMut(usize, PitchEstimate),
-    ) {
+    fn net_hop(&mut self, n: &mut NetState, row: usize, emit: &mut Emit) {
         let slot = n.hops % n.ring;
         let (silent, peak) = (n.silent[slot], n.peak[slot]);
         n.hops += 1;
@@ -1152,10 +1247,10 @@ impl Tracker {
             let lu0 = logp[m].max(floor);
             ((1.0 - lu0.exp()).clamp(0.0, 1.0), lu)
         };
-        self.advance(silent, v, l_unvoiced, peak, emit);
+        self.advance(silent, v, l_unvoiced, peak, SILENT_DB, emit);
     }
 
-    fn on_frame(&mut self, frame: &[f32], emit: &mut dyn FnMut(usize, PitchEstimate)) {
+    fn on_frame(&mut self, frame: &[f32], emit: &mut Emit) {
         if self.net.is_some() {
             self.on_net_frame(frame, emit);
             return;
@@ -1172,25 +1267,33 @@ impl Tracker {
         };
         let l_unvoiced = self.observe(v);
         let peak = if silent { 0.0 } else { self.sal.last_peak };
-        self.advance(silent, v, l_unvoiced, peak, emit);
+        let level = if silent {
+            SILENT_DB
+        } else {
+            self.sal.band_level_db()
+        };
+        self.advance(silent, v, l_unvoiced, peak, level, emit);
     }
 
     /// The current hop's salience `s` and observations `obs` (voicing evidence `v`,
     /// unvoiced log-probability `l_unvoiced`) into the rings and the Viterbi; emits the hop
     /// `lag_hops` back.
+    #[allow(clippy::too_many_arguments)]
     fn advance(
         &mut self,
         silent: bool,
         v: f32,
         l_unvoiced: f32,
         peak: f32,
-        emit: &mut dyn FnMut(usize, PitchEstimate),
+        level_db: f32,
+        emit: &mut Emit,
     ) {
         let t = self.hops_seen;
         let slot = t % self.ring;
         let m = self.m;
         self.sal_ring[slot * m..(slot + 1) * m].copy_from_slice(&self.s);
         self.peak_ring[slot] = peak;
+        self.level_ring[slot] = level_db;
         self.silent[slot] = silent;
         self.voicing[slot] = v;
         if t == 0 {
@@ -1212,11 +1315,17 @@ impl Tracker {
             self.path[0] = s as u16;
             let path = std::mem::take(&mut self.path);
             let voiced = self.contour_voiced(h, s, &path[1..]);
-            self.path = path;
             let st = if voiced { s } else { m };
+            let reported = self.aligned_state(h, st, &path[1..]);
+            self.path = path;
             self.note_register(h, st);
-            let out = self.output(h, st);
-            emit(h, out);
+            let decoded = self.output(h, st);
+            let out = if reported == st {
+                decoded
+            } else {
+                self.output(h, reported)
+            };
+            emit(h, out, decoded);
             self.next_emit = h + 1;
         }
     }
@@ -1299,7 +1408,7 @@ impl Tracker {
         crate::viterbi::best_state(&self.delta)
     }
 
-    fn flush(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
+    fn flush(&mut self, emit: &mut Emit) {
         let (start, end) = (self.next_emit, self.hops_seen);
         if end <= start {
             return;
@@ -1317,10 +1426,18 @@ impl Tracker {
         let path = std::mem::take(&mut self.path);
         for h in start..end {
             let s = path[h - start] as usize;
-            let voiced = self.contour_voiced(h, s, &path[h - start + 1..end - start]);
+            let ahead = &path[h - start + 1..end - start];
+            let voiced = self.contour_voiced(h, s, ahead);
             let st = if voiced { s } else { self.m };
+            let reported = self.aligned_state(h, st, ahead);
             self.note_register(h, st);
-            emit(h, self.output(h, st));
+            let decoded = self.output(h, st);
+            let out = if reported == st {
+                decoded
+            } else {
+                self.output(h, reported)
+            };
+            emit(h, out, decoded);
         }
         self.path = path;
         self.next_emit = end;
@@ -1383,6 +1500,27 @@ impl Shs {
         self.tracker.m
     }
 
+    /// [`HopStage::process`] with two estimates per hop: the reported one (after the attack
+    /// alignment of step 9) and the decoded one (the Viterbi's decision, before it); the
+    /// two differ only where [`ShsConfig::attack_rise_db`] moved a note change.
+    pub fn process_both(
+        &mut self,
+        input: &[f32],
+        emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate),
+    ) {
+        let tracker = &mut self.tracker;
+        self.framer.push(input, |_, fr| tracker.on_frame(fr, emit));
+        self.tracker.flush_batch(emit);
+    }
+
+    /// [`HopStage::finish`] with both estimates ([`Shs::process_both`]).
+    pub fn finish_both(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate)) {
+        let tracker = &mut self.tracker;
+        self.framer.finish(|_, fr| tracker.on_frame(fr, emit));
+        self.tracker.drain_net(emit);
+        self.tracker.flush(emit);
+    }
+
     /// Salience of one frame (`cfg.frame` samples) per candidate, and its voicing evidence,
     /// computed like the stream's hops. Allocates the returned `Vec` (tests, plots).
     pub fn frame_salience(&mut self, frame: &[f32]) -> (Vec<f32>, f32) {
@@ -1399,16 +1537,11 @@ impl HopStage for Shs {
     type Out = PitchEstimate;
 
     fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, PitchEstimate)) {
-        let tracker = &mut self.tracker;
-        self.framer.push(input, |_, fr| tracker.on_frame(fr, emit));
-        self.tracker.flush_batch(emit);
+        self.process_both(input, &mut |h, e, _| emit(h, e));
     }
 
     fn finish(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
-        let tracker = &mut self.tracker;
-        self.framer.finish(|_, fr| tracker.on_frame(fr, emit));
-        self.tracker.drain_net(emit);
-        self.tracker.flush(emit);
+        self.finish_both(&mut |h, e, _| emit(h, e));
     }
 
     fn reset(&mut self) {

@@ -432,7 +432,11 @@ fn random_backing_model() -> DrumModel {
     // Scales that keep most units alive on inputs in [-16, 6], so the output follows the
     // input (a dead network would pass every comparison below).
     // (`next_f32` is uniform on [-1, 1).)
-    for (i, o, ws, b0) in [(n_in, 32, 0.02, 2.0), (32, 16, 0.3, 0.0), (16, CLASSES, 0.5, 0.0)] {
+    for (i, o, ws, b0) in [
+        (n_in, 32, 0.02, 2.0),
+        (32, 16, 0.3, 0.0),
+        (16, CLASSES, 0.5, 0.0),
+    ] {
         layers.push(Layer {
             n_in: i,
             n_out: o,
@@ -755,7 +759,11 @@ fn silence_and_hard_inputs() {
 fn no_allocation_while_processing() {
     let mut rng = Rng(13);
     let x = groove(&mut rng);
-    for model in [DrumModel::embedded(), random_flux_model(), random_backing_model()] {
+    for model in [
+        DrumModel::embedded(),
+        random_flux_model(),
+        random_backing_model(),
+    ] {
         let mut t = DrumTranscriber::with_model(SR, model).unwrap();
         t.process(&x[..4096], &mut |_, _| {});
         let before = allocs();
@@ -768,7 +776,9 @@ fn no_allocation_while_processing() {
         assert!(n > 300);
     }
     // With a backing, in blocks up to 4 times the transcriber's internal step.
-    let back: Vec<f32> = (0..x.len()).map(|i| 0.3 * (i as f32 * 0.02).sin()).collect();
+    let back: Vec<f32> = (0..x.len())
+        .map(|i| 0.3 * (i as f32 * 0.02).sin())
+        .collect();
     let mut t = DrumTranscriber::with_model(SR, random_backing_model()).unwrap();
     t.process_with_backing(&x[..4096], &back[..4096], &mut |_, _| {});
     let before = allocs();
@@ -777,7 +787,11 @@ fn no_allocation_while_processing() {
         t.process_with_backing(c, b, &mut |_, _| n += 1);
     }
     t.finish(&mut |_, _| n += 1);
-    assert_eq!(allocs() - before, 0, "allocations after construction (backing)");
+    assert_eq!(
+        allocs() - before,
+        0,
+        "allocations after construction (backing)"
+    );
     assert!(n > 300);
 }
 
@@ -864,7 +878,10 @@ fn backing_view_matches_an_offline_oracle_for_any_chunking() {
             fired[c] += f.onset[c] as usize;
         }
     }
-    assert!(fired.iter().sum::<usize>() > 0, "the random model never fired");
+    assert!(
+        fired.iter().sum::<usize>() > 0,
+        "the random model never fired"
+    );
     let spread = (0..CLASSES)
         .map(|c| {
             let (lo, hi) = whole.iter().fold((1f32, 0f32), |(lo, hi), f| {
@@ -873,9 +890,16 @@ fn backing_view_matches_an_offline_oracle_for_any_chunking() {
             hi - lo
         })
         .fold(0f32, f32::max);
-    assert!(spread > 0.1, "the random model does not follow its input: {spread}");
+    assert!(
+        spread > 0.1,
+        "the random model does not follow its input: {spread}"
+    );
     for chunk in [1usize, 441, 1000, 4096, 5000, 20_000] {
-        assert_eq!(transcribe_backing(&m, &x, &back, chunk), whole, "chunk {chunk}");
+        assert_eq!(
+            transcribe_backing(&m, &x, &back, chunk),
+            whole,
+            "chunk {chunk}"
+        );
     }
     // The backing matters (a mutation that drops it fails), and silence as the backing
     // is what a transcriber fed without one sees.

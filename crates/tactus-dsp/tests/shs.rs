@@ -984,3 +984,260 @@ fn twelve_harmonics_keep_a_low_voice_at_its_fundamental() {
     assert!(twelve >= 0.95, "12 harmonics: RPA {twelve}");
     assert!(eight < twelve - 0.2, "8 harmonics: RPA {eight}");
 }
+
+// ---------------------------------------------------------------------------------------
+// Step 9: the attack alignment.
+
+/// The band level of step 9 the obvious way: the frame's mean over the searched FFT bins of
+/// its direct-DFT power (normalised frame, as the salience), times its peak squared, in dB.
+fn naive_band_level(c: &ShsConfig, frame: &[f32]) -> f64 {
+    let n = frame.len();
+    let mean = frame.iter().map(|&x| x as f64).sum::<f64>() / n as f64;
+    let peak = frame
+        .iter()
+        .map(|&x| (x as f64 - mean).abs())
+        .fold(0.0, f64::max);
+    if peak <= 1e-9 {
+        return -240.0;
+    }
+    let nyq = c.n_fft / 2;
+    let df = c.sample_rate as f64 / c.n_fft as f64;
+    let lo = ((c.fmin_hz as f64 / df).floor() as usize).max(1);
+    let hi = ((c.fmax_hz as f64 * c.harmonics as f64 / df).ceil() as usize)
+        .min(nyq)
+        .max(lo);
+    let mut sum = 0.0;
+    for k in lo..=hi {
+        let (mut re, mut im) = (0.0, 0.0);
+        for (i, &v) in frame.iter().enumerate() {
+            let w = 0.5 - 0.5 * (std::f64::consts::TAU * (i as f64 + 0.5) / n as f64).cos();
+            let x = (v as f64 - mean) / peak * w;
+            let ph = -std::f64::consts::TAU * (k * i) as f64 / c.n_fft as f64;
+            re += x * ph.cos();
+            im += x * ph.sin();
+        }
+        sum += (re * re + im * im).sqrt().powf(c.compress as f64).powi(2);
+    }
+    let a = sum / (hi + 1 - lo) as f64 * peak * peak;
+    if a > 1e-24 {
+        10.0 * a.log10()
+    } else {
+        -240.0
+    }
+}
+
+/// Step 9 written out the slow way from the oracle's Viterbi: hop `h` is decided on the
+/// path known at `h + lag` (the whole track's when past the end); it reports the note the
+/// path jumps to when the module docs' conditions hold on the hops up to `h + lag`.
+/// Returns (reported, decided) states per hop (`m` = unvoiced).
+#[allow(clippy::needless_range_loop)] // hop indices, as in the module docs
+fn naive_attack_align(c: &ShsConfig, x: &[f32]) -> (Vec<usize>, Vec<usize>) {
+    let hops = naive_hops(c, x);
+    let mut levels = Vec::new();
+    let mut framer = Framer::new(c.frame, c.hop).unwrap();
+    let mut add = |_: usize, fr: &[f32]| levels.push(naive_band_level(c, fr));
+    framer.push(x, &mut add);
+    framer.finish(&mut add);
+    let m = c.n_bins().unwrap();
+    let (deltas, bps) = naive_forward(c, &hops);
+    let last = hops.len() - 1;
+    let full = naive_path_at(&deltas, &bps, last);
+    let known = |h: usize| {
+        if h + c.lag_hops <= last {
+            naive_path_at(&deltas, &bps, h + c.lag_hops)
+        } else {
+            full.clone()
+        }
+    };
+    let sounding = |h: usize| hops[h].peak > 1e-9;
+    let db = c.attack_rise_db as f64;
+    let step = c.bins_per_semitone as usize;
+    let mut reported = Vec::new();
+    let mut decided = Vec::new();
+    for h in 0..hops.len() {
+        let path = known(h);
+        let s = path[h];
+        decided.push(s);
+        let end = (h + c.lag_hops).min(last);
+        let mut out = s;
+        if db > 0.0 && s < m && sounding(h) {
+            let mut prev = s;
+            for k in h + 1..=end {
+                if path[k] >= m || !sounding(k) || levels[k] < levels[k - 1] - db {
+                    break;
+                }
+                if path[k].abs_diff(prev) >= step {
+                    let b = path[k];
+                    let held =
+                        k + 2 <= end && (k..k + 3).all(|j| path[j] < m && path[j].abs_diff(b) <= 1);
+                    if held && levels[k] - levels[h] >= db {
+                        out = b;
+                    }
+                    break;
+                }
+                prev = path[k];
+            }
+        }
+        reported.push(out);
+    }
+    (reported, decided)
+}
+
+/// Runs `s` over `x` in blocks of `chunk` samples with both estimates per hop.
+fn run_both(s: &mut Shs, x: &[f32], chunk: usize) -> (Vec<PitchEstimate>, Vec<PitchEstimate>) {
+    let (mut rep, mut dec) = (Vec::new(), Vec::new());
+    for b in x.chunks(chunk.max(1)) {
+        s.process_both(b, &mut |i, r, d| {
+            assert_eq!(i, rep.len());
+            rep.push(r);
+            dec.push(d);
+        });
+    }
+    s.finish_both(&mut |i, r, d| {
+        assert_eq!(i, rep.len());
+        rep.push(r);
+        dec.push(d);
+    });
+    (rep, dec)
+}
+
+/// Notes whose attack is slow (linear over `attack_s`) while the previous note's release
+/// rings on (exponential, time constant `release_s`): a soundfont choir's note change. The
+/// truth is the new note from its start.
+fn overlapping_notes(
+    sr: u32,
+    pitches: &[f64],
+    note_s: f64,
+    attack_s: f64,
+    release_s: f64,
+    amps: &[f64],
+) -> (Vec<f32>, Vec<f64>) {
+    let per = (note_s * sr as f64) as usize;
+    let n = per * pitches.len() + per / 2;
+    let mut x = vec![0f32; n];
+    let mut truth = vec![0f64; n];
+    for (k, &f) in pitches.iter().enumerate() {
+        let tone = harmonic(sr, f, n - k * per, amps, 70 + k as u64);
+        for (i, v) in tone.into_iter().enumerate() {
+            let t = i as f64 / sr as f64;
+            let env = if i < per {
+                (t / attack_s).min(1.0)
+            } else {
+                (-(t - note_s) / release_s).exp()
+            };
+            x[k * per + i] += 0.3 * (env as f32) * v;
+        }
+        truth[k * per..(k + 1) * per].fill(f);
+    }
+    (x, truth)
+}
+
+#[test]
+fn attack_alignment_matches_a_slow_fixed_lag_oracle() {
+    let mut c = cfg();
+    c.frame = 256;
+    c.n_fft = 1024;
+    c.hop = 98; // 20 ms: few frames for the O(T·M²) oracle
+    c.attack_rise_db = 0.5;
+    let (x, _) = overlapping_notes(
+        SR,
+        &[55.0, 82.4, 61.7, 98.0, 73.4],
+        0.5,
+        0.1,
+        0.3,
+        &[1.0, 0.6, 0.4, 0.3],
+    );
+    let m = c.n_bins().unwrap();
+    let mut moved = 0;
+    for lag in [3usize, 10, 1000] {
+        c.lag_hops = lag;
+        let (want_rep, want_dec) = naive_attack_align(&c, &x);
+        for chunk in [x.len(), 777, 98] {
+            let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, chunk);
+            let what = format!("lag {lag}, chunk {chunk}, ");
+            assert_states(&c, &rep, &want_rep, &format!("{what}reported: "));
+            assert_states(&c, &dec, &want_dec, &format!("{what}decoded: "));
+        }
+        // The decoded track is the tracker's without the alignment, bit for bit.
+        let mut off = c.clone();
+        off.attack_rise_db = 0.0;
+        let plain = common::run(&mut Shs::new(off).unwrap(), &x, &[x.len()]);
+        let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, x.len());
+        assert_eq!(plain, dec, "lag {lag}: the decoding changed");
+        let n = want_rep
+            .iter()
+            .zip(&want_dec)
+            .filter(|(r, d)| r != d)
+            .count();
+        assert_eq!(n, rep.iter().zip(&dec).filter(|(r, d)| r != d).count());
+        if lag == 10 {
+            moved = n;
+        }
+        assert!(want_rep
+            .iter()
+            .zip(&want_dec)
+            .all(|(&r, &d)| r == d || (r < m && d < m)));
+    }
+    eprintln!("moved at lag 10: {moved}");
+    assert!(
+        moved >= 4,
+        "the slow attacks must move some changes: {moved}"
+    );
+}
+
+/// The melody defaults with twelve harmonics (the engine's clean lead) on a choir-like
+/// lead: the change comes sooner, the pitch is right on more hops, and nothing moves where
+/// the level does not rise (a note that changes at a constant level).
+#[test]
+fn attack_alignment_finds_a_slow_attack_sooner_and_leaves_level_changes_alone() {
+    const MSR: u32 = 14_700;
+    let mut c = ShsConfig::melody(MSR, 70.0, 1400.0);
+    c.harmonics = 12;
+    let amps: Vec<f64> = (1..=10).map(|h| 1.0 / h as f64).collect();
+    let pitches = [220.0, 247.0, 196.0, 262.0, 220.0, 294.0, 247.0, 330.0];
+    let (x, truth) = overlapping_notes(MSR, &pitches, 0.6, 0.1, 0.3, &amps);
+    let rpa = |est: &[PitchEstimate]| {
+        let (mut ok, mut n) = (0, 0);
+        for (i, e) in est.iter().enumerate() {
+            let t = truth.get(i * c.hop).copied().unwrap_or(0.0);
+            if t > 0.0 {
+                n += 1;
+                ok += (e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0) as usize;
+            }
+        }
+        ok as f64 / n as f64
+    };
+    c.attack_rise_db = 0.5; // the engine's clean lead
+    let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, 4096);
+    let (a, d) = (rpa(&rep), rpa(&dec));
+    eprintln!("RPA aligned {a:.4}, decoded {d:.4}");
+    assert!(a >= d + 0.05, "aligned RPA {a} against decoded {d}");
+    // A legato change at a constant level: same tones, switched in one sample.
+    let per = (0.6 * MSR as f64) as usize;
+    let flat: Vec<f32> = pitches
+        .iter()
+        .enumerate()
+        .flat_map(|(k, &f)| {
+            harmonic(MSR, f, per, &amps, 90 + k as u64)
+                .into_iter()
+                .map(|v| 0.3 * v)
+        })
+        .collect();
+    let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &flat, 4096);
+    let moved = rep.iter().zip(&dec).filter(|(r, d)| r != d).count();
+    let moved_slow = {
+        let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, 4096);
+        rep.iter().zip(&dec).filter(|(r, d)| r != d).count()
+    };
+    eprintln!("moved: slow attacks {moved_slow}, level changes {moved}");
+    assert!(moved <= 2, "{moved} hops moved without an attack");
+}
+
+#[test]
+fn attack_alignment_config_is_validated() {
+    for bad in [-1.0, f32::NAN, 41.0] {
+        let mut c = cfg();
+        c.attack_rise_db = bad;
+        assert!(Shs::new(c).is_err(), "{bad}");
+    }
+}

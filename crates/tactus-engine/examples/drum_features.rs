@@ -104,6 +104,14 @@ fn backing(left: &[f32], right: &[f32], sr: u32) -> Result<Vec<f32>, Box<dyn std
         sep.process(l, r, &mut out);
     }
     sep.finish(&mut out);
-    let (b, v, o) = (out.take(Stem::Bass), out.take(Stem::Vocals), out.take(Stem::Other));
-    Ok(b.iter().zip(&v).zip(&o).map(|((b, v), o)| b + v + o).collect())
+    let (b, v, o) = (
+        out.take(Stem::Bass),
+        out.take(Stem::Vocals),
+        out.take(Stem::Other),
+    );
+    Ok(b.iter()
+        .zip(&v)
+        .zip(&o)
+        .map(|((b, v), o)| b + v + o)
+        .collect())
 }

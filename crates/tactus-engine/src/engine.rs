@@ -477,7 +477,10 @@ fn feed(
             let backing = (given.is_none() && stem == Stem::Drums && c.wants_backing())
                 .then(|| {
                     let parts = [Stem::Bass, Stem::Vocals, Stem::Other].map(|s| sep_out.get(s));
-                    parts.iter().all(|p| p.len() == input.len()).then_some(parts)
+                    parts
+                        .iter()
+                        .all(|p| p.len() == input.len())
+                        .then_some(parts)
                 })
                 .flatten();
             (c, input, backing)
@@ -629,7 +632,10 @@ impl Engine {
                 // (trained on those; other separators' drum stems go without it, as clean
                 // stems do).
                 if wants_backing && cfg.separator == SeparatorChoice::Spectral {
-                    separated = separated.with(Stem::Bass).with(Stem::Vocals).with(Stem::Other);
+                    separated = separated
+                        .with(Stem::Bass)
+                        .with(Stem::Vocals)
+                        .with(Stem::Other);
                 }
             }
         }

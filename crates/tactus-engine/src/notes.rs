@@ -130,11 +130,12 @@ impl PitchNotes {
             return;
         }
         let (det, beats) = (&mut self.det, &mut self.beats);
-        for (k, &f) in pitch.f0.iter().enumerate().skip(self.consumed) {
+        let f0 = pitch.note_f0();
+        for (k, &f) in f0.iter().enumerate().skip(self.consumed) {
             let l = pitch.level_db.get(k).copied().unwrap_or(f32::NAN);
             det.push_level(f, l, &mut |j, o| beats.push(j, o));
         }
-        self.consumed = pitch.f0.len();
+        self.consumed = f0.len();
     }
 
     /// Ends the stream (offline: runs over the whole pitch track).
@@ -146,8 +147,9 @@ impl PitchNotes {
             self.beats.finish();
         } else {
             // The config was validated in `new`, so this cannot fail; stay silent if it did.
-            let onsets = note_onsets_offline_level(&pitch.f0, &pitch.level_db, self.cfg)
-                .unwrap_or_else(|_| vec![false; pitch.f0.len()]);
+            let f0 = pitch.note_f0();
+            let onsets = note_onsets_offline_level(f0, &pitch.level_db, self.cfg)
+                .unwrap_or_else(|_| vec![false; f0.len()]);
             self.beats
                 .set_offline(onsets, self.hop, self.geo.bin_samples);
         }

@@ -253,6 +253,14 @@ pub const MIXTURE_MELODY_CONTOUR_GATE_DB: f32 = 6.0;
 /// band of the mix keeps 8 (12 gave 0.543 / 0.749 / 0.717 → 0.545 / 0.741 / 0.713 there).
 pub const CLEAN_LEAD_HARMONICS: usize = 12;
 
+/// The attack alignment of a lead that comes as its own stem (`tactus_dsp::shs` module
+/// docs, step 9; [`ShsConfig::attack_rise_db`]): a soundfont lead's or choir's decoded note
+/// change moves back to the foot of the band level's rise that starts the new note, within
+/// the Viterbi's lag. The levels and the pattern read the aligned pitch; the note onsets
+/// read the decoded one ([`PitchTrack::note_f0`]), since their own attack search was tuned
+/// on it (README, "The clean lead's note changes at the attack").
+pub const CLEAN_LEAD_ATTACK_RISE_DB: f32 = 0.5;
+
 /// How many hops a pitch track on the spectral separator's bass or vocals stem is moved
 /// earlier ([`PitchTrack::set_advance_hops`]): the separator's harmonic time median spans more
 /// past frames than look-ahead ones (5 + 2, the bass 8 + 2, of 23 ms), so a new note reaches
@@ -462,19 +470,24 @@ impl<F: HopFilter> Reset for F {
     }
 }
 
-/// The tracker of a [`PitchTrack`]: one, or a voicing/pitch pair whose voicing tracker's
-/// own pitch is kept beside the pair's ([`PitchTrack::voicing_f0`]).
+/// The tracker of a [`PitchTrack`]: one; a voicing/pitch pair whose voicing tracker's own
+/// pitch is kept beside the pair's ([`PitchTrack::voicing_f0`]); or a harmonic-sum tracker
+/// with the attack alignment whose decoded pitch is kept beside its reported one
+/// ([`PitchTrack::note_f0`]).
 enum Tracker {
     One(Box<dyn HopStage<Out = PitchEstimate>>),
     Pair(Box<VoicingPitchPair>),
+    Aligned(Box<Shs>),
 }
 
 impl Tracker {
-    /// Feeds a block; `emit(f0, note_f0)` per hop (`note_f0` only for a pair).
+    /// Feeds a block; `emit(f0, side_f0)` per hop (`side_f0` for a pair or an aligned
+    /// tracker).
     fn process(&mut self, x: &[f32], emit: &mut dyn FnMut(f32, Option<f32>)) {
         match self {
             Tracker::One(t) => t.process(x, &mut |_, e| emit(e.f0_hz, None)),
             Tracker::Pair(p) => p.process_both(x, &mut |_, e, v| emit(e.f0_hz, Some(v.f0_hz))),
+            Tracker::Aligned(t) => t.process_both(x, &mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz))),
         }
     }
 
@@ -482,6 +495,7 @@ impl Tracker {
         match self {
             Tracker::One(t) => t.finish(&mut |_, e| emit(e.f0_hz, None)),
             Tracker::Pair(p) => p.finish_both(&mut |_, e, v| emit(e.f0_hz, Some(v.f0_hz))),
+            Tracker::Aligned(t) => t.finish_both(&mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz))),
         }
     }
 
@@ -489,6 +503,7 @@ impl Tracker {
         match self {
             Tracker::One(t) => t.reset(),
             Tracker::Pair(p) => p.reset(),
+            Tracker::Aligned(t) => t.reset(),
         }
     }
 
@@ -496,6 +511,7 @@ impl Tracker {
         match self {
             Tracker::One(t) => t.latency_samples(),
             Tracker::Pair(p) => p.latency_samples(),
+            Tracker::Aligned(t) => t.latency_samples(),
         }
     }
 }
@@ -615,8 +631,10 @@ impl PitchTrack {
                         sc.register_sigma_st = MIXTURE_BASS_REGISTER_ST;
                     }
                 }
-                if !mixture && fmax_hz > BASS_MAX_HZ {
+                let clean_lead = !mixture && fmax_hz > BASS_MAX_HZ;
+                if clean_lead {
                     sc.harmonics = CLEAN_LEAD_HARMONICS;
+                    sc.attack_rise_db = CLEAN_LEAD_ATTACK_RISE_DB;
                 }
                 sc.learned = method == PitchMethod::Learned && fmax_hz <= BASS_MAX_HZ;
                 if sc.learned {
@@ -636,6 +654,8 @@ impl PitchTrack {
                         VoicingPitchPair::new(Box::new(Shs::new(sc)?), Box::new(Shs::new(lc)?))?
                             .with_veto(),
                     ))
+                } else if clean_lead && method == PitchMethod::Shs {
+                    Tracker::Aligned(Box::new(Shs::new(sc)?))
                 } else {
                     Tracker::One(Box::new(Shs::new(sc)?))
                 }
@@ -666,7 +686,7 @@ impl PitchTrack {
             LevelRule::Follow => min_iqr_st(fmax_hz),
         };
         let note_side = match tracker {
-            Tracker::Pair(_) => Some(NoteSide {
+            Tracker::Pair(_) | Tracker::Aligned(_) => Some(NoteSide {
                 raw: Vec::new(),
                 skipped: 0,
                 tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
@@ -917,7 +937,20 @@ impl PitchTrack {
     /// hops"); for one tracker, [`PitchTrack::f0`]. Note onsets read [`PitchTrack::f0`] in
     /// both cases (since 2026-11-28, `benches/trials/RULE_lead_onsets_pair.md`).
     pub fn voicing_f0(&self) -> &[f32] {
-        self.note_side.as_ref().map_or(&self.f0, |s| &s.f0)
+        match (&self.tracker, &self.note_side) {
+            (Tracker::Pair(_), Some(s)) => &s.f0,
+            _ => &self.f0,
+        }
+    }
+
+    /// The pitch the note onsets read, per hop (after gate and fences): for a tracker with
+    /// the attack alignment its decoded pitch, before the alignment (the note detector
+    /// looks for the attack itself); otherwise [`PitchTrack::f0`].
+    pub fn note_f0(&self) -> &[f32] {
+        match (&self.tracker, &self.note_side) {
+            (Tracker::Aligned(_), Some(s)) => &s.f0,
+            _ => &self.f0,
+        }
     }
 
     /// Streaming: forgets the first `d` bins and the per-hop values already binned
