@@ -3,7 +3,9 @@
 //! * [`NoteTrack::Pitch`] (default when the stem has a pitch track): note onsets from the
 //!   tracked pitch ([`tactus_dsp::notes`]): where voicing begins or the pitch settles on a new
 //!   note; with [`NoteRule::Attack`] (the default) also where the stem's level attacks a held
-//!   pitch, each onset at its attack. Reads the pitch track's f0 after gate and fences and its
+//!   pitch, each onset at its attack. Reads the pitch track's note pitch after gate and
+//!   fences (`PitchTrack::note_f0`: its f0, or for a clean lead the decoded pitch before the
+//!   attack alignment) and its
 //!   RMS per hop (`PitchTrack::level_db`, the same hops, advanced with the track), hop by hop
 //!   in streaming mode and once at the end offline, so both modes see the same values.
 //! * [`NoteTrack::Flux`]: spectral-flux onsets of the stem ([`OnsetTrack`]), the first

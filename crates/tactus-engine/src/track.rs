@@ -934,8 +934,9 @@ impl PitchTrack {
 
     /// For a voicing/pitch pair its voicing tracker's own pitch, per hop (after gate and
     /// fences), which the lead's level range compares with [`PitchTrack::f0`] ("agreed
-    /// hops"); for one tracker, [`PitchTrack::f0`]. Note onsets read [`PitchTrack::f0`] in
-    /// both cases (since 2026-11-28, `benches/trials/RULE_lead_onsets_pair.md`).
+    /// hops"); for any other tracker, [`PitchTrack::f0`]. Note onsets read
+    /// [`PitchTrack::note_f0`]: the pair's pitch (since 2026-11-28,
+    /// `benches/trials/RULE_lead_onsets_pair.md`), or an aligned tracker's decoded pitch.
     pub fn voicing_f0(&self) -> &[f32] {
         match (&self.tracker, &self.note_side) {
             (Tracker::Pair(_), Some(s)) => &s.f0,
