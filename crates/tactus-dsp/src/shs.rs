@@ -1314,18 +1314,8 @@ impl Tracker {
             }
             self.path[0] = s as u16;
             let path = std::mem::take(&mut self.path);
-            let voiced = self.contour_voiced(h, s, &path[1..]);
-            let st = if voiced { s } else { m };
-            let reported = self.aligned_state(h, st, &path[1..]);
+            self.decide(h, s, &path[1..], emit);
             self.path = path;
-            self.note_register(h, st);
-            let decoded = self.output(h, st);
-            let out = if reported == st {
-                decoded
-            } else {
-                self.output(h, reported)
-            };
-            emit(h, out, decoded);
             self.next_emit = h + 1;
         }
     }
@@ -1404,6 +1394,23 @@ impl Tracker {
         std::mem::swap(&mut self.delta, &mut self.next);
     }
 
+    /// Hop `h` is decided as state `s` with the provisional path `ahead` after it: the
+    /// contour voicing (step 7), the register (step 8) and the attack alignment (step 9),
+    /// then `emit(h, reported, decoded)`.
+    fn decide(&mut self, h: usize, s: usize, ahead: &[u16], emit: &mut Emit) {
+        let voiced = self.contour_voiced(h, s, ahead);
+        let st = if voiced { s } else { self.m };
+        let reported = self.aligned_state(h, st, ahead);
+        self.note_register(h, st);
+        let decoded = self.output(h, st);
+        let out = if reported == st {
+            decoded
+        } else {
+            self.output(h, reported)
+        };
+        emit(h, out, decoded);
+    }
+
     fn best_state(&self) -> usize {
         crate::viterbi::best_state(&self.delta)
     }
@@ -1426,18 +1433,7 @@ impl Tracker {
         let path = std::mem::take(&mut self.path);
         for h in start..end {
             let s = path[h - start] as usize;
-            let ahead = &path[h - start + 1..end - start];
-            let voiced = self.contour_voiced(h, s, ahead);
-            let st = if voiced { s } else { self.m };
-            let reported = self.aligned_state(h, st, ahead);
-            self.note_register(h, st);
-            let decoded = self.output(h, st);
-            let out = if reported == st {
-                decoded
-            } else {
-                self.output(h, reported)
-            };
-            emit(h, out, decoded);
+            self.decide(h, s, &path[h - start + 1..end - start], emit);
         }
         self.path = path;
         self.next_emit = end;

@@ -601,6 +601,22 @@ fn melody_defaults_track_a_lead_over_chords() {
     assert!(bass < melody - 0.2, "bass defaults: RPA {bass}");
 }
 
+/// The oracle's decoded path as known when hop `h` is decided: at hop `h + lag`, or the
+/// whole track's path when that is past the end.
+fn naive_known_paths(c: &ShsConfig, hops: &[NaiveHop]) -> impl Fn(usize) -> Vec<usize> {
+    let (deltas, bps) = naive_forward(c, hops);
+    let last = hops.len() - 1;
+    let full = naive_path_at(&deltas, &bps, last);
+    let lag = c.lag_hops;
+    move |h: usize| {
+        if h + lag <= last {
+            naive_path_at(&deltas, &bps, h + lag)
+        } else {
+            full.clone()
+        }
+    }
+}
+
 /// The contour voicing of the module docs written out the slow, obvious way, from the
 /// oracle's salience and the naive Viterbi: hop `h` is decided on the path known at hop
 /// `h + lag` (the whole track's path when that is past the end); its contour is walked back
@@ -609,16 +625,8 @@ fn melody_defaults_track_a_lead_over_chords() {
 #[allow(clippy::needless_range_loop)] // hop indices, as in the module docs
 fn naive_contour_gate(c: &ShsConfig, hops: &[NaiveHop]) -> Vec<usize> {
     let m = c.n_bins().unwrap();
-    let (deltas, bps) = naive_forward(c, hops);
     let last = hops.len() - 1;
-    let full = naive_path_at(&deltas, &bps, last);
-    let known = |h: usize| {
-        if h + c.lag_hops <= last {
-            naive_path_at(&deltas, &bps, h + c.lag_hops)
-        } else {
-            full.clone()
-        }
-    };
+    let known = naive_known_paths(c, hops);
     let decided: Vec<usize> = (0..hops.len()).map(|h| known(h)[h]).collect();
     let voiced = |h: usize, s: usize| s < m && hops[h].peak > 1e-9;
     let level = |h: usize, s: usize| {
@@ -1039,16 +1047,8 @@ fn naive_attack_align(c: &ShsConfig, x: &[f32]) -> (Vec<usize>, Vec<usize>) {
     framer.push(x, &mut add);
     framer.finish(&mut add);
     let m = c.n_bins().unwrap();
-    let (deltas, bps) = naive_forward(c, &hops);
     let last = hops.len() - 1;
-    let full = naive_path_at(&deltas, &bps, last);
-    let known = |h: usize| {
-        if h + c.lag_hops <= last {
-            naive_path_at(&deltas, &bps, h + c.lag_hops)
-        } else {
-            full.clone()
-        }
-    };
+    let known = naive_known_paths(c, &hops);
     let sounding = |h: usize| hops[h].peak > 1e-9;
     let db = c.attack_rise_db as f64;
     let step = c.bins_per_semitone as usize;
