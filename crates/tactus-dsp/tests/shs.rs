@@ -83,6 +83,15 @@ fn cfg() -> ShsConfig {
     ShsConfig::new(SR, 35.0, 400.0)
 }
 
+/// `c` with a short frame and 20 ms hops: few frames for the slow oracles (O(T·M²) and
+/// worse).
+fn small(mut c: ShsConfig) -> ShsConfig {
+    c.frame = 256;
+    c.n_fft = 1024;
+    c.hop = 98;
+    c
+}
+
 /// The obvious salience: the same preprocessing, a direct DFT in f64 at each FFT bin, the
 /// max over each harmonic's bins, the weighted sum; and the voicing evidence.
 fn naive_salience(c: &ShsConfig, frame: &[f32]) -> (Vec<f64>, f64) {
@@ -371,10 +380,7 @@ fn naive_viterbi(c: &ShsConfig, x: &[f32]) -> Vec<usize> {
 
 #[test]
 fn decoded_path_matches_a_naive_whole_track_viterbi() {
-    let mut c = cfg();
-    c.frame = 256;
-    c.n_fft = 1024;
-    c.hop = 98; // 20 ms: fewer frames for the O(T·M²) oracle
+    let mut c = small(cfg());
     let (x, _) = bass_line(&[55.0, 82.4, 73.4, 110.0], 0.4, 11);
     let want = naive_viterbi(&c, &x);
     // Streaming with a lag longer than the track is exactly offline Viterbi.
@@ -679,10 +685,7 @@ fn naive_contour_gate(c: &ShsConfig, hops: &[NaiveHop]) -> Vec<usize> {
 /// note, and longer than the track) matches the slow oracle hop for hop.
 #[test]
 fn contour_voicing_matches_a_slow_fixed_lag_oracle() {
-    let mut c = cfg();
-    c.frame = 256;
-    c.n_fft = 1024;
-    c.hop = 98; // 20 ms: few frames for the O(T·M²) oracle
+    let mut c = small(cfg());
     c.contour_gate_db = 6.0;
     c.contour_ref_s = 0.5;
     let note_n = (0.3 * SR as f64) as usize;
@@ -837,10 +840,7 @@ fn naive_register_decode(c: &ShsConfig, x: &[f32]) -> Vec<usize> {
 }
 
 fn register_cfg() -> ShsConfig {
-    let mut c = cfg();
-    c.frame = 256;
-    c.n_fft = 1024;
-    c.hop = 98; // 20 ms: fewer frames for the O(T²·M²) oracle
+    let mut c = small(cfg());
     c.lag_hops = 4;
     c.register_sigma_st = 6.0;
     c.register_s = 0.5;
@@ -1134,10 +1134,7 @@ fn overlapping_notes(
 
 #[test]
 fn attack_alignment_matches_a_slow_fixed_lag_oracle() {
-    let mut c = cfg();
-    c.frame = 256;
-    c.n_fft = 1024;
-    c.hop = 98; // 20 ms: few frames for the O(T·M²) oracle
+    let mut c = small(cfg());
     c.attack_rise_db = 0.5;
     let (x, _) = overlapping_notes(
         SR,
