@@ -19,7 +19,9 @@
 //! frames). With `step(h) = L[h] − L[h−1]` and `rise(h) = max L[h ..= h+2] − min L[h−3 ..= h−1]`,
 //! a hop is an **attack** when its step is positive and the steepest of hops `h−1 ..= h+2`:
 //! 1. **Re-attack**: inside a held note (hop `j`'s pitch within `jump_st` of the current
-//!    note's), an attack with `rise ≥ reattack_db` starts a new note of the same pitch.
+//!    note's), an attack with `rise ≥ reattack_db` starts a new note of the same pitch, when
+//!    at least `reattack_min_hops` have passed since the previous onset (0 by default; the
+//!    engine's clean lead, 25: a patch whose level swings inside a note).
 //! 2. **Onset at the attack**: a pitch onset at `j` moves back to the steepest attack with
 //!    `rise ≥ attack_db` among hops `j − attack_back_hops .. j`, or is dropped when a note
 //!    already started there (a re-attack caught it first).
@@ -116,6 +118,10 @@ pub struct NoteConfig {
     /// before the hop where the pitch settled, never before `j − attack_back_hops` nor within
     /// `min_ioi_hops` of the previous onset (a release or reverb holds the old pitch). 0 = off.
     pub pitch_back_hops: usize,
+    /// Fewest hops between the previous onset and a re-attack (rule 1): a soundfont lead's
+    /// level swings inside a held note several times a second, a played repeat of one pitch
+    /// rarely does. Below `min_ioi_hops` it changes nothing. 0 = off.
+    pub reattack_min_hops: usize,
 }
 
 impl NoteConfig {
@@ -135,6 +141,7 @@ impl NoteConfig {
             pitch_needs_attack: false,
             backtrack_hops: 0,
             pitch_back_hops: 0,
+            reattack_min_hops: 0,
         }
     }
 
@@ -430,8 +437,10 @@ impl NoteOnsets {
         // A re-attack inside the held note.
         if self.cfg.reattack_db > 0.0 {
             if let Some(c) = self.current {
+                let rmin = self.cfg.reattack_min_hops;
                 if (first - c).abs() < self.cfg.jump_st
                     && self.spaced(j)
+                    && self.last_onset.is_none_or(|l| j >= l + rmin)
                     && self.rise(j) >= self.cfg.reattack_db
                     && self.steepest(j)
                 {

@@ -164,6 +164,7 @@ fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
                 let ji = j as isize;
                 if (x - c0).abs() < c.jump_st
                     && spaced(last, j)
+                    && last.is_none_or(|l| j >= l + c.reattack_min_hops)
                     && rise(ji).is_some_and(|r| r >= c.reattack_db)
                     && steepest(ji)
                 {
@@ -268,6 +269,11 @@ fn configs() -> Vec<NoteConfig> {
         NoteConfig {
             backtrack_hops: 3,
             pitch_back_hops: 2,
+            reattack_min_hops: 25,
+            ..d
+        },
+        NoteConfig {
+            reattack_min_hops: 12,
             ..d
         },
         NoteConfig {

@@ -62,6 +62,11 @@ pub const CLEAN_LEAD_BACKTRACK_HOPS: usize = 3;
 /// [`NoteConfig::pitch_back_hops`] of a clean lead (README, "Note onsets of a clean lead").
 pub const CLEAN_LEAD_PITCH_BACK_HOPS: usize = 2;
 
+/// [`NoteConfig::reattack_min_hops`] of a clean lead: a re-attack of the held pitch at least
+/// 250 ms after the previous onset (README, "A clean lead's re-attacks";
+/// `benches/trials/RULE_clean_lead_reattack_interval.md`).
+pub const CLEAN_LEAD_REATTACK_MIN_HOPS: usize = 25;
+
 impl NoteRule {
     /// The detector's configuration for `profile` and the stem's `role`. The clean lead's
     /// moves need the attack search (the full profile): they never reach before it, so
@@ -72,6 +77,7 @@ impl NoteRule {
                 NoteConfig {
                     backtrack_hops: CLEAN_LEAD_BACKTRACK_HOPS,
                     pitch_back_hops: CLEAN_LEAD_PITCH_BACK_HOPS,
+                    reattack_min_hops: CLEAN_LEAD_REATTACK_MIN_HOPS,
                     ..c
                 }
             } else {
