@@ -432,6 +432,11 @@ impl DrumModel {
     /// ([`DrumModel::window_len`] values), oldest first; writes the network input
     /// ([`DrumModel::input_len`] values).
     pub fn assemble(&self, window: &[f32], input: &mut [f32]) {
+        self.assemble_window(window, input);
+    }
+
+    /// [`DrumModel::assemble`]; returns the window's maximum it subtracted.
+    fn assemble_window(&self, window: &[f32], input: &mut [f32]) -> f32 {
         let m = window.iter().copied().fold(f32::NEG_INFINITY, f32::max);
         let n = window.len();
         let (x, d) = input.split_at_mut(n);
@@ -444,6 +449,7 @@ impl DrumModel {
                 *o = (q - p).max(0.0);
             }
         }
+        m
     }
 
     /// [`DrumModel::assemble`] for a model with the backing view: `backing` holds the
@@ -451,11 +457,10 @@ impl DrumModel {
     /// window's maximum subtracted, clipped to `[floor, ceil]`) follow the drum view's. For
     /// any other model `backing` is ignored.
     pub fn assemble_with_backing(&self, window: &[f32], backing: &[f32], input: &mut [f32]) {
-        self.assemble(window, input);
+        let m = self.assemble_window(window, input);
         let Some(ceil) = self.backing else {
             return;
         };
-        let m = window.iter().copied().fold(f32::NEG_INFINITY, f32::max);
         let n = window.len();
         for (o, &v) in input[n..2 * n].iter_mut().zip(backing) {
             *o = (v - m).clamp(self.floor, ceil);

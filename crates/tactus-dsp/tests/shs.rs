@@ -92,18 +92,18 @@ fn small(mut c: ShsConfig) -> ShsConfig {
     c
 }
 
-/// The obvious salience: the same preprocessing, a direct DFT in f64 at each FFT bin, the
-/// max over each harmonic's bins, the weighted sum; and the voicing evidence.
-fn naive_salience(c: &ShsConfig, frame: &[f32]) -> (Vec<f64>, f64) {
+/// The obvious spectrum of step 1: the frame minus its mean, scaled to unit peak, times the
+/// Hann window, a direct DFT in f64 at each FFT bin `0..=n_fft/2`, magnitudes to the power
+/// `compress`; with the peak. `None` for a silent frame.
+fn naive_spectrum(c: &ShsConfig, frame: &[f32]) -> Option<(Vec<f64>, f64)> {
     let n = frame.len();
     let mean = frame.iter().map(|&x| x as f64).sum::<f64>() / n as f64;
     let peak = frame
         .iter()
         .map(|&x| (x as f64 - mean).abs())
         .fold(0.0, f64::max);
-    let m = c.n_bins().unwrap();
     if peak <= 1e-9 {
-        return (vec![0.0; m], 0.02);
+        return None;
     }
     let x: Vec<f64> = (0..n)
         .map(|i| {
@@ -111,8 +111,7 @@ fn naive_salience(c: &ShsConfig, frame: &[f32]) -> (Vec<f64>, f64) {
             (frame[i] as f64 - mean) / peak * w
         })
         .collect();
-    let nyq = c.n_fft / 2;
-    let mag: Vec<f64> = (0..=nyq)
+    let mag = (0..=c.n_fft / 2)
         .map(|k| {
             let (mut re, mut im) = (0.0, 0.0);
             for (i, &v) in x.iter().enumerate() {
@@ -123,6 +122,17 @@ fn naive_salience(c: &ShsConfig, frame: &[f32]) -> (Vec<f64>, f64) {
             (re * re + im * im).sqrt().powf(c.compress as f64)
         })
         .collect();
+    Some((mag, peak))
+}
+
+/// The obvious salience: [`naive_spectrum`], the max over each harmonic's bins, the
+/// weighted sum; and the voicing evidence.
+fn naive_salience(c: &ShsConfig, frame: &[f32]) -> (Vec<f64>, f64) {
+    let m = c.n_bins().unwrap();
+    let Some((mag, _)) = naive_spectrum(c, frame) else {
+        return (vec![0.0; m], 0.02);
+    };
+    let nyq = c.n_fft / 2;
     let df = c.sample_rate as f64 / c.n_fft as f64;
     let half = 2f64.powf(c.harmonic_width_st as f64 / 12.0);
     let mut s = vec![0.0; m];
@@ -996,36 +1006,18 @@ fn twelve_harmonics_keep_a_low_voice_at_its_fundamental() {
 // ---------------------------------------------------------------------------------------
 // Step 9: the attack alignment.
 
-/// The band level of step 9 the obvious way: the frame's mean over the searched FFT bins of
-/// its direct-DFT power (normalised frame, as the salience), times its peak squared, in dB.
+/// The band level of step 9 the obvious way: the mean over the searched FFT bins of the
+/// [`naive_spectrum`]'s power, times the frame's peak squared, in dB.
 fn naive_band_level(c: &ShsConfig, frame: &[f32]) -> f64 {
-    let n = frame.len();
-    let mean = frame.iter().map(|&x| x as f64).sum::<f64>() / n as f64;
-    let peak = frame
-        .iter()
-        .map(|&x| (x as f64 - mean).abs())
-        .fold(0.0, f64::max);
-    if peak <= 1e-9 {
+    let Some((mag, peak)) = naive_spectrum(c, frame) else {
         return -240.0;
-    }
-    let nyq = c.n_fft / 2;
+    };
     let df = c.sample_rate as f64 / c.n_fft as f64;
     let lo = ((c.fmin_hz as f64 / df).floor() as usize).max(1);
     let hi = ((c.fmax_hz as f64 * c.harmonics as f64 / df).ceil() as usize)
-        .min(nyq)
+        .min(c.n_fft / 2)
         .max(lo);
-    let mut sum = 0.0;
-    for k in lo..=hi {
-        let (mut re, mut im) = (0.0, 0.0);
-        for (i, &v) in frame.iter().enumerate() {
-            let w = 0.5 - 0.5 * (std::f64::consts::TAU * (i as f64 + 0.5) / n as f64).cos();
-            let x = (v as f64 - mean) / peak * w;
-            let ph = -std::f64::consts::TAU * (k * i) as f64 / c.n_fft as f64;
-            re += x * ph.cos();
-            im += x * ph.sin();
-        }
-        sum += (re * re + im * im).sqrt().powf(c.compress as f64).powi(2);
-    }
+    let sum: f64 = mag[lo..=hi].iter().map(|a| a * a).sum();
     let a = sum / (hi + 1 - lo) as f64 * peak * peak;
     if a > 1e-24 {
         10.0 * a.log10()

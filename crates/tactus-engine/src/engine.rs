@@ -143,10 +143,9 @@ struct StemChain {
     classes: Option<ClassTrack>,
     /// Classes the map shows (the transcriber computes all four).
     class_bands: Vec<Band>,
-    /// The backing beside a separated drum stem (bass + vocals + other), denoised like the
-    /// drum stem, for a transcriber that reads it ([`ClassTrack::wants_backing`]).
-    back_denoise: Denoise,
-    back_buf: Vec<f32>,
+    /// The backing beside a separated drum stem (bass + vocals + other) and its denoiser
+    /// (the drum stem's), only for a transcriber that reads it ([`ClassTrack::wants_backing`]).
+    backing: Option<(Denoise, Vec<f32>)>,
     samples: usize,
     t_denoise: Duration,
     t_pitch: Duration,
@@ -232,6 +231,10 @@ impl StemChain {
             _ => (None, Vec::new()),
         };
         let bands = if classes.is_some() { &[][..] } else { bands };
+        let backing = match &classes {
+            Some(c) if c.wants_backing() => Some((Denoise::new(hp, geo.sample_rate)?, Vec::new())),
+            _ => None,
+        };
         for &band in bands {
             let edges = tactus_dsp::sos::band_edges(band, geo.sample_rate);
             match (SosFilter::band(band, geo.sample_rate), edges) {
@@ -256,8 +259,7 @@ impl StemChain {
             bands: chains,
             classes,
             class_bands,
-            back_denoise: Denoise::new(hp, geo.sample_rate)?,
-            back_buf: Vec::new(),
+            backing,
             samples: 0,
             t_denoise: Duration::ZERO,
             t_pitch: Duration::ZERO,
@@ -268,7 +270,7 @@ impl StemChain {
 
     /// Whether this chain's transcriber reads the backing beside its stem.
     fn wants_backing(&self) -> bool {
-        self.classes.as_ref().is_some_and(ClassTrack::wants_backing)
+        self.backing.is_some()
     }
 
     /// Feeds one block of the stem; `backing`: the separator's other stems of the same
@@ -279,13 +281,12 @@ impl StemChain {
         self.buf.clear();
         self.buf.extend_from_slice(block);
         self.denoise.process_inplace(&mut self.buf);
-        let backing = match backing {
-            Some([b, v, o]) if self.wants_backing() => {
-                self.back_buf.clear();
-                self.back_buf
-                    .extend(b.iter().zip(v).zip(o).map(|((b, v), o)| b + v + o));
-                self.back_denoise.process_inplace(&mut self.back_buf);
-                Some(&self.back_buf[..])
+        let backing = match (backing, &mut self.backing) {
+            (Some([b, v, o]), Some((denoise, buf))) => {
+                buf.clear();
+                buf.extend(b.iter().zip(v).zip(o).map(|((b, v), o)| b + v + o));
+                denoise.process_inplace(buf);
+                Some(&buf[..])
             }
             _ => None,
         };
@@ -403,7 +404,9 @@ impl StemChain {
 
     fn reset(&mut self) {
         self.denoise.reset();
-        self.back_denoise.reset();
+        if let Some((d, _)) = &mut self.backing {
+            d.reset();
+        }
         self.samples = 0;
         if let Some(p) = &mut self.pitch {
             p.reset();
