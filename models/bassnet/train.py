@@ -33,6 +33,9 @@ STEMS = {
     "bass": dict(bands=183, low_hz=30.0, fmin=35.0, fmax=400.0, truth="bass", flags=[]),
     "vocals": dict(bands=216, low_hz=70.0, fmin=70.0, fmax=1400.0, truth="vocals",
                    flags=["--lead", "216", "70"]),
+    # The harmonic-view lead models: the separator's vocals + bass + other as input.
+    "vocals_harm": dict(bands=216, low_hz=70.0, fmin=70.0, fmax=1400.0, truth="vocals",
+                        flags=["--lead", "216", "70", "--harmonic"]),
 }
 BANDS, LOW_HZ, FMIN, FMAX, M, TRUTH, FLAGS = 183, 30.0, 35.0, 400.0, 127, "bass", []
 

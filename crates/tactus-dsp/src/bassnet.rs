@@ -42,6 +42,18 @@
 //! models' probabilities, `log(Σᵢ pᵢ / 3)` per class (a mixture of experts with equal
 //! weights; [`BassNet::forward_ensemble_batch`]). Same latency; three times the network's
 //! cost.
+//!
+//! # The harmonic view
+//! The spectral separator's lead band loses part of the voice to its other masks (a low
+//! voice's fundamental goes to the bass band, a vowel's harmonics under a chord to the
+//! other band). Three more lead models share the lead recipe but read the separator's
+//! harmonic sum, vocals + bass + other (the mix without the drum stem), through the same
+//! front end ([`BassNet::embedded_lead_harmonic`], [`BassNet::embedded_lead_harmonic_others`];
+//! [`crate::shs::ShsConfig::learned_harmonic`]). The pair's voicing tracker still reads the
+//! lead band ([`crate::pair::VoicingPitchPair::process_two`]). On songs none of the models
+//! trained on, their ensemble's argmax is the lead's pitch on 0.891 / 0.731 / 0.787 of the
+//! voiced hops (chorales / instrumental leads over an unseen kit / sung) against 0.837 /
+//! 0.676 / 0.683 for the lead-band ensemble (`models/bassnet/README.md`).
 
 use crate::drums::Layer;
 use crate::mlp::{read_f32s, read_u32, take};
@@ -78,6 +90,14 @@ static EMBEDDED_LEAD_SUNG: &[u8] = include_bytes!("../weights/leadnet_sung.bin")
 /// The third embedded lead model: the lead recipe with another seed on other songs
 /// (`models/bassnet/README.md`, "The lead ensemble's third member").
 static EMBEDDED_LEAD_3: &[u8] = include_bytes!("../weights/leadnet_3.bin");
+
+/// The harmonic-view lead models: the lead recipe trained on the spectral separator's
+/// harmonic sum (vocals + bass + other) instead of its vocals stem, seeds 7, 11 and 13 on
+/// the same 348 songs (`models/bassnet/README.md`, "The learned lead reads the harmonic
+/// sum"; module docs, "The harmonic view").
+static EMBEDDED_LEAD_HARM: &[u8] = include_bytes!("../weights/leadnet_harm.bin");
+static EMBEDDED_LEAD_HARM_2: &[u8] = include_bytes!("../weights/leadnet_harm_2.bin");
+static EMBEDDED_LEAD_HARM_3: &[u8] = include_bytes!("../weights/leadnet_harm_3.bin");
 
 /// The network and its input layout.
 #[derive(Clone, Debug, PartialEq)]
@@ -132,6 +152,35 @@ impl BassNet {
         MODEL.get_or_init(|| {
             Self::from_bytes(EMBEDDED_LEAD_3).expect("embedded third lead model is valid")
         })
+    }
+
+    /// The first harmonic-view lead model (parsed once; module docs, "The harmonic view"):
+    /// the first lead model's front end, context and classes, trained on the spectral
+    /// separator's harmonic sum.
+    pub fn embedded_lead_harmonic() -> &'static BassNet {
+        static MODEL: OnceLock<BassNet> = OnceLock::new();
+        // Checked by a unit test, like the other lead models.
+        MODEL.get_or_init(|| {
+            Self::from_bytes(EMBEDDED_LEAD_HARM).expect("embedded harmonic lead model is valid")
+        })
+    }
+
+    /// The harmonic-view ensemble's models besides [`BassNet::embedded_lead_harmonic`]
+    /// (the same recipe with seeds 11 and 13).
+    pub fn embedded_lead_harmonic_others() -> Vec<&'static BassNet> {
+        static TWO: OnceLock<BassNet> = OnceLock::new();
+        static THREE: OnceLock<BassNet> = OnceLock::new();
+        // Checked by a unit test, like the other lead models.
+        vec![
+            TWO.get_or_init(|| {
+                Self::from_bytes(EMBEDDED_LEAD_HARM_2)
+                    .expect("embedded harmonic lead model is valid")
+            }),
+            THREE.get_or_init(|| {
+                Self::from_bytes(EMBEDDED_LEAD_HARM_3)
+                    .expect("embedded harmonic lead model is valid")
+            }),
+        ]
     }
 
     /// Parses the format written by `models/bassnet/train.py`: `"TACTUSBN"`, then

@@ -20,6 +20,12 @@
 //! through the lead's rests while the chords sound, and the learned lead salience knows a
 //! rest (README, "The learned lead's voicing veto").
 //!
+//! **Two views** ([`VoicingPitchPair::process_two`]). The pitch tracker may read another
+//! signal of the same span than the voicing tracker: on the spectral separator's lead the
+//! learned lead models read the separator's harmonic sum (vocals + bass + other), which
+//! keeps what the lead band's masks take from the voice, while the harmonic sum still
+//! decides voicing on the lead band (README, "The learned lead reads the harmonic sum").
+//!
 //! # Latency
 //! The larger of the two trackers' latencies: a hop leaves once both have decided it.
 //! No allocation after construction: the input goes to the trackers [`BLOCK_HOPS`] hops at a
@@ -118,11 +124,29 @@ impl VoicingPitchPair {
         input: &[f32],
         emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate),
     ) {
-        let hop = self.voicing.hop();
-        for block in input.chunks(hop * BLOCK_HOPS) {
+        self.process_two(input, input, emit);
+    }
+
+    /// [`VoicingPitchPair::process_both`] where the two trackers read different views of
+    /// the same span: `voicing_input` goes to the voicing tracker, `pitch_input` (as many
+    /// samples, hop for hop the same instants) to the pitch tracker (module docs, "Two
+    /// views"). With equal inputs it is [`VoicingPitchPair::process_both`]. Extra samples of
+    /// the longer input are not read.
+    pub fn process_two(
+        &mut self,
+        voicing_input: &[f32],
+        pitch_input: &[f32],
+        emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate),
+    ) {
+        let n = voicing_input.len().min(pitch_input.len());
+        let step = self.voicing.hop() * BLOCK_HOPS;
+        for (va, pb) in voicing_input[..n]
+            .chunks(step)
+            .zip(pitch_input[..n].chunks(step))
+        {
             let (a, b) = (&mut self.a, &mut self.b);
-            self.voicing.process(block, &mut |i, e| a.push_back((i, e)));
-            self.pitch.process(block, &mut |i, e| b.push_back((i, e)));
+            self.voicing.process(va, &mut |i, e| a.push_back((i, e)));
+            self.pitch.process(pb, &mut |i, e| b.push_back((i, e)));
             self.drain(emit);
         }
     }

@@ -281,6 +281,13 @@ pub struct ShsConfig {
     /// candidate and for "no pitch" ([`crate::bassnet`] module docs, "The lead models and
     /// their ensemble"). Errors on the bass grid. Off by default.
     pub learned_ensemble: bool,
+    /// With [`ShsConfig::learned`] on the lead's grid: the harmonic-view lead models
+    /// ([`BassNet::embedded_lead_harmonic`], with [`ShsConfig::learned_ensemble`] also
+    /// [`BassNet::embedded_lead_harmonic_others`]), trained on the spectral separator's
+    /// harmonic sum (vocals + bass + other), which is then what this tracker must be fed
+    /// ([`crate::pair::VoicingPitchPair::process_two`]; [`crate::bassnet`] module docs, "The
+    /// harmonic view"). Errors on the bass grid. Off by default.
+    pub learned_harmonic: bool,
     /// Attack alignment of a clean lead's note changes (module docs, step 9): a decided
     /// voiced hop reports the note the provisional path jumps to within the lag when the
     /// frame's band level rises from the hop to the jump by at least this many dB (and
@@ -335,6 +342,7 @@ impl ShsConfig {
             learned_blend: 0.0,
             learned_voicing_nats: 0.0,
             learned_ensemble: false,
+            learned_harmonic: false,
             attack_rise_db: 0.0,
         }
     }
@@ -472,6 +480,12 @@ impl ShsConfig {
         }
         if !(self.learned_blend.is_finite() && (0.0..=4.0).contains(&self.learned_blend)) {
             return Err(ConfigError::invalid("learned_blend", "must be in [0, 4]"));
+        }
+        if self.learned_harmonic && !self.learned {
+            return Err(ConfigError::invalid(
+                "learned_harmonic",
+                "applies only to the learned salience (learned = true)",
+            ));
         }
         if self.lag_hops > 1 << 20 {
             return Err(ConfigError::invalid("lag_hops", "too large"));
@@ -757,10 +771,20 @@ impl NetState {
                 && cfg.bins_per_semitone == crate::bassnet::BINS_PER_SEMITONE
                 && (cfg.fmin_hz - md.cand_fmin_hz()).abs() <= 1e-3
         };
-        let model = if fits(BassNet::embedded()) {
+        let harmonic = cfg.learned_harmonic;
+        let model = if fits(BassNet::embedded()) && !harmonic {
             BassNet::embedded()
         } else if fits(BassNet::embedded_lead()) {
-            BassNet::embedded_lead()
+            if harmonic {
+                BassNet::embedded_lead_harmonic()
+            } else {
+                BassNet::embedded_lead()
+            }
+        } else if harmonic {
+            return Err(ConfigError::invalid(
+                "learned_harmonic",
+                "the harmonic-view models are lead models: 70-1400 Hz at 3 bins per semitone",
+            ));
         } else {
             return Err(ConfigError::invalid(
                 "learned",
@@ -772,6 +796,8 @@ impl NetState {
             Vec::new()
         } else if std::ptr::eq(model, BassNet::embedded_lead()) {
             BassNet::embedded_lead_others()
+        } else if std::ptr::eq(model, BassNet::embedded_lead_harmonic()) {
+            BassNet::embedded_lead_harmonic_others()
         } else {
             return Err(ConfigError::invalid(
                 "learned_ensemble",

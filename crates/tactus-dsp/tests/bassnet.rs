@@ -613,3 +613,75 @@ fn voicing_nats_make_the_learned_tracker_voice_more_and_are_checked() {
         assert!(Shs::new(c).is_err(), "{bad}");
     }
 }
+
+/// The harmonic-view lead models' files (`BassNet::embedded_lead_harmonic` and
+/// `BassNet::embedded_lead_harmonic_others`).
+const HARM_WEIGHTS: [&[u8]; 3] = [
+    include_bytes!("../weights/leadnet_harm.bin"),
+    include_bytes!("../weights/leadnet_harm_2.bin"),
+    include_bytes!("../weights/leadnet_harm_3.bin"),
+];
+
+#[test]
+fn embedded_harmonic_view_models_match_a_separate_f64_reader_and_the_lead_models_layout() {
+    let others = BassNet::embedded_lead_harmonic_others();
+    assert_eq!(others.len(), 2);
+    let members: Vec<&BassNet> = std::iter::once(BassNet::embedded_lead_harmonic())
+        .chain(others)
+        .collect();
+    for (k, (&net, weights)) in members.iter().zip(HARM_WEIGHTS).enumerate() {
+        check_lead_member(net, weights, 21 + k as u64);
+        for lead in [BassNet::embedded_lead_sung(), BassNet::embedded_lead_3()] {
+            assert_ne!(net, lead, "member {k} is not a lead-band model");
+        }
+    }
+    assert_ne!(members[0], members[1]);
+    assert_ne!(members[1], members[2]);
+}
+
+#[test]
+fn the_harmonic_view_needs_the_learned_leads_grid_and_changes_the_models() {
+    let mut bass = cfg();
+    bass.learned = true;
+    bass.learned_harmonic = true;
+    assert!(
+        Shs::new(bass).is_err(),
+        "the bass grid has no harmonic-view model"
+    );
+    let mut lead = ShsConfig::melody(14_700, 70.0, 1400.0);
+    lead.learned_harmonic = true;
+    assert!(
+        Shs::new(lead.clone()).is_err(),
+        "only with the learned salience"
+    );
+    lead.learned = true;
+    lead.learned_ensemble = true;
+    // A lead a sixth over a low chord tone, 2 s: the two model sets hear it differently.
+    let x: Vec<f32> = (0..14_700 * 2)
+        .map(|i| {
+            let t = i as f32 / 14_700.0;
+            let lead: f32 = (1..=6)
+                .map(|h| 0.2 * (std::f32::consts::TAU * 392.0 * h as f32 * t).sin() / h as f32)
+                .sum();
+            lead + 0.3 * (std::f32::consts::TAU * 130.8 * t).sin()
+        })
+        .collect();
+    let run = |c: &ShsConfig| {
+        let mut t = Shs::new(c.clone()).unwrap();
+        let mut out = Vec::new();
+        t.process(&x, &mut |_, e| {
+            out.push((e.f0_hz.to_bits(), e.voiced_prob.to_bits()))
+        });
+        t.finish(&mut |_, e| out.push((e.f0_hz.to_bits(), e.voiced_prob.to_bits())));
+        out
+    };
+    let harm = run(&lead);
+    lead.learned_harmonic = false;
+    let band = run(&lead);
+    assert_eq!(harm.len(), band.len());
+    let differ = harm.iter().zip(&band).filter(|(a, b)| a != b).count();
+    assert!(
+        differ > 10,
+        "the harmonic-view models are the ones read: {differ} hops differ"
+    );
+}

@@ -229,3 +229,85 @@ fn with_a_veto_the_pitch_trackers_rests_unvoice_both_estimates() {
         }
     }
 }
+
+/// A second view of the same span: the melody read a fourth faster (its notes a fourth
+/// up, wrapping round) over a quiet pad, so that a tracker reading it reports other
+/// pitches than one reading `melody()`.
+fn other_view() -> Vec<f32> {
+    let sr = SR as f32;
+    let x = melody();
+    let k = (5.0f32 / 12.0).exp2();
+    (0..x.len())
+        .map(|i| {
+            let pad = (std::f32::consts::TAU * 196.0 * i as f32 / sr).sin();
+            0.7 * x[(i as f32 * k) as usize % x.len()] + 0.05 * pad
+        })
+        .collect()
+}
+
+#[test]
+fn two_views_the_voicing_tracker_reads_one_the_pitch_tracker_the_other() {
+    // `process_two(a, b)`: the voicing tracker run on `a` alone and the pitch tracker on
+    // `b` alone, merged (with the veto) by the rule written out above, for any chunking;
+    // `process_two(a, a)` is `process_both(a)` bit for bit.
+    let (a, b) = (melody(), other_view());
+    assert_eq!(a.len(), b.len());
+    let v = run(&mut shs(), &a, a.len());
+    let p_own = run(&mut yin(), &a, a.len());
+    let p = run(&mut yin(), &b, b.len());
+    let want = vetoed_by_hand(&v, &p);
+    let moved = p
+        .iter()
+        .zip(&p_own)
+        .filter(|((_, x), (_, y))| {
+            x.f0_hz > 0.0 && y.f0_hz > 0.0 && (x.f0_hz / y.f0_hz - 1.0).abs() > 0.03
+        })
+        .count();
+    assert!(
+        moved >= 20,
+        "the second view changes the pitch tracker's pitch: {moved} hops"
+    );
+    for chunk in [1usize, 7, 80, 1000, a.len()] {
+        let mut pair = VoicingPitchPair::new(Box::new(shs()), Box::new(yin()))
+            .unwrap()
+            .with_veto();
+        let mut got = Vec::new();
+        for (x, y) in a.chunks(chunk).zip(b.chunks(chunk)) {
+            pair.process_two(x, y, &mut |i, e, n| got.push((i, e, n)));
+        }
+        pair.finish_both(&mut |i, e, n| got.push((i, e, n)));
+        assert_eq!(got.len(), want.len(), "chunk {chunk}");
+        for (g, w) in got.iter().zip(&want) {
+            assert_eq!(g.0, w.0);
+            assert_eq!(
+                g.1.f0_hz.to_bits(),
+                w.1.f0_hz.to_bits(),
+                "chunk {chunk} hop {}",
+                g.0
+            );
+            assert_eq!(
+                g.2.f0_hz.to_bits(),
+                w.2.f0_hz.to_bits(),
+                "chunk {chunk} hop {}",
+                g.0
+            );
+        }
+        // One view for both is the plain pair.
+        let mut one = VoicingPitchPair::new(Box::new(shs()), Box::new(yin()))
+            .unwrap()
+            .with_veto();
+        let mut two = VoicingPitchPair::new(Box::new(shs()), Box::new(yin()))
+            .unwrap()
+            .with_veto();
+        let (mut x1, mut x2) = (Vec::new(), Vec::new());
+        for c in a.chunks(chunk) {
+            one.process_both(c, &mut |i, e, n| {
+                x1.push((i, e.f0_hz.to_bits(), n.f0_hz.to_bits()))
+            });
+            two.process_two(c, c, &mut |i, e, n| {
+                x2.push((i, e.f0_hz.to_bits(), n.f0_hz.to_bits()))
+            });
+        }
+        assert_eq!(x1, x2, "chunk {chunk}");
+    }
+}

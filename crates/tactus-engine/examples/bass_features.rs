@@ -2,14 +2,16 @@
 //! separated bass stem, computed by the code the render runs, for `models/bassnet/train.py`.
 //!
 //! ```text
-//! cargo run --release -p tactus-engine --example bass_features -- MIX OUT.f32 [--stem] [--lead BANDS LOW_HZ]
+//! cargo run --release -p tactus-engine --example bass_features -- MIX OUT.f32 [--stem] [--lead BANDS LOW_HZ [--harmonic]]
 //! ```
 //! MIX goes through the default spectral separator (with `--stem`, MIX is taken as the bass
 //! stem itself), then the bass chain's front end: the denoiser (30 Hz high-pass + 3-sample
 //! median), the decimator to the pitch rate, 10 ms hops of the harmonic sum's frame. OUT
 //! gets, per hop, `tactus_dsp::bassnet::BANDS` little-endian f32 values. With `--lead`, the
 //! vocals stem and the vocals chain's front end (60 Hz high-pass, the melody frame) with
-//! BANDS bands from LOW_HZ (the lead model's).
+//! BANDS bands from LOW_HZ (the lead model's). With `--lead … --harmonic`, the separator's
+//! harmonic sum (vocals + bass + other, the harmonic-view lead models' input) instead of
+//! the vocals stem.
 use std::io::Write;
 use std::path::Path;
 
@@ -54,7 +56,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut out = StemOutput::new();
         sep.process(&d.left, &d.right, &mut out);
         sep.finish(&mut out);
-        out.get(stem).to_vec()
+        if args[3..].iter().any(|a| a == "--harmonic") {
+            // The lead's harmonic view: vocals + bass + other, as the engine sums them.
+            let (v, b, o) = (
+                out.get(Stem::Vocals),
+                out.get(Stem::Bass),
+                out.get(Stem::Other),
+            );
+            v.iter()
+                .zip(b)
+                .zip(o)
+                .map(|((v, b), o)| b + v + o)
+                .collect()
+        } else {
+            out.get(stem).to_vec()
+        }
     };
     // The stem's chain (tactus_engine::engine::StemChain, track::PitchTrack).
     Denoise::new(hp, rate)?.process_inplace(&mut bass);

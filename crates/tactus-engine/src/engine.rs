@@ -143,8 +143,10 @@ struct StemChain {
     classes: Option<ClassTrack>,
     /// Classes the map shows (the transcriber computes all four).
     class_bands: Vec<Band>,
-    /// The backing beside a separated drum stem (bass + vocals + other) and its denoiser
-    /// (the drum stem's), only for a transcriber that reads it ([`ClassTrack::wants_backing`]).
+    /// The spectral separator's harmonic sum (bass + vocals + other) beside the stem, and
+    /// its denoiser (the stem's): the backing of a drum transcriber that reads it
+    /// ([`ClassTrack::wants_backing`]), or the harmonic view of the lead's learned pair
+    /// ([`PitchTrack::new_harmonic_view`]).
     backing: Option<(Denoise, Vec<f32>)>,
     samples: usize,
     t_denoise: Duration,
@@ -162,6 +164,7 @@ impl StemChain {
         bands: &[Band],
         drums: &DrumMethod,
         mixture: bool,
+        harmonic_view: bool,
     ) -> Result<Self, EngineError> {
         let hp = if matches!(stem, Stem::Bass | Stem::Drums) {
             30.0
@@ -170,7 +173,11 @@ impl StemChain {
         };
         let pitch = match (pitch, profile::pitch_range_hz(geo.profile, stem)) {
             (Some(m), Some((lo, hi))) => {
-                let mut t = PitchTrack::new(geo, lo, hi, m, mixture)?;
+                let mut t = if harmonic_view {
+                    PitchTrack::new_harmonic_view(geo, lo, hi)?
+                } else {
+                    PitchTrack::new(geo, lo, hi, m, mixture)?
+                };
                 // The bass and the lead: the streaming range leans on the instrument's
                 // register (README, "Streaming levels from a register prior"); the
                 // polyphonic rest keeps the span prior.
@@ -231,9 +238,11 @@ impl StemChain {
             _ => (None, Vec::new()),
         };
         let bands = if classes.is_some() { &[][..] } else { bands };
-        let backing = match &classes {
-            Some(c) if c.wants_backing() => Some((Denoise::new(hp, geo.sample_rate)?, Vec::new())),
-            _ => None,
+        let reads_backing = classes.as_ref().is_some_and(|c| c.wants_backing());
+        let backing = if reads_backing || (harmonic_view && pitch.is_some()) {
+            Some((Denoise::new(hp, geo.sample_rate)?, Vec::new()))
+        } else {
+            None
         };
         for &band in bands {
             let edges = tactus_dsp::sos::band_edges(band, geo.sample_rate);
@@ -268,13 +277,14 @@ impl StemChain {
         })
     }
 
-    /// Whether this chain's transcriber reads the backing beside its stem.
+    /// Whether this chain reads the separator's harmonic sum beside its stem (a drum
+    /// transcriber's backing, a lead's harmonic view).
     fn wants_backing(&self) -> bool {
         self.backing.is_some()
     }
 
-    /// Feeds one block of the stem; `backing`: the separator's other stems of the same
-    /// span (bass, vocals, other), for a drum chain whose transcriber reads them.
+    /// Feeds one block of the stem; `backing`: the separator's bass, vocals and other of
+    /// the same span, for a chain that reads their sum ([`StemChain::wants_backing`]).
     fn process(&mut self, block: &[f32], backing: Option<[&[f32]; 3]>) {
         self.samples += block.len();
         let t = Instant::now();
@@ -293,7 +303,7 @@ impl StemChain {
         self.t_denoise += t.elapsed();
         if let Some(p) = &mut self.pitch {
             let t = Instant::now();
-            p.process(&self.buf);
+            p.process_view(&self.buf, backing.unwrap_or(&self.buf));
             self.t_pitch += t.elapsed();
         }
         if let Some(n) = &mut self.notes {
@@ -476,8 +486,9 @@ fn feed(
             let stem = c.stem;
             let given = supplied.iter().find(|(s, _)| *s == stem).map(|(_, x)| *x);
             let input = given.unwrap_or_else(|| sep_out.get(stem));
-            // A separated drum stem comes with the backing the separator left beside it.
-            let backing = (given.is_none() && stem == Stem::Drums && c.wants_backing())
+            // A separated stem comes with the harmonic sum the separator made beside it
+            // when its chain reads that (a drum transcriber's backing, a lead's view).
+            let backing = (given.is_none() && c.wants_backing())
                 .then(|| {
                     let parts = [Stem::Bass, Stem::Vocals, Stem::Other].map(|s| sep_out.get(s));
                     parts
@@ -614,7 +625,24 @@ impl Engine {
                     cfg.separator,
                     SeparatorChoice::Spectral | SeparatorChoice::None
                 );
-            let mut chain = StemChain::new(stem, geo, pitch, notes, &bands, &cfg.drums, mixture)?;
+            // The spectral separator's lead through the learned pair: its pitch tracker
+            // reads the separator's harmonic sum (README, "The learned lead reads the
+            // harmonic sum").
+            let harmonic_view = crate::track::LEARNED_LEAD_HARMONIC
+                && stem == Stem::Vocals
+                && pitch == Some(PitchMethod::Learned)
+                && !cfg.supplied.contains(stem)
+                && cfg.separator == SeparatorChoice::Spectral;
+            let mut chain = StemChain::new(
+                stem,
+                geo,
+                pitch,
+                notes,
+                &bands,
+                &cfg.drums,
+                mixture,
+                harmonic_view,
+            )?;
             if let Some(p) = chain.pitch.as_mut() {
                 // The spectral separator's stems lag their stated latency (track.rs).
                 if cfg.profile != Profile::Live
@@ -631,9 +659,9 @@ impl Engine {
                 stem == Stem::Drums && cfg.profile == Profile::Live && profile::DRUMS_ON_MIX;
             if !cfg.supplied.contains(stem) && !on_mix {
                 separated = separated.with(stem);
-                // The drum transcriber's backing view: the spectral separator's other stems
-                // (trained on those; other separators' drum stems go without it, as clean
-                // stems do).
+                // The drum transcriber's backing view and the lead's harmonic view: the
+                // spectral separator's other stems (trained on those; other separators'
+                // stems go without them, as clean stems do).
                 if wants_backing && cfg.separator == SeparatorChoice::Spectral {
                     separated = separated
                         .with(Stem::Bass)

@@ -221,6 +221,12 @@ pub const LEARNED_LEAD_BLEND: f32 = 0.0;
 /// songs over 0 / 2 / 3 / 4 / 6 (`benches/trials/RULE_lead_pair_voicing.md`).
 pub const LEARNED_LEAD_VOICING_NATS: f32 = 3.0;
 
+/// The spectral separator's lead: the learned pair's pitch tracker reads the separator's
+/// harmonic sum (vocals + bass + other) with the harmonic-view lead models
+/// ([`PitchTrack::new_harmonic_view`]; [`tactus_dsp::shs::ShsConfig::learned_harmonic`];
+/// README, "The learned lead reads the harmonic sum").
+pub const LEARNED_LEAD_HARMONIC: bool = true;
+
 /// [`tactus_dsp::shs::ShsConfig::learned_ensemble`] of the learned lead salience's tracker:
 /// the mean of the committed lead model and the one trained with 80 more sung songs (README,
 /// "The lead ensemble"; `benches/trials/RULE_lead_ensemble.md`).
@@ -483,10 +489,13 @@ enum Tracker {
 impl Tracker {
     /// Feeds a block; `emit(f0, side_f0)` per hop (`side_f0` for a pair or an aligned
     /// tracker).
-    fn process(&mut self, x: &[f32], emit: &mut dyn FnMut(f32, Option<f32>)) {
+    /// `view`: what a pair's pitch tracker reads instead of `x` (the harmonic view).
+    fn process(&mut self, x: &[f32], view: Option<&[f32]>, emit: &mut dyn FnMut(f32, Option<f32>)) {
         match self {
             Tracker::One(t) => t.process(x, &mut |_, e| emit(e.f0_hz, None)),
-            Tracker::Pair(p) => p.process_both(x, &mut |_, e, v| emit(e.f0_hz, Some(v.f0_hz))),
+            Tracker::Pair(p) => p.process_two(x, view.unwrap_or(x), &mut |_, e, v| {
+                emit(e.f0_hz, Some(v.f0_hz))
+            }),
             Tracker::Aligned(t) => t.process_both(x, &mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz))),
         }
     }
@@ -530,6 +539,9 @@ struct NoteSide {
 /// Pitch feature track of one melodic stem.
 pub struct PitchTrack {
     decimator: Decimator,
+    /// The harmonic view's decimator ([`PitchTrack::new_harmonic_view`]): the pair's pitch
+    /// tracker reads the separator's harmonic sum, decimated like the stem.
+    view: Option<Decimator>,
     tracker: Tracker,
     /// With a pair: the voicing tracker's pitch for note onsets.
     note_side: Option<NoteSide>,
@@ -579,6 +591,37 @@ impl PitchTrack {
         fmax_hz: f32,
         method: PitchMethod,
         mixture: bool,
+    ) -> Result<Self, ConfigError> {
+        Self::build(geo, fmin_hz, fmax_hz, method, mixture, false)
+    }
+
+    /// The spectral separator's lead through the learned pair whose pitch tracker reads
+    /// the harmonic view ([`LEARNED_LEAD_HARMONIC`]): the separator's harmonic sum (vocals +
+    /// bass + other), fed beside the stem through [`PitchTrack::process_view`] and decimated
+    /// the same way; the harmonic sum on the stem still decides voicing. Same latency as
+    /// [`PitchTrack::new`] with [`PitchMethod::Learned`] on a mixture. Errors for a bass
+    /// range (the view's models are lead models).
+    pub fn new_harmonic_view(
+        geo: Geometry,
+        fmin_hz: f32,
+        fmax_hz: f32,
+    ) -> Result<Self, ConfigError> {
+        if fmax_hz <= BASS_MAX_HZ {
+            return Err(ConfigError::invalid(
+                "harmonic view",
+                "only a lead's pitch range has harmonic-view models",
+            ));
+        }
+        Self::build(geo, fmin_hz, fmax_hz, PitchMethod::Learned, true, true)
+    }
+
+    fn build(
+        geo: Geometry,
+        fmin_hz: f32,
+        fmax_hz: f32,
+        method: PitchMethod,
+        mixture: bool,
+        harmonic_view: bool,
     ) -> Result<Self, ConfigError> {
         let factor = Decimator::factor_for(geo.sample_rate, fmax_hz);
         let rate = geo.sample_rate / factor as u32;
@@ -649,6 +692,7 @@ impl PitchTrack {
                     lc.learned_blend = LEARNED_LEAD_BLEND;
                     lc.learned_voicing_nats = LEARNED_LEAD_VOICING_NATS;
                     lc.learned_ensemble = LEARNED_LEAD_ENSEMBLE;
+                    lc.learned_harmonic = harmonic_view;
                     lc.contour_gate_db = 0.0;
                     Tracker::Pair(Box::new(
                         VoicingPitchPair::new(Box::new(Shs::new(sc)?), Box::new(Shs::new(lc)?))?
@@ -697,6 +741,11 @@ impl PitchTrack {
         };
         Ok(PitchTrack {
             decimator: Decimator::new(geo.sample_rate, factor)?,
+            view: if harmonic_view {
+                Some(Decimator::new(geo.sample_rate, factor)?)
+            } else {
+                None
+            },
             tracker,
             note_side,
             rms: Rms::new(frame.min(4 * yc.hop).max(yc.hop), yc.hop)?,
@@ -794,13 +843,28 @@ impl PitchTrack {
         self.decimator.factor
     }
 
-    /// Feeds a block of the (denoised) stem.
+    /// Feeds a block of the (denoised) stem. A harmonic-view track
+    /// ([`PitchTrack::new_harmonic_view`]) fed this way reads the stem as its view too.
     pub fn process(&mut self, block: &[f32]) {
+        self.process_view(block, block);
+    }
+
+    /// Feeds a block of the (denoised) stem and, for a harmonic-view track, the same span
+    /// of its view (the separator's harmonic sum, denoised like the stem; as many samples).
+    /// Other tracks ignore `view`.
+    pub fn process_view(&mut self, block: &[f32], view: &[f32]) {
         self.decimator.process(block);
         let block = self.decimator.output();
+        let view = match &mut self.view {
+            Some(d) => {
+                d.process(view);
+                Some(d.output())
+            }
+            None => None,
+        };
         let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
         let side = &mut self.note_side;
-        self.tracker.process(block, &mut |f, nf| {
+        self.tracker.process(block, view, &mut |f, nf| {
             advanced_push(raw_f0, skipped, advance, f);
             if let (Some(s), Some(nf)) = (side.as_mut(), nf) {
                 advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
@@ -969,6 +1033,9 @@ impl PitchTrack {
     /// Back to the initial state.
     pub fn reset(&mut self) {
         self.decimator.reset();
+        if let Some(d) = &mut self.view {
+            d.reset();
+        }
         self.tracker.reset();
         self.rms.reset();
         self.raw_f0.clear();

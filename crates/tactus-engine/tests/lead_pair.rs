@@ -246,3 +246,90 @@ fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
             .collect();
     assert_eq!(s.hop_levels, want);
 }
+
+/// The spectral separator's lead through the engine (README, "The learned lead reads the
+/// harmonic sum"): the ring finger's pitch is a harmonic-view track fed by hand with the
+/// separator's vocals stem and its harmonic sum (vocals + bass + other), each through the
+/// vocals chain's 60 Hz denoiser, with the engine's register prior and advance; the same
+/// track fed the stem as its own view (what the engine did before) reports other pitches.
+#[test]
+fn the_engines_mix_lead_reads_the_separators_harmonic_sum() {
+    use tactus_engine::track::{Denoise, LEAD_REGISTER_HZ, SPECTRAL_PITCH_ADVANCE_HOPS};
+    use tactus_engine::{Engine, EngineConfig};
+    use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
+    use tactus_separate::{Separator, StemOutput, StemSet};
+    // The lead over its chords, a bass line under them (a root a bar), 6.6 s.
+    let lead = lead_over_chords();
+    let x: Vec<f32> = lead
+        .iter()
+        .enumerate()
+        .map(|(i, &s)| {
+            let t = i as f32 / SR as f32;
+            let f = [55.0f32, 73.4, 65.4, 49.0][(t / 1.1) as usize % 4];
+            s + 0.2 * (std::f32::consts::TAU * f * t).sin()
+        })
+        .collect();
+    let mut e = Engine::new(EngineConfig {
+        mode: Mode::Offline,
+        ..EngineConfig::default()
+    })
+    .unwrap();
+    e.process(&x, &x, &[]);
+    e.finish();
+    let got = e.features().pitch_hz["vocals"].clone();
+
+    let mut sep = SpectralSeparator::new(
+        SR,
+        StemSet::all(),
+        SpectralConfig {
+            low_band_drums: EngineConfig::default().kit_mask,
+            ..SpectralConfig::default()
+        },
+    )
+    .unwrap();
+    let mut out = StemOutput::new();
+    sep.process(&x, &x, &mut out);
+    sep.finish(&mut out);
+    let mut stem = out.get(tactus_dsp::Stem::Vocals).to_vec();
+    let (b, v, o) = (
+        out.get(tactus_dsp::Stem::Bass),
+        out.get(tactus_dsp::Stem::Vocals),
+        out.get(tactus_dsp::Stem::Other),
+    );
+    let mut view: Vec<f32> = b
+        .iter()
+        .zip(v)
+        .zip(o)
+        .map(|((b, v), o)| b + v + o)
+        .collect();
+    Denoise::new(60.0, SR).unwrap().process_inplace(&mut stem);
+    Denoise::new(60.0, SR).unwrap().process_inplace(&mut view);
+    let (lo, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
+    let run = |view: &[f32]| {
+        let mut t =
+            PitchTrack::new_harmonic_view(common::geo(Mode::Offline, Profile::Full), lo, hi)
+                .unwrap();
+        t.set_register_prior(LEAD_REGISTER_HZ).unwrap();
+        t.set_advance_hops(SPECTRAL_PITCH_ADVANCE_HOPS);
+        t.process_view(&stem, view);
+        t.finish();
+        t.f0
+    };
+    let want = run(&view);
+    assert_eq!(got.len(), want.len());
+    for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+        assert_eq!(g.to_bits(), w.to_bits(), "hop {i}: {g} vs {w}");
+    }
+    let own = run(&stem);
+    let differ = own
+        .iter()
+        .zip(&want)
+        .filter(|(a, b)| (**a > 0.0) != (**b > 0.0) || (*a / *b - 1.0).abs() > 0.01)
+        .count();
+    assert!(differ >= 10, "the view changes the pitch: {differ} hops");
+    assert!(
+        PitchTrack::new_harmonic_view(common::geo(Mode::Offline, Profile::Full), 35.0, 400.0)
+            .is_err(),
+        "no harmonic view for the bass"
+    );
+}
