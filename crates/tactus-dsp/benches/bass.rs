@@ -211,6 +211,36 @@ fn lead(c: &mut Criterion) {
             })
         });
     }
+    // The spectral separator's lead as the engine runs it since 2026-11-28: the pitch
+    // tracker (harmonic-view ensemble) reads a second view of the same span
+    // (`process_two`; here the melody under a quiet low pad).
+    let view: Vec<f32> = x
+        .iter()
+        .enumerate()
+        .map(|(i, &s)| s + 0.1 * (std::f32::consts::TAU * 98.0 * i as f32 / LEAD_SR as f32).sin())
+        .collect();
+    g.bench_function("pair_harmonic", |b| {
+        b.iter(|| {
+            let mut lc = lead_config();
+            lc.learned = true;
+            lc.contour_gate_db = 0.0;
+            lc.learned_voicing_nats = 3.0;
+            lc.learned_ensemble = true;
+            lc.learned_harmonic = true;
+            let mut t = VoicingPitchPair::new(
+                Box::new(Shs::new(lead_config()).unwrap()),
+                Box::new(Shs::new(lc).unwrap()),
+            )
+            .unwrap()
+            .with_veto();
+            let mut acc = 0.0f32;
+            for (ch, v) in x.chunks(4096).zip(view.chunks(4096)) {
+                t.process_two(black_box(ch), black_box(v), &mut |_, e, _| acc += e.f0_hz);
+            }
+            t.finish_both(&mut |_, e, _| acc += e.f0_hz);
+            acc
+        })
+    });
     // A lead on its own stem as the engine runs it (twelve harmonics), without and with the
     // attack alignment of step 9 (both estimates per hop through `process_both`).
     for (name, attack_db) in [("clean", 0.0f32), ("clean_aligned", 0.5)] {
