@@ -333,3 +333,74 @@ fn the_engines_mix_lead_reads_the_separators_harmonic_sum() {
         "no harmonic view for the bass"
     );
 }
+
+/// With the harmonic view the lead's range comes from held notes alone
+/// ([`MIX_LEAD_VIEW_HELD_HOPS`] on each side; README, "The harmonic view's lead range from
+/// held notes"), offline and streaming: the levels equal `tactus_dsp`'s range functions
+/// replayed on the track's pitch with no agreement, and differ from the held-or-agreed rule
+/// of the lead-band pair on this line (whose agreed hops keep the short low C4).
+#[test]
+fn the_harmonic_views_lead_range_comes_from_held_notes_alone() {
+    use tactus_engine::track::MIX_LEAD_VIEW_HELD_HOPS;
+    let x = lead_with_short_extremes();
+    let d = Discretizer::default();
+    let (lo, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
+    let run = |mode: Mode, chunk: usize| {
+        let mut t =
+            PitchTrack::new_harmonic_view(common::geo(mode, Profile::Full), lo, hi).unwrap();
+        for b in x.chunks(chunk) {
+            t.process_view(b, b);
+        }
+        t.finish();
+        t
+    };
+    let t = run(Mode::Offline, 4096);
+    let held = |k: usize, trusted: &[bool]| {
+        range_quantiles_kept_or(
+            &t.f0,
+            trusted,
+            FOLLOW_RANGE_QUANTILE,
+            k,
+            HELD_TOL_ST,
+            0,
+            HELD_MIN_SHARE,
+            HELD_MIN_HOPS,
+        )
+    };
+    let range = held(MIX_LEAD_VIEW_HELD_HOPS, &[]);
+    let want: Vec<u8> =
+        t.f0.iter()
+            .map(|&f| range.map_or(0, |r| d.level(f, r)))
+            .collect();
+    assert_eq!(t.hop_levels, want);
+    let agreed = held(
+        MIX_LEAD_HELD_HOPS,
+        &agree_mask(&t.f0, t.voicing_f0(), AGREE_TOL_ST),
+    );
+    assert_ne!(range, agreed, "the rule matters on this line");
+    // Streaming, hop by hop, no hop trusted; any chunking the same.
+    let s = run(Mode::Streaming, 4096);
+    let mut r = HeldRange::with_prior(
+        RangePrior::Span(prior_span_st(hi)),
+        FOLLOW_PRIOR_FADE_HOPS,
+        FOLLOW_RANGE_QUANTILE,
+        MIX_LEAD_VIEW_HELD_HOPS,
+        HELD_TOL_ST,
+        HELD_MIN_SHARE,
+        HELD_MIN_HOPS,
+    )
+    .unwrap();
+    let want: Vec<u8> =
+        s.f0.iter()
+            .map(|&f| {
+                r.update_trusted(f, false)
+                    .map_or(0, |range| d.level(f, range))
+            })
+            .collect();
+    assert_eq!(s.hop_levels, want);
+    for chunk in [1, 441, 10_000] {
+        let c = run(Mode::Streaming, chunk);
+        assert_eq!(c.hop_levels, s.hop_levels, "chunk {chunk}");
+        assert_eq!(c.bins, s.bins, "chunk {chunk}");
+    }
+}
