@@ -115,15 +115,6 @@ pub const MIX_BASS_SHADOW_HOPS: usize = 25;
 /// validation songs and a spent held-out set (`benches/trials/RULE_mix_lead_agree.md`).
 pub const MIX_LEAD_HELD_HOPS: usize = 8;
 
-/// `--levels-rule follow` on the spectral separator's lead with the harmonic view
-/// ([`PitchTrack::new_harmonic_view`]): a hop counts towards the level range only inside a
-/// held note, this many hops on each side within [`HELD_TOL_ST`]; the pair's voicing
-/// tracker, on the lead band, is no longer asked to agree (the pitch tracker now hears more
-/// of the voice than it does: README, "The harmonic view's lead range from held notes").
-/// Chosen on 16 + 12 + 8 validation songs over 8 / 12 / 16 hops
-/// (`benches/trials/RULE_lead_view_range.md`).
-pub const MIX_LEAD_VIEW_HELD_HOPS: usize = 12;
-
 /// Semitones within which the pair's two trackers agree ([`MIX_LEAD_HELD_HOPS`]).
 pub const AGREE_TOL_ST: f32 = 1.0;
 
@@ -717,16 +708,12 @@ impl PitchTrack {
         let hop_s = hop as f32 / geo.sample_rate as f32;
         // A clean bass stem: the range from held notes (README, "Bass levels from held notes").
         // A mixture's lead through the pair: from held notes or hops both trackers agree on
-        // (README, "The mix's lead range from held or agreed hops"); with the harmonic view,
-        // from held notes alone (README, "The harmonic view's lead range from held notes").
-        let pair = mixture && matches!(tracker, Tracker::Pair(_));
-        let agree = pair && !harmonic_view;
+        // (README, "The mix's lead range from held or agreed hops").
+        let agree = mixture && matches!(tracker, Tracker::Pair(_));
         let held_hops = if !mixture && fmax_hz <= BASS_MAX_HZ {
             CLEAN_BASS_HELD_HOPS
         } else if mixture && fmax_hz <= BASS_MAX_HZ {
             MIX_BASS_HELD_HOPS
-        } else if pair && harmonic_view {
-            MIX_LEAD_VIEW_HELD_HOPS
         } else if agree {
             MIX_LEAD_HELD_HOPS
         } else {
