@@ -31,6 +31,9 @@ RANGE_DB = 60.0      # ::RANGE_DB
 # LOW_HZ), the stem's pitch range (tactus_dsp::Stem::pitch_range_hz), the dumper's flags.
 STEMS = {
     "bass": dict(bands=183, low_hz=30.0, fmin=35.0, fmax=400.0, truth="bass", flags=[]),
+    # The harmonic-view bass model: the separator's vocals + bass + other as input.
+    "bass_harm": dict(bands=183, low_hz=30.0, fmin=35.0, fmax=400.0, truth="bass",
+                      flags=["--harmonic"]),
     "vocals": dict(bands=216, low_hz=70.0, fmin=70.0, fmax=1400.0, truth="vocals",
                    flags=["--lead", "216", "70"]),
     # The harmonic-view lead models: the separator's vocals + bass + other as input.

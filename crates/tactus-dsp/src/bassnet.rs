@@ -50,7 +50,9 @@
 //! harmonic sum, vocals + bass + other (the mix without the drum stem), through the same
 //! front end ([`BassNet::embedded_lead_harmonic`], [`BassNet::embedded_lead_harmonic_others`];
 //! [`crate::shs::ShsConfig::learned_harmonic`]). The pair's voicing tracker still reads the
-//! lead band ([`crate::pair::VoicingPitchPair::process_two`]). On songs none of the models
+//! lead band ([`crate::pair::VoicingPitchPair::process_two`]). The bass has one such model
+//! too ([`BassNet::embedded_bass_harmonic`]): its network reads the harmonic sum while the
+//! harmonic sum it is blended with still reads the bass band ([`crate::shs::Shs::process_view`]). On songs none of the models
 //! trained on, their ensemble's argmax is the lead's pitch on 0.891 / 0.731 / 0.787 of the
 //! voiced hops (chorales / instrumental leads over an unseen kit / sung) against 0.837 /
 //! 0.676 / 0.683 for the lead-band ensemble (`models/bassnet/README.md`).
@@ -98,6 +100,12 @@ static EMBEDDED_LEAD_3: &[u8] = include_bytes!("../weights/leadnet_3.bin");
 static EMBEDDED_LEAD_HARM: &[u8] = include_bytes!("../weights/leadnet_harm.bin");
 static EMBEDDED_LEAD_HARM_2: &[u8] = include_bytes!("../weights/leadnet_harm_2.bin");
 static EMBEDDED_LEAD_HARM_3: &[u8] = include_bytes!("../weights/leadnet_harm_3.bin");
+
+/// The harmonic-view bass model: the bass recipe trained on the spectral separator's
+/// harmonic sum (vocals + bass + other) instead of its bass stem, seed 7 on
+/// `models/bassnet/bass_train_songs_2.txt` (`models/bassnet/README.md`, "The bass reads the
+/// harmonic sum"; module docs, "The harmonic view").
+static EMBEDDED_BASS_HARM: &[u8] = include_bytes!("../weights/bassnet_harm.bin");
 
 /// The network and its input layout.
 #[derive(Clone, Debug, PartialEq)]
@@ -151,6 +159,17 @@ impl BassNet {
         // Checked by a unit test, like the other three.
         MODEL.get_or_init(|| {
             Self::from_bytes(EMBEDDED_LEAD_3).expect("embedded third lead model is valid")
+        })
+    }
+
+    /// The harmonic-view bass model (parsed once; module docs, "The harmonic view"): the
+    /// bass model's front end, context and classes, trained on the spectral separator's
+    /// harmonic sum.
+    pub fn embedded_bass_harmonic() -> &'static BassNet {
+        static MODEL: OnceLock<BassNet> = OnceLock::new();
+        // Checked by a unit test, like the other models.
+        MODEL.get_or_init(|| {
+            Self::from_bytes(EMBEDDED_BASS_HARM).expect("embedded harmonic bass model is valid")
         })
     }
 

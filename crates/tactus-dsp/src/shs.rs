@@ -281,12 +281,14 @@ pub struct ShsConfig {
     /// candidate and for "no pitch" ([`crate::bassnet`] module docs, "The lead models and
     /// their ensemble"). Errors on the bass grid. Off by default.
     pub learned_ensemble: bool,
-    /// With [`ShsConfig::learned`] on the lead's grid: the harmonic-view lead models
-    /// ([`BassNet::embedded_lead_harmonic`], with [`ShsConfig::learned_ensemble`] also
-    /// [`BassNet::embedded_lead_harmonic_others`]), trained on the spectral separator's
-    /// harmonic sum (vocals + bass + other), which is then what this tracker must be fed
-    /// ([`crate::pair::VoicingPitchPair::process_two`]; [`crate::bassnet`] module docs, "The
-    /// harmonic view"). Errors on the bass grid. Off by default.
+    /// With [`ShsConfig::learned`]: the harmonic-view models, trained on the spectral
+    /// separator's harmonic sum (vocals + bass + other). On the lead's grid
+    /// [`BassNet::embedded_lead_harmonic`] (with [`ShsConfig::learned_ensemble`] also
+    /// [`BassNet::embedded_lead_harmonic_others`]), and the tracker must be fed that sum
+    /// ([`crate::pair::VoicingPitchPair::process_two`]); on the bass grid
+    /// [`BassNet::embedded_bass_harmonic`], whose network reads the sum given as the view of
+    /// [`Shs::process_view`] ([`crate::bassnet`] module docs, "The harmonic view"). Off by
+    /// default.
     pub learned_harmonic: bool,
     /// Attack alignment of a clean lead's note changes (module docs, step 9): a decided
     /// voiced hop reports the note the provisional path jumps to within the lag when the
@@ -772,19 +774,18 @@ impl NetState {
                 && (cfg.fmin_hz - md.cand_fmin_hz()).abs() <= 1e-3
         };
         let harmonic = cfg.learned_harmonic;
-        let model = if fits(BassNet::embedded()) && !harmonic {
-            BassNet::embedded()
+        let model = if fits(BassNet::embedded()) {
+            if harmonic {
+                BassNet::embedded_bass_harmonic()
+            } else {
+                BassNet::embedded()
+            }
         } else if fits(BassNet::embedded_lead()) {
             if harmonic {
                 BassNet::embedded_lead_harmonic()
             } else {
                 BassNet::embedded_lead()
             }
-        } else if harmonic {
-            return Err(ConfigError::invalid(
-                "learned_harmonic",
-                "the harmonic-view models are lead models: 70-1400 Hz at 3 bins per semitone",
-            ));
         } else {
             return Err(ConfigError::invalid(
                 "learned",
@@ -1170,11 +1171,27 @@ impl Tracker {
 
     /// The learned salience: frame `frames` arrives; the hop `future` frames before it
     /// goes to the Viterbi.
-    fn on_net_frame(&mut self, frame: &[f32], emit: &mut Emit) {
+    fn on_net_frame(&mut self, frame: &[f32], view: Option<&[f32]>, emit: &mut Emit) {
         let Some(mut n) = self.net.take() else {
             return;
         };
-        if n.blend > 0.0 {
+        if let (Some(v), true) = (view, n.blend > 0.0) {
+            // The harmonic sum on the input's frame, the network on the view's.
+            // Silence and peak stay the input's, as on one stream.
+            let m = self.m;
+            let slot = n.frames % n.ring;
+            let dst = &mut n.shs[slot * m..(slot + 1) * m];
+            let sounding = self.sal.spectrum(frame);
+            n.shs_v[slot] = if sounding {
+                self.sal.salience(dst)
+            } else {
+                dst.fill(0.0);
+                0.02
+            };
+            n.push(v);
+            n.silent[slot] = !sounding;
+            n.peak[slot] = if sounding { self.sal.last_peak } else { 0.0 };
+        } else if n.blend > 0.0 {
             let m = self.m;
             let slot = n.frames % n.ring;
             let dst = &mut n.shs[slot * m..(slot + 1) * m];
@@ -1189,7 +1206,7 @@ impl Tracker {
             let peak = sounding.then_some(self.sal.last_peak);
             n.push_spectrum(&self.sal.fft.spec, peak);
         } else {
-            n.push(frame);
+            n.push(view.unwrap_or(frame));
         }
         while n.queued + n.future < n.frames {
             n.queue();
@@ -1276,9 +1293,19 @@ impl Tracker {
         self.advance(silent, v, l_unvoiced, peak, SILENT_DB, emit);
     }
 
+    /// [`Tracker::on_frame`] with the learned salience reading `view` (its frame of the
+    /// same hop) when one is given.
+    fn on_frame_view(&mut self, frame: &[f32], view: Option<&[f32]>, emit: &mut Emit) {
+        if self.net.is_some() {
+            self.on_net_frame(frame, view, emit);
+        } else {
+            self.on_frame(frame, emit);
+        }
+    }
+
     fn on_frame(&mut self, frame: &[f32], emit: &mut Emit) {
         if self.net.is_some() {
-            self.on_net_frame(frame, emit);
+            self.on_net_frame(frame, None, emit);
             return;
         }
         let silent = !self.sal.spectrum(frame);
@@ -1498,6 +1525,31 @@ pub struct Shs {
     cfg: ShsConfig,
     framer: Framer,
     tracker: Tracker,
+    /// The view's framer and its frames, for [`Shs::process_view`] (a learned tracker only).
+    view: Option<ViewFrames>,
+}
+
+/// The second stream of [`Shs::process_view`]: its framer, in step with the input's, and
+/// room for the frames it emits in one step (at most one per hop of input, or the tail at
+/// the end).
+#[derive(Debug)]
+struct ViewFrames {
+    framer: Framer,
+    frame: usize,
+    /// Frames emitted and not yet consumed, `frame` samples each.
+    buf: Vec<f32>,
+    n: usize,
+    next: usize,
+}
+
+impl ViewFrames {
+    fn take(&mut self) -> Option<&[f32]> {
+        (self.next < self.n).then(|| {
+            let k = self.next;
+            self.next += 1;
+            &self.buf[k * self.frame..(k + 1) * self.frame]
+        })
+    }
 }
 
 impl Shs {
@@ -1505,11 +1557,86 @@ impl Shs {
     pub fn new(cfg: ShsConfig) -> Result<Shs, ConfigError> {
         let tracker = Tracker::new(&cfg)?;
         let framer = Framer::new(cfg.frame, cfg.hop)?;
+        let view = if tracker.net.is_some() {
+            // The tail at the end: at most the frames the framer still holds, plus one.
+            let tail = cfg.frame / cfg.hop.max(1) + 2;
+            Some(ViewFrames {
+                framer: Framer::new(cfg.frame, cfg.hop)?,
+                frame: cfg.frame,
+                buf: vec![0.0; tail * cfg.frame],
+                n: 0,
+                next: 0,
+            })
+        } else {
+            None
+        };
         Ok(Shs {
             cfg,
             framer,
             tracker,
+            view,
         })
+    }
+
+    /// [`Shs::process_both`] where the learned salience reads `view`, another signal of the
+    /// same span (as many samples, hop for hop the same instants), and the harmonic sum
+    /// still reads `input`: the bass of a mix whose network was trained on the separator's
+    /// harmonic sum ([`ShsConfig::learned_harmonic`]). With `view == input` it is
+    /// [`Shs::process_both`] bit for bit. A tracker without the learned salience ignores
+    /// `view`. Extra samples of the longer input are not read.
+    pub fn process_view(
+        &mut self,
+        input: &[f32],
+        view: &[f32],
+        emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate),
+    ) {
+        let Some(vs) = self.view.as_mut() else {
+            self.process_both(input, emit);
+            return;
+        };
+        let n = input.len().min(view.len());
+        let hop = self.cfg.hop.max(1);
+        let tracker = &mut self.tracker;
+        // A hop of input at a time: each framer emits at most one frame per step, and
+        // both emit at the same steps.
+        for (a, b) in input[..n].chunks(hop).zip(view[..n].chunks(hop)) {
+            vs.n = 0;
+            vs.next = 0;
+            let (buf, frame, count) = (&mut vs.buf, vs.frame, &mut vs.n);
+            vs.framer.push(b, |_, fr| {
+                buf[*count * frame..(*count + 1) * frame].copy_from_slice(fr);
+                *count += 1;
+            });
+            self.framer.push(a, |_, fr| {
+                let v = vs.take();
+                tracker.on_frame_view(fr, v, emit);
+            });
+        }
+        self.tracker.flush_batch(emit);
+    }
+
+    /// [`Shs::finish_both`] after [`Shs::process_view`]: the tails of both streams.
+    pub fn finish_view(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate)) {
+        let Some(vs) = self.view.as_mut() else {
+            self.finish_both(emit);
+            return;
+        };
+        vs.n = 0;
+        vs.next = 0;
+        let (buf, frame, count) = (&mut vs.buf, vs.frame, &mut vs.n);
+        vs.framer.finish(|_, fr| {
+            if (*count + 1) * frame <= buf.len() {
+                buf[*count * frame..(*count + 1) * frame].copy_from_slice(fr);
+                *count += 1;
+            }
+        });
+        let tracker = &mut self.tracker;
+        self.framer.finish(|_, fr| {
+            let v = vs.take();
+            tracker.on_frame_view(fr, v, emit);
+        });
+        self.tracker.drain_net(emit);
+        self.tracker.flush(emit);
     }
 
     /// The configuration in use.
@@ -1568,6 +1695,11 @@ impl HopStage for Shs {
 
     fn reset(&mut self) {
         self.framer.reset();
+        if let Some(v) = &mut self.view {
+            v.framer.reset();
+            v.n = 0;
+            v.next = 0;
+        }
         self.tracker.reset();
     }
 

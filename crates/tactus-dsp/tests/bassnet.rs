@@ -640,14 +640,7 @@ fn embedded_harmonic_view_models_match_a_separate_f64_reader_and_the_lead_models
 }
 
 #[test]
-fn the_harmonic_view_needs_the_learned_leads_grid_and_changes_the_models() {
-    let mut bass = cfg();
-    bass.learned = true;
-    bass.learned_harmonic = true;
-    assert!(
-        Shs::new(bass).is_err(),
-        "the bass grid has no harmonic-view model"
-    );
+fn the_harmonic_view_needs_the_learned_salience_and_changes_the_lead_models() {
     let mut lead = ShsConfig::melody(14_700, 70.0, 1400.0);
     lead.learned_harmonic = true;
     assert!(
@@ -684,4 +677,123 @@ fn the_harmonic_view_needs_the_learned_leads_grid_and_changes_the_models() {
         differ > 10,
         "the harmonic-view models are the ones read: {differ} hops differ"
     );
+}
+
+/// The harmonic-view bass model's file (`BassNet::embedded_bass_harmonic`).
+const BASS_HARM_WEIGHTS: &[u8] = include_bytes!("../weights/bassnet_harm.bin");
+
+#[test]
+fn embedded_harmonic_view_bass_model_matches_a_separate_f64_reader_and_the_bass_layout() {
+    let net = BassNet::embedded_bass_harmonic();
+    let first = BassNet::embedded();
+    let or = oracle_of(BASS_HARM_WEIGHTS, BANDS, LOW_HZ);
+    assert_eq!(net.offsets(), &or.offsets[..]);
+    assert_eq!(net.offsets(), first.offsets());
+    assert_eq!(
+        (
+            net.bands(),
+            net.low_hz(),
+            net.cand_fmin_hz(),
+            net.candidates()
+        ),
+        (
+            first.bands(),
+            first.low_hz(),
+            first.cand_fmin_hz(),
+            first.candidates()
+        )
+    );
+    assert_ne!(net, first, "a different model");
+    check_against_oracle(net, &or, 31, 3);
+}
+
+/// A bass line under a chord a tenth above it: the bass stem alone, and the harmonic sum
+/// (the line plus the chord) as the view.
+fn bass_and_view() -> (Vec<f32>, Vec<f32>) {
+    let (x, _) = bass_line(&[55.0, 82.4, 65.4, 110.0, 49.0, 73.4], 0.5);
+    let v = x
+        .iter()
+        .enumerate()
+        .map(|(i, &s)| {
+            let t = i as f32 / SR as f32;
+            s + [164.8f32, 207.7, 246.9]
+                .iter()
+                .map(|f| 0.08 * (std::f32::consts::TAU * f * t).sin())
+                .sum::<f32>()
+        })
+        .collect();
+    (x, v)
+}
+
+type Out = Vec<(usize, u32, u32)>;
+
+fn run_view(s: &mut Shs, x: &[f32], v: &[f32], chunk: usize) -> Out {
+    let mut out = Vec::new();
+    for (a, b) in x.chunks(chunk).zip(v.chunks(chunk)) {
+        s.process_view(a, b, &mut |i, e, d| {
+            out.push((i, e.f0_hz.to_bits(), d.f0_hz.to_bits()))
+        });
+    }
+    s.finish_view(&mut |i, e, d| out.push((i, e.f0_hz.to_bits(), d.f0_hz.to_bits())));
+    out
+}
+
+#[test]
+fn the_bass_view_feeds_the_network_and_the_harmonic_sum_keeps_the_stem() {
+    // The learned bass tracker as the engine runs it (blended with the harmonic sum):
+    // `process_view(x, x)` is `process_both(x)` bit for bit; another view changes the
+    // output; any chunking gives the same; the harmonic-view model is the one read with
+    // the flag; a warm tracker does not allocate.
+    let (x, v) = bass_and_view();
+    let mut c = cfg();
+    c.learned_blend = 1.0;
+    let plain: Out = {
+        let mut s = Shs::new(c.clone()).unwrap();
+        let mut out = Vec::new();
+        for b in x.chunks(4096) {
+            s.process_both(b, &mut |i, e, d| {
+                out.push((i, e.f0_hz.to_bits(), d.f0_hz.to_bits()))
+            });
+        }
+        s.finish_both(&mut |i, e, d| out.push((i, e.f0_hz.to_bits(), d.f0_hz.to_bits())));
+        out
+    };
+    assert_eq!(
+        run_view(&mut Shs::new(c.clone()).unwrap(), &x, &x, 4096),
+        plain
+    );
+    let viewed = run_view(&mut Shs::new(c.clone()).unwrap(), &x, &v, 4096);
+    assert_eq!(viewed.len(), plain.len());
+    let differ = viewed.iter().zip(&plain).filter(|(a, b)| a != b).count();
+    assert!(
+        differ > 5,
+        "the view reaches the network: {differ} hops differ"
+    );
+    for chunk in [1usize, 49, 333, x.len()] {
+        let mut s = Shs::new(c.clone()).unwrap();
+        assert_eq!(run_view(&mut s, &x, &v, chunk), viewed, "chunk {chunk}");
+        s.reset();
+        assert_eq!(
+            run_view(&mut s, &x, &v, chunk),
+            viewed,
+            "chunk {chunk}, after reset"
+        );
+    }
+    let mut h = c.clone();
+    h.learned_harmonic = true;
+    let harm = run_view(&mut Shs::new(h.clone()).unwrap(), &x, &v, 4096);
+    let moved = harm.iter().zip(&viewed).filter(|(a, b)| a != b).count();
+    assert!(
+        moved > 5,
+        "the harmonic-view bass model is the one read: {moved} hops"
+    );
+    let mut s = Shs::new(h).unwrap();
+    let cut = x.len() / 3;
+    s.process_view(&x[..cut], &v[..cut], &mut |_, _, _| {});
+    let allocs = tactus_testkit::allocations_during(|| {
+        for (a, b) in x[cut..].chunks(512).zip(v[cut..].chunks(512)) {
+            s.process_view(a, b, &mut |_, _, _| {});
+        }
+    });
+    assert_eq!(allocs, 0);
 }

@@ -625,12 +625,14 @@ impl Engine {
                     cfg.separator,
                     SeparatorChoice::Spectral | SeparatorChoice::None
                 );
-            // The spectral separator's lead through the learned pair: its pitch tracker
-            // reads the separator's harmonic sum (README, "The learned lead reads the
-            // harmonic sum").
-            let harmonic_view = crate::track::LEARNED_LEAD_HARMONIC
-                && stem == Stem::Vocals
-                && pitch == Some(PitchMethod::Learned)
+            // The spectral separator's lead and bass through the learned trackers: their
+            // networks read the separator's harmonic sum (README, "The learned lead reads
+            // the harmonic sum", "The bass reads the harmonic sum").
+            let harmonic_view = match stem {
+                Stem::Vocals => crate::track::LEARNED_LEAD_HARMONIC,
+                Stem::Bass => crate::track::LEARNED_BASS_HARMONIC,
+                _ => false,
+            } && pitch == Some(PitchMethod::Learned)
                 && !cfg.supplied.contains(stem)
                 && cfg.separator == SeparatorChoice::Spectral;
             let mut chain = StemChain::new(

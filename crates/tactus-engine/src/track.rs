@@ -227,6 +227,12 @@ pub const LEARNED_LEAD_VOICING_NATS: f32 = 3.0;
 /// README, "The learned lead reads the harmonic sum").
 pub const LEARNED_LEAD_HARMONIC: bool = true;
 
+/// The spectral separator's bass: the learned bass salience's network reads the
+/// separator's harmonic sum (vocals + bass + other) with the harmonic-view bass model, the
+/// harmonic sum it is blended with still the bass stem ([`PitchTrack::new_harmonic_view`];
+/// README, "The bass reads the harmonic sum").
+pub const LEARNED_BASS_HARMONIC: bool = true;
+
 /// [`tactus_dsp::shs::ShsConfig::learned_ensemble`] of the learned lead salience's tracker:
 /// the mean of the committed lead model and the one trained with 80 more sung songs (README,
 /// "The lead ensemble"; `benches/trials/RULE_lead_ensemble.md`).
@@ -484,6 +490,9 @@ enum Tracker {
     One(Box<dyn HopStage<Out = PitchEstimate>>),
     Pair(Box<VoicingPitchPair>),
     Aligned(Box<Shs>),
+    /// The learned bass tracker whose network reads the harmonic view
+    /// ([`tactus_dsp::shs::Shs::process_view`]).
+    View(Box<Shs>),
 }
 
 impl Tracker {
@@ -497,6 +506,9 @@ impl Tracker {
                 emit(e.f0_hz, Some(v.f0_hz))
             }),
             Tracker::Aligned(t) => t.process_both(x, &mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz))),
+            Tracker::View(t) => {
+                t.process_view(x, view.unwrap_or(x), &mut |_, e, _| emit(e.f0_hz, None))
+            }
         }
     }
 
@@ -505,6 +517,7 @@ impl Tracker {
             Tracker::One(t) => t.finish(&mut |_, e| emit(e.f0_hz, None)),
             Tracker::Pair(p) => p.finish_both(&mut |_, e, v| emit(e.f0_hz, Some(v.f0_hz))),
             Tracker::Aligned(t) => t.finish_both(&mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz))),
+            Tracker::View(t) => t.finish_view(&mut |_, e, _| emit(e.f0_hz, None)),
         }
     }
 
@@ -512,7 +525,7 @@ impl Tracker {
         match self {
             Tracker::One(t) => t.reset(),
             Tracker::Pair(p) => p.reset(),
-            Tracker::Aligned(t) => t.reset(),
+            Tracker::Aligned(t) | Tracker::View(t) => t.reset(),
         }
     }
 
@@ -520,7 +533,7 @@ impl Tracker {
         match self {
             Tracker::One(t) => t.latency_samples(),
             Tracker::Pair(p) => p.latency_samples(),
-            Tracker::Aligned(t) => t.latency_samples(),
+            Tracker::Aligned(t) | Tracker::View(t) => t.latency_samples(),
         }
     }
 }
@@ -595,23 +608,18 @@ impl PitchTrack {
         Self::build(geo, fmin_hz, fmax_hz, method, mixture, false)
     }
 
-    /// The spectral separator's lead through the learned pair whose pitch tracker reads
-    /// the harmonic view ([`LEARNED_LEAD_HARMONIC`]): the separator's harmonic sum (vocals +
-    /// bass + other), fed beside the stem through [`PitchTrack::process_view`] and decimated
-    /// the same way; the harmonic sum on the stem still decides voicing. Same latency as
-    /// [`PitchTrack::new`] with [`PitchMethod::Learned`] on a mixture. Errors for a bass
-    /// range (the view's models are lead models).
+    /// A mixture's stem through the learned tracker whose network reads the harmonic view:
+    /// the separator's harmonic sum (vocals + bass + other), fed beside the stem through
+    /// [`PitchTrack::process_view`] and decimated the same way. The lead
+    /// ([`LEARNED_LEAD_HARMONIC`]): the pair's pitch tracker reads the view, the harmonic sum
+    /// on the stem still decides voicing. The bass ([`LEARNED_BASS_HARMONIC`]): the network
+    /// reads the view, the harmonic sum it is blended with the stem. Same latency as
+    /// [`PitchTrack::new`] with [`PitchMethod::Learned`] on a mixture.
     pub fn new_harmonic_view(
         geo: Geometry,
         fmin_hz: f32,
         fmax_hz: f32,
     ) -> Result<Self, ConfigError> {
-        if fmax_hz <= BASS_MAX_HZ {
-            return Err(ConfigError::invalid(
-                "harmonic view",
-                "only a lead's pitch range has harmonic-view models",
-            ));
-        }
         Self::build(geo, fmin_hz, fmax_hz, PitchMethod::Learned, true, true)
     }
 
@@ -682,6 +690,7 @@ impl PitchTrack {
                 sc.learned = method == PitchMethod::Learned && fmax_hz <= BASS_MAX_HZ;
                 if sc.learned {
                     sc.learned_blend = LEARNED_BASS_BLEND;
+                    sc.learned_harmonic = harmonic_view;
                 }
                 if method == PitchMethod::Learned && fmax_hz > BASS_MAX_HZ {
                     // A mixture's lead: the harmonic sum decides whether, the learned
@@ -700,6 +709,8 @@ impl PitchTrack {
                     ))
                 } else if clean_lead && method == PitchMethod::Shs {
                     Tracker::Aligned(Box::new(Shs::new(sc)?))
+                } else if sc.learned && harmonic_view {
+                    Tracker::View(Box::new(Shs::new(sc)?))
                 } else {
                     Tracker::One(Box::new(Shs::new(sc)?))
                 }
@@ -737,7 +748,7 @@ impl PitchTrack {
                     .with_min_iqr(min_iqr_st),
                 f0: Vec::new(),
             }),
-            Tracker::One(_) => None,
+            Tracker::One(_) | Tracker::View(_) => None,
         };
         Ok(PitchTrack {
             decimator: Decimator::new(geo.sample_rate, factor)?,
