@@ -227,11 +227,13 @@ pub const LEARNED_LEAD_VOICING_NATS: f32 = 3.0;
 /// README, "The learned lead reads the harmonic sum").
 pub const LEARNED_LEAD_HARMONIC: bool = true;
 
-/// The spectral separator's bass: the learned bass salience's network reads the
+/// The spectral separator's bass: whether the learned bass salience's network reads the
 /// separator's harmonic sum (vocals + bass + other) with the harmonic-view bass model, the
-/// harmonic sum it is blended with still the bass stem ([`PitchTrack::new_harmonic_view`];
-/// README, "The bass reads the harmonic sum").
-pub const LEARNED_BASS_HARMONIC: bool = true;
+/// harmonic sum it is blended with still the bass stem ([`PitchTrack::new_harmonic_view`]).
+/// Off: held out it raised every group's bass RPA, levels and note F, but the mean RPA by
+/// 0.009 where its rule asked 0.01 (README, "The bass reads the harmonic sum (tried, not
+/// adopted)"; `benches/trials/RULE_bass_harmonic_view.md`).
+pub const LEARNED_BASS_HARMONIC: bool = false;
 
 /// [`tactus_dsp::shs::ShsConfig::learned_ensemble`] of the learned lead salience's tracker:
 /// the mean of the committed lead model and the one trained with 80 more sung songs (README,
