@@ -1175,9 +1175,7 @@ impl Tracker {
         let Some(mut n) = self.net.take() else {
             return;
         };
-        if let (Some(v), true) = (view, n.blend > 0.0) {
-            // The harmonic sum on the input's frame, the network on the view's.
-            // Silence and peak stay the input's, as on one stream.
+        if n.blend > 0.0 {
             let m = self.m;
             let slot = n.frames % n.ring;
             let dst = &mut n.shs[slot * m..(slot + 1) * m];
@@ -1188,23 +1186,18 @@ impl Tracker {
                 dst.fill(0.0);
                 0.02
             };
-            n.push(v);
-            n.silent[slot] = !sounding;
-            n.peak[slot] = if sounding { self.sal.last_peak } else { 0.0 };
-        } else if n.blend > 0.0 {
-            let m = self.m;
-            let slot = n.frames % n.ring;
-            let dst = &mut n.shs[slot * m..(slot + 1) * m];
-            let sounding = self.sal.spectrum(frame);
-            n.shs_v[slot] = if sounding {
-                self.sal.salience(dst)
-            } else {
-                dst.fill(0.0);
-                0.02
-            };
-            // The network's bands from the same spectrum: one FFT per frame, not two.
             let peak = sounding.then_some(self.sal.last_peak);
-            n.push_spectrum(&self.sal.fft.spec, peak);
+            match view {
+                // The network on the view's frame; silence and peak stay the input's, as
+                // on one stream.
+                Some(v) => {
+                    n.push(v);
+                    n.silent[slot] = !sounding;
+                    n.peak[slot] = peak.unwrap_or(0.0);
+                }
+                // The network's bands from the same spectrum: one FFT per frame, not two.
+                None => n.push_spectrum(&self.sal.fft.spec, peak),
+            }
         } else {
             n.push(view.unwrap_or(frame));
         }

@@ -211,22 +211,29 @@ fn with_a_veto_the_pitch_trackers_rests_unvoice_both_estimates() {
             pair.process_both(b, &mut |i, e, n| got.push((i, e, n)));
         }
         pair.finish_both(&mut |i, e, n| got.push((i, e, n)));
-        assert_eq!(got.len(), want.len(), "chunk {chunk}");
-        for (g, w) in got.iter().zip(&want) {
-            assert_eq!(g.0, w.0);
-            assert_eq!(
-                g.1.f0_hz.to_bits(),
-                w.1.f0_hz.to_bits(),
-                "chunk {chunk} hop {}",
-                g.0
-            );
-            assert_eq!(
-                g.2.f0_hz.to_bits(),
-                w.2.f0_hz.to_bits(),
-                "chunk {chunk} hop {}",
-                g.0
-            );
-        }
+        assert_both_eq(&got, &want, chunk);
+    }
+}
+
+type Both = (usize, PitchEstimate, PitchEstimate);
+
+/// Both estimates of every hop, bit for bit.
+fn assert_both_eq(got: &[Both], want: &[Both], chunk: usize) {
+    assert_eq!(got.len(), want.len(), "chunk {chunk}");
+    for (g, w) in got.iter().zip(want) {
+        assert_eq!(g.0, w.0);
+        assert_eq!(
+            g.1.f0_hz.to_bits(),
+            w.1.f0_hz.to_bits(),
+            "chunk {chunk} hop {}",
+            g.0
+        );
+        assert_eq!(
+            g.2.f0_hz.to_bits(),
+            w.2.f0_hz.to_bits(),
+            "chunk {chunk} hop {}",
+            g.0
+        );
     }
 }
 
@@ -276,22 +283,7 @@ fn two_views_the_voicing_tracker_reads_one_the_pitch_tracker_the_other() {
             pair.process_two(x, y, &mut |i, e, n| got.push((i, e, n)));
         }
         pair.finish_both(&mut |i, e, n| got.push((i, e, n)));
-        assert_eq!(got.len(), want.len(), "chunk {chunk}");
-        for (g, w) in got.iter().zip(&want) {
-            assert_eq!(g.0, w.0);
-            assert_eq!(
-                g.1.f0_hz.to_bits(),
-                w.1.f0_hz.to_bits(),
-                "chunk {chunk} hop {}",
-                g.0
-            );
-            assert_eq!(
-                g.2.f0_hz.to_bits(),
-                w.2.f0_hz.to_bits(),
-                "chunk {chunk} hop {}",
-                g.0
-            );
-        }
+        assert_both_eq(&got, &want, chunk);
         // One view for both is the plain pair.
         let mut one = VoicingPitchPair::new(Box::new(shs()), Box::new(yin()))
             .unwrap()

@@ -156,6 +156,7 @@ struct StemChain {
 }
 
 impl StemChain {
+    #[allow(clippy::too_many_arguments)] // one chain's whole configuration, named at the call
     fn new(
         stem: Stem,
         geo: Geometry,

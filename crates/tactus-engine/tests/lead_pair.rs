@@ -10,6 +10,7 @@
 use tactus_dsp::discretize::{
     agree_mask, pitches_agree, range_quantiles_kept_or, Discretizer, HeldRange, RangePrior,
 };
+use tactus_dsp::Stem;
 use tactus_engine::notes::{NoteRole, PitchNotes};
 use tactus_engine::profile::Profile;
 use tactus_engine::track::{
@@ -247,112 +248,29 @@ fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
     assert_eq!(s.hop_levels, want);
 }
 
-/// The spectral separator's lead through the engine (README, "The learned lead reads the
-/// harmonic sum"): the ring finger's pitch is a harmonic-view track fed by hand with the
-/// separator's vocals stem and its harmonic sum (vocals + bass + other), each through the
-/// vocals chain's 60 Hz denoiser, with the engine's register prior and advance; the same
-/// track fed the stem as its own view (what the engine did before) reports other pitches.
-#[test]
-fn the_engines_mix_lead_reads_the_separators_harmonic_sum() {
-    use tactus_engine::track::{Denoise, LEAD_REGISTER_HZ, SPECTRAL_PITCH_ADVANCE_HOPS};
+/// The lead over its chords with a bass line under them (a root a bar, harmonics of
+/// amplitude `harmonics`), 6.6 s, rendered by the default engine (offline). Returns the
+/// features' pitch of `stem`, and that stem as its chain receives it beside the
+/// separator's harmonic sum (vocals + bass + other), both through the chain's denoiser
+/// (`hp_hz`), as the engine runs them.
+fn engine_and_views(stem: Stem, hp_hz: f64, harmonics: &[f32]) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+    use tactus_engine::track::Denoise;
     use tactus_engine::{Engine, EngineConfig};
     use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
     use tactus_separate::{Separator, StemOutput, StemSet};
-    // The lead over its chords, a bass line under them (a root a bar), 6.6 s.
-    let lead = lead_over_chords();
-    let x: Vec<f32> = lead
-        .iter()
-        .enumerate()
-        .map(|(i, &s)| {
-            let t = i as f32 / SR as f32;
-            let f = [55.0f32, 73.4, 65.4, 49.0][(t / 1.1) as usize % 4];
-            s + 0.2 * (std::f32::consts::TAU * f * t).sin()
-        })
-        .collect();
-    let mut e = Engine::new(EngineConfig {
-        mode: Mode::Offline,
-        ..EngineConfig::default()
-    })
-    .unwrap();
-    e.process(&x, &x, &[]);
-    e.finish();
-    let got = e.features().pitch_hz["vocals"].clone();
-
-    let mut sep = SpectralSeparator::new(
-        SR,
-        StemSet::all(),
-        SpectralConfig {
-            low_band_drums: EngineConfig::default().kit_mask,
-            ..SpectralConfig::default()
-        },
-    )
-    .unwrap();
-    let mut out = StemOutput::new();
-    sep.process(&x, &x, &mut out);
-    sep.finish(&mut out);
-    let mut stem = out.get(tactus_dsp::Stem::Vocals).to_vec();
-    let (b, v, o) = (
-        out.get(tactus_dsp::Stem::Bass),
-        out.get(tactus_dsp::Stem::Vocals),
-        out.get(tactus_dsp::Stem::Other),
-    );
-    let mut view: Vec<f32> = b
-        .iter()
-        .zip(v)
-        .zip(o)
-        .map(|((b, v), o)| b + v + o)
-        .collect();
-    Denoise::new(60.0, SR).unwrap().process_inplace(&mut stem);
-    Denoise::new(60.0, SR).unwrap().process_inplace(&mut view);
-    let (lo, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
-    let run = |view: &[f32]| {
-        let mut t =
-            PitchTrack::new_harmonic_view(common::geo(Mode::Offline, Profile::Full), lo, hi)
-                .unwrap();
-        t.set_register_prior(LEAD_REGISTER_HZ).unwrap();
-        t.set_advance_hops(SPECTRAL_PITCH_ADVANCE_HOPS);
-        t.process_view(&stem, view);
-        t.finish();
-        t.f0
-    };
-    let want = run(&view);
-    assert_eq!(got.len(), want.len());
-    for (i, (g, w)) in got.iter().zip(&want).enumerate() {
-        assert_eq!(g.to_bits(), w.to_bits(), "hop {i}: {g} vs {w}");
-    }
-    let own = run(&stem);
-    let differ = own
-        .iter()
-        .zip(&want)
-        .filter(|(a, b)| (**a > 0.0) != (**b > 0.0) || (*a / *b - 1.0).abs() > 0.01)
-        .count();
-    assert!(differ >= 10, "the view changes the pitch: {differ} hops");
-}
-
-/// The spectral separator's bass through the engine (README, "The bass reads the harmonic
-/// sum (tried, not adopted)"): with [`LEARNED_BASS_HARMONIC`] the thumb's pitch is a
-/// harmonic-view bass track fed by hand with the separator's bass stem and its harmonic
-/// sum, each through the bass chain's 30 Hz denoiser, with the engine's register prior and
-/// advance, bit for bit; without it (the default) it is the plain learned bass track on the
-/// stem, and the two differ.
-#[test]
-fn the_engines_mix_bass_reads_the_harmonic_sum_only_when_switched_on() {
-    use tactus_dsp::Stem;
-    use tactus_engine::track::{
-        Denoise, BASS_REGISTER_HZ, LEARNED_BASS_HARMONIC, SPECTRAL_PITCH_ADVANCE_HOPS,
-    };
-    use tactus_engine::{Engine, EngineConfig};
-    use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
-    use tactus_separate::{Separator, StemOutput, StemSet};
-    let lead = lead_over_chords();
-    let x: Vec<f32> = lead
+    let x: Vec<f32> = lead_over_chords()
         .iter()
         .enumerate()
         .map(|(i, &s)| {
             let t = i as f32 / SR as f32;
             let f = [55.0f32, 73.4, 65.4, 49.0][(t / 1.1) as usize % 4];
             let ph = std::f32::consts::TAU * f * t;
-            s + 0.2 * (ph.sin() + 0.4 * (2.0 * ph).sin() + 0.2 * (3.0 * ph).sin())
+            let bass: f32 = harmonics
+                .iter()
+                .enumerate()
+                .map(|(h, a)| a * ((h + 1) as f32 * ph).sin())
+                .sum();
+            s + 0.2 * bass
         })
         .collect();
     let mut e = Engine::new(EngineConfig {
@@ -362,8 +280,7 @@ fn the_engines_mix_bass_reads_the_harmonic_sum_only_when_switched_on() {
     .unwrap();
     e.process(&x, &x, &[]);
     e.finish();
-    let got = e.features().pitch_hz["bass"].clone();
-
+    let got = e.features().pitch_hz[stem.name()].clone();
     let mut sep = SpectralSeparator::new(
         SR,
         StemSet::all(),
@@ -376,7 +293,7 @@ fn the_engines_mix_bass_reads_the_harmonic_sum_only_when_switched_on() {
     let mut out = StemOutput::new();
     sep.process(&x, &x, &mut out);
     sep.finish(&mut out);
-    let mut stem = out.get(Stem::Bass).to_vec();
+    let mut own = out.get(stem).to_vec();
     let (b, v, o) = (
         out.get(Stem::Bass),
         out.get(Stem::Vocals),
@@ -388,38 +305,94 @@ fn the_engines_mix_bass_reads_the_harmonic_sum_only_when_switched_on() {
         .zip(o)
         .map(|((b, v), o)| b + v + o)
         .collect();
-    Denoise::new(30.0, SR).unwrap().process_inplace(&mut stem);
-    Denoise::new(30.0, SR).unwrap().process_inplace(&mut view);
-    let (lo, hi) = Stem::Bass.pitch_range_hz().unwrap();
-    let geo = common::geo(Mode::Offline, Profile::Full);
-    let finish = |mut t: PitchTrack, view: Option<&[f32]>| {
-        t.set_register_prior(BASS_REGISTER_HZ).unwrap();
-        t.set_advance_hops(SPECTRAL_PITCH_ADVANCE_HOPS);
-        t.process_view(&stem, view.unwrap_or(&stem));
-        t.finish();
-        t.f0
-    };
-    let viewed = finish(
-        PitchTrack::new_harmonic_view(geo, lo, hi).unwrap(),
-        Some(&view),
-    );
-    let plain = finish(
-        PitchTrack::new(geo, lo, hi, PitchMethod::Learned, true).unwrap(),
-        None,
-    );
-    let want = if LEARNED_BASS_HARMONIC {
-        &viewed
-    } else {
-        &plain
-    };
+    Denoise::new(hp_hz, SR).unwrap().process_inplace(&mut own);
+    Denoise::new(hp_hz, SR).unwrap().process_inplace(&mut view);
+    (got, own, view)
+}
+
+/// A track's pitch over the whole of `stem` beside `view`, with the engine's register prior
+/// `register_hz` and the spectral stems' advance.
+fn track_with_view(
+    mut t: PitchTrack,
+    register_hz: (f32, f32),
+    stem: &[f32],
+    view: &[f32],
+) -> Vec<f32> {
+    t.set_register_prior(register_hz).unwrap();
+    t.set_advance_hops(tactus_engine::track::SPECTRAL_PITCH_ADVANCE_HOPS);
+    t.process_view(stem, view);
+    t.finish();
+    t.f0
+}
+
+/// Hops where two pitch tracks differ in voicing or by more than 1 %.
+fn hops_differing(a: &[f32], b: &[f32]) -> usize {
+    a.iter()
+        .zip(b)
+        .filter(|(a, b)| (**a > 0.0) != (**b > 0.0) || (*a / *b - 1.0).abs() > 0.01)
+        .count()
+}
+
+fn assert_bits_eq(got: &[f32], want: &[f32]) {
     assert_eq!(got.len(), want.len());
     for (i, (g, w)) in got.iter().zip(want).enumerate() {
         assert_eq!(g.to_bits(), w.to_bits(), "hop {i}: {g} vs {w}");
     }
-    let differ = plain
-        .iter()
-        .zip(&viewed)
-        .filter(|(a, b)| (**a > 0.0) != (**b > 0.0) || (*a / *b - 1.0).abs() > 0.01)
-        .count();
+}
+
+/// The spectral separator's lead through the engine (README, "The learned lead reads the
+/// harmonic sum"): the ring finger's pitch is a harmonic-view track fed by hand with the
+/// separator's vocals stem and its harmonic sum (vocals + bass + other), each through the
+/// vocals chain's 60 Hz denoiser, with the engine's register prior and advance; the same
+/// track fed the stem as its own view (what the engine did before) reports other pitches.
+#[test]
+fn the_engines_mix_lead_reads_the_separators_harmonic_sum() {
+    use tactus_engine::track::LEAD_REGISTER_HZ;
+    let (got, stem, view) = engine_and_views(Stem::Vocals, 60.0, &[1.0]);
+    let (lo, hi) = Stem::Vocals.pitch_range_hz().unwrap();
+    let geo = common::geo(Mode::Offline, Profile::Full);
+    let run = |v: &[f32]| {
+        let t = PitchTrack::new_harmonic_view(geo, lo, hi).unwrap();
+        track_with_view(t, LEAD_REGISTER_HZ, &stem, v)
+    };
+    let want = run(&view);
+    assert_bits_eq(&got, &want);
+    let differ = hops_differing(&run(&stem), &want);
+    assert!(differ >= 10, "the view changes the pitch: {differ} hops");
+}
+
+/// The spectral separator's bass through the engine (README, "The bass reads the harmonic
+/// sum (tried, not adopted)"): with [`LEARNED_BASS_HARMONIC`] the thumb's pitch is a
+/// harmonic-view bass track fed by hand with the separator's bass stem and its harmonic
+/// sum, each through the bass chain's 30 Hz denoiser, with the engine's register prior and
+/// advance, bit for bit; without it (the default) it is the plain learned bass track on the
+/// stem, and the two differ.
+#[test]
+fn the_engines_mix_bass_reads_the_harmonic_sum_only_when_switched_on() {
+    use tactus_engine::track::{BASS_REGISTER_HZ, LEARNED_BASS_HARMONIC};
+    let (got, stem, view) = engine_and_views(Stem::Bass, 30.0, &[1.0, 0.4, 0.2]);
+    let (lo, hi) = Stem::Bass.pitch_range_hz().unwrap();
+    let geo = common::geo(Mode::Offline, Profile::Full);
+    let viewed = track_with_view(
+        PitchTrack::new_harmonic_view(geo, lo, hi).unwrap(),
+        BASS_REGISTER_HZ,
+        &stem,
+        &view,
+    );
+    let plain = track_with_view(
+        PitchTrack::new(geo, lo, hi, PitchMethod::Learned, true).unwrap(),
+        BASS_REGISTER_HZ,
+        &stem,
+        &stem,
+    );
+    assert_bits_eq(
+        &got,
+        if LEARNED_BASS_HARMONIC {
+            &viewed
+        } else {
+            &plain
+        },
+    );
+    let differ = hops_differing(&plain, &viewed);
     assert!(differ >= 5, "the view changes the bass: {differ} hops");
 }
