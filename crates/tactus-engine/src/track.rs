@@ -499,8 +499,8 @@ enum Tracker {
 
 impl Tracker {
     /// Feeds a block; `emit(f0, side_f0)` per hop (`side_f0` for a pair or an aligned
-    /// tracker).
-    /// `view`: what a pair's pitch tracker reads instead of `x` (the harmonic view).
+    /// tracker). `view`: the same span of the harmonic view, which a pair's pitch tracker
+    /// reads instead of `x` and a view tracker's network reads beside it (`None`: `x`).
     fn process(&mut self, x: &[f32], view: Option<&[f32]>, emit: &mut dyn FnMut(f32, Option<f32>)) {
         match self {
             Tracker::One(t) => t.process(x, &mut |_, e| emit(e.f0_hz, None)),
