@@ -77,6 +77,14 @@
 //! the held range (same fallbacks, same lag); a hop that is neither held nor agreed is left
 //! out.
 //!
+//! **Only sure hops** ([`range_quantiles_kept_or_sure`], [`HeldRange::update_sure`], our
+//! addition, issue 16). A learned tracker knows how sure it is of a pitch (the network's
+//! probability near the decided candidate, `tactus_dsp::shs` module docs, "Learned
+//! salience"). On a mixture's lead the unsure hops are where it sits on a chord tone, an
+//! octave or the bass while the voice rests or is masked, and those set the range's ends even
+//! when they are held or agreed. So a hop counts only when it is sure as well; the held test
+//! still reads every voiced hop, and the fallbacks are unchanged.
+//!
 //! **Register prior** ([`RangePrior::Register`], [`PriorRange::with_prior`], our addition,
 //! issue 16). A span prior pads the first notes symmetrically, but where a line starts says
 //! little about which way it will go: a bass line that opens on its lowest roots only climbs.
@@ -319,9 +327,29 @@ pub fn range_quantiles_kept_or(
     min_share: f32,
     min_hops: u64,
 ) -> Option<(f32, f32)> {
+    range_quantiles_kept_or_sure(f0_hz, trusted, &[], p, k, tol_st, w, min_share, min_hops)
+}
+
+/// [`range_quantiles_kept_or`] where only a hop marked in `sure` (its tracker is confident
+/// of its pitch; hops beyond its end are) may count as held or agreed (module docs, "Only
+/// sure hops"). The held mask is still computed on every voiced hop, so an unsure hop inside
+/// a note leaves its neighbours held. `sure = &[]` is [`range_quantiles_kept_or`]. Allocates.
+#[allow(clippy::too_many_arguments)]
+pub fn range_quantiles_kept_or_sure(
+    f0_hz: &[f32],
+    trusted: &[bool],
+    sure: &[bool],
+    p: f32,
+    k: usize,
+    tol_st: f32,
+    w: usize,
+    min_share: f32,
+    min_hops: u64,
+) -> Option<(f32, f32)> {
     let mut mask = held_mask(f0_hz, k, tol_st);
     for (i, m) in mask.iter_mut().enumerate() {
         *m |= trusted.get(i).copied().unwrap_or(false) && semitones(f0_hz[i]).is_some();
+        *m &= sure.get(i).copied().unwrap_or(true);
     }
     if w > 0 {
         for (m, s) in mask.iter_mut().zip(shadow_mask(f0_hz, w)) {
@@ -349,10 +377,10 @@ pub fn range_quantiles_kept_or(
 pub struct HeldRange {
     all: PriorRange,
     held: PriorRange,
-    /// Semitones (NaN = unvoiced), Hz and the trusted flag
-    /// ([`HeldRange::update_trusted`]) of the last `2·max(k, w) + 1` hops, hop `i` at
-    /// `i % len`.
-    ring: [(f32, f32, bool); 2 * MAX_SHADOW_HOPS + 1],
+    /// Semitones (NaN = unvoiced), Hz, the trusted flag ([`HeldRange::update_trusted`]) and
+    /// the sure flag ([`HeldRange::update_sure`]) of the last `2·max(k, w) + 1` hops, hop `i`
+    /// at `i % len`.
+    ring: [(f32, f32, bool, bool); 2 * MAX_SHADOW_HOPS + 1],
     k: usize,
     /// Octave-shadow window ([`HeldRange::with_shadow`]); 0 = off.
     w: usize,
@@ -414,7 +442,7 @@ impl HeldRange {
         Ok(HeldRange {
             all: PriorRange::with_prior(prior, fade_hops, p)?,
             held: PriorRange::with_prior(prior, fade_hops, p)?,
-            ring: [(f32::NAN, 0.0, false); 2 * MAX_SHADOW_HOPS + 1],
+            ring: [(f32::NAN, 0.0, false, true); 2 * MAX_SHADOW_HOPS + 1],
             k,
             w: 0,
             tol_st,
@@ -453,6 +481,14 @@ impl HeldRange {
     /// streaming side of [`range_quantiles_kept_or`]). With `k = 0` and `w = 0` every voiced
     /// hop counts anyway.
     pub fn update_trusted(&mut self, f0_hz: f32, trusted: bool) -> Option<(f32, f32)> {
+        self.update_sure(f0_hz, trusted, true)
+    }
+
+    /// As [`HeldRange::update_trusted`], where a hop that is not `sure` (its tracker is not
+    /// confident of its pitch) never counts as held or agreed, though it still lets its
+    /// neighbours be held (module docs, "Only sure hops"; the streaming side of
+    /// [`range_quantiles_kept_or_sure`]).
+    pub fn update_sure(&mut self, f0_hz: f32, trusted: bool, sure: bool) -> Option<(f32, f32)> {
         let all = self.all.update(f0_hz);
         if self.k == 0 && self.w == 0 {
             return all;
@@ -463,14 +499,15 @@ impl HeldRange {
         self.held.n += u64::from(st.is_some());
         let m = self.k.max(self.w);
         let len = 2 * m + 1;
-        self.ring[self.n_in % len] = (st.unwrap_or(f32::NAN), f0_hz, trusted);
+        self.ring[self.n_in % len] = (st.unwrap_or(f32::NAN), f0_hz, trusted, sure);
         self.n_in += 1;
         if self.n_in >= len {
             // The centre of the last 2m + 1 hops.
             let ci = self.n_in - 1 - m;
-            let (c, f, trusted) = self.ring[ci % len];
+            let (c, f, trusted, sure) = self.ring[ci % len];
             let at = |j: usize| self.ring[j % len].0;
             if !c.is_nan()
+                && sure
                 && (trusted
                     || (ci - self.k..=ci + self.k).all(|j| (at(j) - c).abs() <= self.tol_st))
                 && !(ci - self.w..=ci + self.w).any(|j| (at(j) - (c + 12.0)).abs() <= SHADOW_TOL_ST)
@@ -492,7 +529,7 @@ impl HeldRange {
     pub fn reset(&mut self) {
         self.all.reset();
         self.held.reset();
-        self.ring = [(f32::NAN, 0.0, false); 2 * MAX_SHADOW_HOPS + 1];
+        self.ring = [(f32::NAN, 0.0, false, true); 2 * MAX_SHADOW_HOPS + 1];
         self.n_in = 0;
         self.n_voiced = 0;
         self.n_held = 0;

@@ -11,8 +11,8 @@
 //! # Algorithm
 //! Both trackers get the same input, a block at a time, and emit hop `i` in order. For each
 //! hop: unvoiced when the voicing tracker says so (its estimate unchanged); otherwise the
-//! voicing tracker's estimate with `f0_hz` taken from the pitch tracker when that one is
-//! voiced there, else its own. Both trackers must have the same hop.
+//! voicing tracker's estimate with `f0_hz` and `aperiodicity` (how sure of that pitch) taken
+//! from the pitch tracker when that one is voiced there, else its own. Both trackers must have the same hop.
 //!
 //! **Veto** ([`VoicingPitchPair::with_veto`]). Where the pitch tracker is unvoiced the hop is
 //! unvoiced too, in the merged estimate and in the voicing tracker's own as emitted by
@@ -91,12 +91,16 @@ impl VoicingPitchPair {
         self
     }
 
-    /// The merged estimate of one hop (module docs).
+    /// The merged estimate of one hop (module docs): where both are voiced, the pitch
+    /// tracker's `f0_hz` and `aperiodicity` (how sure it is of that pitch; a learned tracker's
+    /// confidence, [`crate::shs`] module docs, "Learned salience") with the voicing tracker's
+    /// `voiced_prob`.
     pub fn merge(voicing: PitchEstimate, pitch: PitchEstimate) -> PitchEstimate {
         if voicing.is_voiced() && pitch.is_voiced() {
             PitchEstimate {
                 f0_hz: pitch.f0_hz,
-                ..voicing
+                aperiodicity: pitch.aperiodicity,
+                voiced_prob: voicing.voiced_prob,
             }
         } else {
             voicing

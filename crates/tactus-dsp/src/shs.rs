@@ -102,6 +102,16 @@
 //! (vocals RPA on the mix 0.56 → 0.86 and 0.35 → 0.77; on isolated stems 0.90 → 0.94 and
 //! 0.87 → 0.91), never on the held-out families.
 //!
+//! ## Learned salience
+//! With [`ShsConfig::learned`] the Viterbi decodes a network's log-probabilities of the
+//! candidates and of "no pitch" ([`crate::bassnet`]) instead of the harmonic sum's (blended
+//! with it by [`ShsConfig::learned_blend`]). Its estimates say how sure the network is of the
+//! decided pitch: a voiced hop's `aperiodicity` is `1 − Σ p` over the network's probabilities
+//! of the candidates within [`CONFIDENCE_BINS`] of the decided one (2 bins: ⅔ semitone), its
+//! `voiced_prob` the network's `1 − p(no pitch)`. (The harmonic sum's estimates keep
+//! `aperiodicity = 1 − voiced_prob`.) The engine leaves a mixture's lead's unsure hops out of
+//! its level range ([`crate::discretize`] module docs, "Only sure hops").
+//!
 //! ## Latency
 //! `frame − frame / 2` (the framer) + `lag_hops × hop` samples, stated by
 //! [`HopStage::latency_samples`] and checked against a step in the tests.
@@ -706,6 +716,9 @@ struct Tracker {
     register: Register,
     /// The learned salience's state, when [`ShsConfig::learned`].
     net: Option<Box<NetState>>,
+    /// [`ShsConfig::learned`]: voiced estimates carry the network's confidence (module docs,
+    /// "Learned salience"). (`net` is taken out while a batch runs, so it cannot say.)
+    learned: bool,
 }
 
 impl crate::simd::ViterbiStep for Tracker {
@@ -714,6 +727,10 @@ impl crate::simd::ViterbiStep for Tracker {
         Tracker::step(self, slot, l_unvoiced);
     }
 }
+
+/// Candidates on each side of the decided one whose probabilities a learned tracker's
+/// confidence sums (module docs, "Learned salience").
+pub const CONFIDENCE_BINS: usize = 2;
 
 /// Hops the learned salience runs through its network together (see
 /// [`crate::mlp::run_layers_batch`]); a block's last hops run as a smaller batch when the
@@ -1029,6 +1046,7 @@ impl Tracker {
             } else {
                 None
             },
+            learned: cfg.learned,
         })
     }
 
@@ -1504,9 +1522,16 @@ impl Tracker {
                 off = (0.5 * (a - c) / den).clamp(-0.5, 0.5);
             }
         }
+        // The learned salience's confidence in this pitch (module docs, "Learned salience").
+        let aperiodicity = if self.learned {
+            let near = state.saturating_sub(CONFIDENCE_BINS)..(state + CONFIDENCE_BINS + 1).min(self.m);
+            (1.0 - s[near].iter().sum::<f32>()).clamp(0.0, 1.0)
+        } else {
+            1.0 - v
+        };
         PitchEstimate {
             f0_hz: self.cfg_bin0 * ((state as f32 + off) / self.bins_per_octave).exp2(),
-            aperiodicity: 1.0 - v,
+            aperiodicity,
             voiced_prob: v,
         }
     }

@@ -12,7 +12,7 @@
 
 use tactus_dsp::binner::{bin_beats, bin_levels, BeatBinner, LevelBinner};
 use tactus_dsp::discretize::{
-    agree_mask, pitches_agree, range_offline, range_quantiles_kept_or, Discretizer, HeldRange,
+    agree_mask, pitches_agree, range_offline, range_quantiles_kept_or_sure, Discretizer, HeldRange,
     RangePrior, RunningRange, Scale,
 };
 use tactus_dsp::flux::{OnsetConfig, OnsetDetector, OnsetFrame};
@@ -117,6 +117,14 @@ pub const MIX_LEAD_HELD_HOPS: usize = 8;
 
 /// Semitones within which the pair's two trackers agree ([`MIX_LEAD_HELD_HOPS`]).
 pub const AGREE_TOL_ST: f32 = 1.0;
+
+/// A mixture's lead through the pair: a held or agreed hop counts towards the level range
+/// only when the learned tracker's confidence in its pitch (the network's probability within
+/// ⅔ semitone of it, `tactus_dsp::shs` module docs, "Learned salience") is at least this
+/// (`tactus_dsp::discretize::range_quantiles_kept_or_sure`; README, "The mix's lead range
+/// from sure hops"). Chosen over 0.3–0.95 on 204 tuning mixes and checked on 96 spent ones
+/// (`benches/trials/RULE_lead_sure_range.md`).
+pub const MIX_LEAD_SURE: f32 = 0.7;
 
 /// `--levels-rule follow` on the bass band of a mixture: besides leaving out octave shadows
 /// ([`MIX_BASS_SHADOW_HOPS`]), a hop counts toward the level range only inside a held note,
@@ -437,10 +445,10 @@ impl LevelChain {
 
     /// Hop `i`'s level from its fenced pitch `f0` (`trusted`: a second tracker agrees,
     /// [`HeldRange::update_trusted`]); completed bins go to `bins`.
-    fn level(&mut self, i: usize, f0: f32, trusted: bool, bins: &mut Vec<u8>) -> u8 {
+    fn level(&mut self, i: usize, f0: f32, trusted: bool, sure: bool, bins: &mut Vec<u8>) -> u8 {
         let range = match self.rule {
             LevelRule::Paper => self.range.update(f0),
-            LevelRule::Follow => self.prior_range.update_trusted(f0, trusted),
+            LevelRule::Follow => self.prior_range.update_sure(f0, trusted, sure),
         };
         let level = range.map_or(0, |r| self.disc.level(f0, r));
         self.binner.push(i, level, &mut |_, l| bins.push(l));
@@ -498,28 +506,40 @@ enum Tracker {
 }
 
 impl Tracker {
-    /// Feeds a block; `emit(f0, side_f0)` per hop (`side_f0` for a pair or an aligned
-    /// tracker). `view`: the same span of the harmonic view, which a pair's pitch tracker
+    /// Feeds a block; `emit(f0, side_f0, confidence)` per hop (`side_f0` for a pair or an
+    /// aligned tracker; `confidence` = 1 − the estimate's aperiodicity, for a pair the
+    /// learned tracker's confidence in its pitch). `view`: the same span of the harmonic view, which a pair's pitch tracker
     /// reads instead of `x` and a view tracker's network reads beside it (`None`: `x`).
-    fn process(&mut self, x: &[f32], view: Option<&[f32]>, emit: &mut dyn FnMut(f32, Option<f32>)) {
+    fn process(
+        &mut self,
+        x: &[f32],
+        view: Option<&[f32]>,
+        emit: &mut dyn FnMut(f32, Option<f32>, f32),
+    ) {
+        let c = |e: PitchEstimate| 1.0 - e.aperiodicity;
         match self {
-            Tracker::One(t) => t.process(x, &mut |_, e| emit(e.f0_hz, None)),
+            Tracker::One(t) => t.process(x, &mut |_, e| emit(e.f0_hz, None, c(e))),
             Tracker::Pair(p) => p.process_two(x, view.unwrap_or(x), &mut |_, e, v| {
-                emit(e.f0_hz, Some(v.f0_hz))
+                emit(e.f0_hz, Some(v.f0_hz), c(e))
             }),
-            Tracker::Aligned(t) => t.process_both(x, &mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz))),
+            Tracker::Aligned(t) => {
+                t.process_both(x, &mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz), c(e)))
+            }
             Tracker::View(t) => {
-                t.process_view(x, view.unwrap_or(x), &mut |_, e, _| emit(e.f0_hz, None))
+                t.process_view(x, view.unwrap_or(x), &mut |_, e, _| emit(e.f0_hz, None, c(e)))
             }
         }
     }
 
-    fn finish(&mut self, emit: &mut dyn FnMut(f32, Option<f32>)) {
+    fn finish(&mut self, emit: &mut dyn FnMut(f32, Option<f32>, f32)) {
+        let c = |e: PitchEstimate| 1.0 - e.aperiodicity;
         match self {
-            Tracker::One(t) => t.finish(&mut |_, e| emit(e.f0_hz, None)),
-            Tracker::Pair(p) => p.finish_both(&mut |_, e, v| emit(e.f0_hz, Some(v.f0_hz))),
-            Tracker::Aligned(t) => t.finish_both(&mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz))),
-            Tracker::View(t) => t.finish_view(&mut |_, e, _| emit(e.f0_hz, None)),
+            Tracker::One(t) => t.finish(&mut |_, e| emit(e.f0_hz, None, c(e))),
+            Tracker::Pair(p) => p.finish_both(&mut |_, e, v| emit(e.f0_hz, Some(v.f0_hz), c(e))),
+            Tracker::Aligned(t) => {
+                t.finish_both(&mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz), c(e)))
+            }
+            Tracker::View(t) => t.finish_view(&mut |_, e, _| emit(e.f0_hz, None, c(e))),
         }
     }
 
@@ -549,6 +569,10 @@ struct NoteSide {
     tukey: SlidingTukey,
     /// After gate and fences, like `PitchTrack::f0`.
     f0: Vec<f32>,
+    /// The merged estimate's confidence per hop (kept like `raw`; the pair's learned tracker's
+    /// confidence in its pitch, [`MIX_LEAD_SURE`]).
+    conf: Vec<f32>,
+    conf_skipped: usize,
 }
 
 /// Pitch feature track of one melodic stem.
@@ -721,7 +745,8 @@ impl PitchTrack {
         let hop_s = hop as f32 / geo.sample_rate as f32;
         // A clean bass stem: the range from held notes (README, "Bass levels from held notes").
         // A mixture's lead through the pair: from held notes or hops both trackers agree on
-        // (README, "The mix's lead range from held or agreed hops").
+        // (README, "The mix's lead range from held or agreed hops"), only where the learned
+        // tracker is sure of its pitch ([`MIX_LEAD_SURE`]).
         let agree = mixture && matches!(tracker, Tracker::Pair(_));
         let held_hops = if !mixture && fmax_hz <= BASS_MAX_HZ {
             CLEAN_BASS_HELD_HOPS
@@ -749,6 +774,8 @@ impl PitchTrack {
                 tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
                     .with_min_iqr(min_iqr_st),
                 f0: Vec::new(),
+                conf: Vec::new(),
+                conf_skipped: 0,
             }),
             Tracker::One(_) | Tracker::View(_) => None,
         };
@@ -877,10 +904,11 @@ impl PitchTrack {
         };
         let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
         let side = &mut self.note_side;
-        self.tracker.process(block, view, &mut |f, nf| {
+        self.tracker.process(block, view, &mut |f, nf, c| {
             advanced_push(raw_f0, skipped, advance, f);
             if let (Some(s), Some(nf)) = (side.as_mut(), nf) {
                 advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
+                advanced_push(&mut s.conf, &mut s.conf_skipped, advance, c);
             }
         });
         let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
@@ -894,10 +922,11 @@ impl PitchTrack {
     pub fn finish(&mut self) {
         let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
         let side = &mut self.note_side;
-        self.tracker.finish(&mut |f, nf| {
+        self.tracker.finish(&mut |f, nf, c| {
             advanced_push(raw_f0, skipped, advance, f);
             if let (Some(s), Some(nf)) = (side.as_mut(), nf) {
                 advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
+                advanced_push(&mut s.conf, &mut s.conf_skipped, advance, c);
             }
         });
         // The advanced track ends as long as it would have: the dropped hops come back
@@ -905,6 +934,7 @@ impl PitchTrack {
         raw_f0.extend(std::iter::repeat_n(0.0, *skipped));
         if let Some(s) = side {
             s.raw.extend(std::iter::repeat_n(0.0, s.skipped));
+            s.conf.extend(std::iter::repeat_n(0.0, s.conf_skipped));
         }
         let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
         self.rms
@@ -927,14 +957,15 @@ impl PitchTrack {
         let ready = self.raw_f0.len().min(self.raw_rms.len());
         for j in 0..ready {
             let (f0, open) = self.chain.fence(self.raw_rms[j], self.raw_f0[j]);
-            let mut trusted = false;
+            let (mut trusted, mut sure) = (false, true);
             if let Some(s) = &mut self.note_side {
                 let nf = s.raw.get(j).copied().unwrap_or(0.0);
                 let nf = s.tukey.process(if open { nf } else { 0.0 });
                 s.f0.push(nf);
                 trusted = self.agree && pitches_agree(f0, nf, AGREE_TOL_ST);
+                sure = !self.agree || s.conf.get(j).copied().unwrap_or(0.0) >= MIX_LEAD_SURE;
             }
-            let level = self.chain.level(self.next, f0, trusted, &mut self.bins);
+            let level = self.chain.level(self.next, f0, trusted, sure, &mut self.bins);
             self.f0.push(f0);
             self.level_db.push(self.raw_rms[j]);
             self.hop_levels.push(level);
@@ -944,6 +975,7 @@ impl PitchTrack {
         self.raw_rms.drain(..ready);
         if let Some(s) = &mut self.note_side {
             s.raw.drain(..ready.min(s.raw.len()));
+            s.conf.drain(..ready.min(s.conf.len()));
         }
     }
 
@@ -968,15 +1000,21 @@ impl PitchTrack {
             reject_outliers_offline_min_iqr(&mut nf, TUKEY_K, self.min_iqr_st);
             s.f0 = nf;
         }
-        let trusted = match &self.note_side {
-            Some(s) if self.agree => agree_mask(&f0, &s.f0, AGREE_TOL_ST),
-            _ => Vec::new(),
+        let (trusted, sure) = match &self.note_side {
+            Some(s) if self.agree => (
+                agree_mask(&f0, &s.f0, AGREE_TOL_ST),
+                (0..n)
+                    .map(|i| s.conf.get(i).copied().unwrap_or(0.0) >= MIX_LEAD_SURE)
+                    .collect(),
+            ),
+            _ => (Vec::new(), Vec::new()),
         };
         let r = match self.geo.level_rule {
             LevelRule::Paper => range_offline(&f0),
-            LevelRule::Follow => range_quantiles_kept_or(
+            LevelRule::Follow => range_quantiles_kept_or_sure(
                 &f0,
                 &trusted,
+                &sure,
                 FOLLOW_RANGE_QUANTILE,
                 self.held_hops,
                 HELD_TOL_ST,
@@ -1006,7 +1044,7 @@ impl PitchTrack {
             + self
                 .note_side
                 .as_ref()
-                .map_or(0, |s| s.raw.len() + s.f0.len())
+                .map_or(0, |s| s.raw.len() + s.f0.len() + s.conf.len())
     }
 
     /// For a voicing/pitch pair its voicing tracker's own pitch, per hop (after gate and
