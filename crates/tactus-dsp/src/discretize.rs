@@ -77,12 +77,15 @@
 //! the held range (same fallbacks, same lag); a hop that is neither held nor agreed is left
 //! out.
 //!
-//! **Only sure hops** ([`range_quantiles_kept_or_sure`], [`HeldRange::update_sure`], our
-//! addition, issue 16). A learned tracker knows how sure it is of a pitch (the network's
-//! probability near the decided candidate, `tactus_dsp::shs` module docs, "Learned
-//! salience"). On a mixture's lead the unsure hops are where it sits on a chord tone, an
-//! octave or the bass while the voice rests or is masked, and those set the range's ends even
-//! when they are held or agreed. So a hop counts only when it is sure as well; the held test
+//! **Narrowed to the sure hops** ([`range_quantiles_kept_or_sure`], [`narrow_range`], our
+//! addition, issue 16; offline). A learned tracker knows how sure it is of a pitch (the
+//! network's probability near the decided candidate, `tactus_dsp::shs` module docs, "Learned
+//! salience"). On a mixture's lead the unsure hops are mostly where it sits on a chord tone,
+//! an octave or the bass while the voice rests or is masked, and those set the range's ends
+//! even when they are held or agreed, sometimes many semitones past the voice. But a voice's
+//! own extremes can be unsure too (a soprano's low notes under the alto), and dropping them
+//! narrows a short range. So the range of the held or agreed hops is narrowed to at most
+//! `margin` semitones beyond the range of those of them that are also sure: the held test
 //! still reads every voiced hop, and the fallbacks are unchanged.
 //!
 //! **Register prior** ([`RangePrior::Register`], [`PriorRange::with_prior`], our addition,
@@ -370,6 +373,27 @@ pub fn range_quantiles_kept_or_sure(
     }
 }
 
+/// `range` narrowed to at most `margin_st` semitones beyond `sure` at each end (module docs,
+/// "Narrowed to the sure hops"): `(max(lo, lo_s · 2^(−m/12)), min(hi, hi_s · 2^(m/12)))`,
+/// in Hz. `range` itself when `sure` is `None` or the narrowed range would be empty.
+pub fn narrow_range(
+    range: Option<(f32, f32)>,
+    sure: Option<(f32, f32)>,
+    margin_st: f32,
+) -> Option<(f32, f32)> {
+    let ((lo, hi), (ls, hs)) = (range?, match sure {
+        Some(s) => s,
+        None => return range,
+    });
+    let k = (margin_st / 12.0).exp2();
+    let (a, b) = (lo.max(ls / k), hi.min(hs * k));
+    if a <= b {
+        Some((a, b))
+    } else {
+        range
+    }
+}
+
 /// Streaming range from held notes (module docs, "Range from held notes"): a [`PriorRange`]
 /// of the held hops beside one of every voiced hop. Causal, allocation-free after
 /// construction.
@@ -377,10 +401,10 @@ pub fn range_quantiles_kept_or_sure(
 pub struct HeldRange {
     all: PriorRange,
     held: PriorRange,
-    /// Semitones (NaN = unvoiced), Hz, the trusted flag ([`HeldRange::update_trusted`]) and
-    /// the sure flag ([`HeldRange::update_sure`]) of the last `2·max(k, w) + 1` hops, hop `i`
-    /// at `i % len`.
-    ring: [(f32, f32, bool, bool); 2 * MAX_SHADOW_HOPS + 1],
+    /// Semitones (NaN = unvoiced), Hz and the trusted flag
+    /// ([`HeldRange::update_trusted`]) of the last `2·max(k, w) + 1` hops, hop `i` at
+    /// `i % len`.
+    ring: [(f32, f32, bool); 2 * MAX_SHADOW_HOPS + 1],
     k: usize,
     /// Octave-shadow window ([`HeldRange::with_shadow`]); 0 = off.
     w: usize,
@@ -442,7 +466,7 @@ impl HeldRange {
         Ok(HeldRange {
             all: PriorRange::with_prior(prior, fade_hops, p)?,
             held: PriorRange::with_prior(prior, fade_hops, p)?,
-            ring: [(f32::NAN, 0.0, false, true); 2 * MAX_SHADOW_HOPS + 1],
+            ring: [(f32::NAN, 0.0, false); 2 * MAX_SHADOW_HOPS + 1],
             k,
             w: 0,
             tol_st,
@@ -481,14 +505,6 @@ impl HeldRange {
     /// streaming side of [`range_quantiles_kept_or`]). With `k = 0` and `w = 0` every voiced
     /// hop counts anyway.
     pub fn update_trusted(&mut self, f0_hz: f32, trusted: bool) -> Option<(f32, f32)> {
-        self.update_sure(f0_hz, trusted, true)
-    }
-
-    /// As [`HeldRange::update_trusted`], where a hop that is not `sure` (its tracker is not
-    /// confident of its pitch) never counts as held or agreed, though it still lets its
-    /// neighbours be held (module docs, "Only sure hops"; the streaming side of
-    /// [`range_quantiles_kept_or_sure`]).
-    pub fn update_sure(&mut self, f0_hz: f32, trusted: bool, sure: bool) -> Option<(f32, f32)> {
         let all = self.all.update(f0_hz);
         if self.k == 0 && self.w == 0 {
             return all;
@@ -499,15 +515,14 @@ impl HeldRange {
         self.held.n += u64::from(st.is_some());
         let m = self.k.max(self.w);
         let len = 2 * m + 1;
-        self.ring[self.n_in % len] = (st.unwrap_or(f32::NAN), f0_hz, trusted, sure);
+        self.ring[self.n_in % len] = (st.unwrap_or(f32::NAN), f0_hz, trusted);
         self.n_in += 1;
         if self.n_in >= len {
             // The centre of the last 2m + 1 hops.
             let ci = self.n_in - 1 - m;
-            let (c, f, trusted, sure) = self.ring[ci % len];
+            let (c, f, trusted) = self.ring[ci % len];
             let at = |j: usize| self.ring[j % len].0;
             if !c.is_nan()
-                && sure
                 && (trusted
                     || (ci - self.k..=ci + self.k).all(|j| (at(j) - c).abs() <= self.tol_st))
                 && !(ci - self.w..=ci + self.w).any(|j| (at(j) - (c + 12.0)).abs() <= SHADOW_TOL_ST)
@@ -529,7 +544,7 @@ impl HeldRange {
     pub fn reset(&mut self) {
         self.all.reset();
         self.held.reset();
-        self.ring = [(f32::NAN, 0.0, false, true); 2 * MAX_SHADOW_HOPS + 1];
+        self.ring = [(f32::NAN, 0.0, false); 2 * MAX_SHADOW_HOPS + 1];
         self.n_in = 0;
         self.n_voiced = 0;
         self.n_held = 0;

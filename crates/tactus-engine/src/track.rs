@@ -12,7 +12,8 @@
 
 use tactus_dsp::binner::{bin_beats, bin_levels, BeatBinner, LevelBinner};
 use tactus_dsp::discretize::{
-    agree_mask, pitches_agree, range_offline, range_quantiles_kept_or_sure, Discretizer, HeldRange,
+    agree_mask, narrow_range, pitches_agree, range_offline, range_quantiles_kept_or_sure,
+    Discretizer, HeldRange,
     RangePrior, RunningRange, Scale,
 };
 use tactus_dsp::flux::{OnsetConfig, OnsetDetector, OnsetFrame};
@@ -118,13 +119,20 @@ pub const MIX_LEAD_HELD_HOPS: usize = 8;
 /// Semitones within which the pair's two trackers agree ([`MIX_LEAD_HELD_HOPS`]).
 pub const AGREE_TOL_ST: f32 = 1.0;
 
-/// A mixture's lead through the pair: a held or agreed hop counts towards the level range
-/// only when the learned tracker's confidence in its pitch (the network's probability within
-/// ⅔ semitone of it, `tactus_dsp::shs` module docs, "Learned salience") is at least this
-/// (`tactus_dsp::discretize::range_quantiles_kept_or_sure`; README, "The mix's lead range
-/// from sure hops"). Chosen over 0.3–0.95 on 204 tuning mixes and checked on 96 spent ones
-/// (`benches/trials/RULE_lead_sure_range.md`).
+/// A mixture's lead through the pair, offline: the level range of the held or agreed hops is
+/// narrowed to at most [`MIX_LEAD_SURE_MARGIN_ST`] beyond the range ([`MIX_LEAD_SURE_QUANTILE`])
+/// of those of them where the learned tracker is sure of its pitch: its confidence (the
+/// network's probability within ⅔ semitone of it, `tactus_dsp::shs` module docs, "Learned
+/// salience") is at least this (`tactus_dsp::discretize::narrow_range`; README, "The mix's
+/// lead range narrowed to sure hops"). Chosen on 204 tuning mixes and checked on 96 spent ones
+/// (`benches/trials/RULE_lead_sure_margin.md`).
 pub const MIX_LEAD_SURE: f32 = 0.7;
+
+/// Quantile cut from each end of the sure hops' range ([`MIX_LEAD_SURE`]).
+pub const MIX_LEAD_SURE_QUANTILE: f32 = 0.02;
+
+/// Semitones the lead's level range may reach beyond its sure hops' range ([`MIX_LEAD_SURE`]).
+pub const MIX_LEAD_SURE_MARGIN_ST: f32 = 1.0;
 
 /// `--levels-rule follow` on the bass band of a mixture: besides leaving out octave shadows
 /// ([`MIX_BASS_SHADOW_HOPS`]), a hop counts toward the level range only inside a held note,
@@ -445,10 +453,10 @@ impl LevelChain {
 
     /// Hop `i`'s level from its fenced pitch `f0` (`trusted`: a second tracker agrees,
     /// [`HeldRange::update_trusted`]); completed bins go to `bins`.
-    fn level(&mut self, i: usize, f0: f32, trusted: bool, sure: bool, bins: &mut Vec<u8>) -> u8 {
+    fn level(&mut self, i: usize, f0: f32, trusted: bool, bins: &mut Vec<u8>) -> u8 {
         let range = match self.rule {
             LevelRule::Paper => self.range.update(f0),
-            LevelRule::Follow => self.prior_range.update_sure(f0, trusted, sure),
+            LevelRule::Follow => self.prior_range.update_trusted(f0, trusted),
         };
         let level = range.map_or(0, |r| self.disc.level(f0, r));
         self.binner.push(i, level, &mut |_, l| bins.push(l));
@@ -745,8 +753,8 @@ impl PitchTrack {
         let hop_s = hop as f32 / geo.sample_rate as f32;
         // A clean bass stem: the range from held notes (README, "Bass levels from held notes").
         // A mixture's lead through the pair: from held notes or hops both trackers agree on
-        // (README, "The mix's lead range from held or agreed hops"), only where the learned
-        // tracker is sure of its pitch ([`MIX_LEAD_SURE`]).
+        // (README, "The mix's lead range from held or agreed hops"); offline narrowed to the
+        // hops where the learned tracker is sure of its pitch ([`MIX_LEAD_SURE`]).
         let agree = mixture && matches!(tracker, Tracker::Pair(_));
         let held_hops = if !mixture && fmax_hz <= BASS_MAX_HZ {
             CLEAN_BASS_HELD_HOPS
@@ -957,15 +965,14 @@ impl PitchTrack {
         let ready = self.raw_f0.len().min(self.raw_rms.len());
         for j in 0..ready {
             let (f0, open) = self.chain.fence(self.raw_rms[j], self.raw_f0[j]);
-            let (mut trusted, mut sure) = (false, true);
+            let mut trusted = false;
             if let Some(s) = &mut self.note_side {
                 let nf = s.raw.get(j).copied().unwrap_or(0.0);
                 let nf = s.tukey.process(if open { nf } else { 0.0 });
                 s.f0.push(nf);
                 trusted = self.agree && pitches_agree(f0, nf, AGREE_TOL_ST);
-                sure = !self.agree || s.conf.get(j).copied().unwrap_or(0.0) >= MIX_LEAD_SURE;
             }
-            let level = self.chain.level(self.next, f0, trusted, sure, &mut self.bins);
+            let level = self.chain.level(self.next, f0, trusted, &mut self.bins);
             self.f0.push(f0);
             self.level_db.push(self.raw_rms[j]);
             self.hop_levels.push(level);
@@ -1000,28 +1007,37 @@ impl PitchTrack {
             reject_outliers_offline_min_iqr(&mut nf, TUKEY_K, self.min_iqr_st);
             s.f0 = nf;
         }
-        let (trusted, sure) = match &self.note_side {
-            Some(s) if self.agree => (
-                agree_mask(&f0, &s.f0, AGREE_TOL_ST),
-                (0..n)
-                    .map(|i| s.conf.get(i).copied().unwrap_or(0.0) >= MIX_LEAD_SURE)
-                    .collect(),
-            ),
-            _ => (Vec::new(), Vec::new()),
+        let trusted = match &self.note_side {
+            Some(s) if self.agree => agree_mask(&f0, &s.f0, AGREE_TOL_ST),
+            _ => Vec::new(),
         };
-        let r = match self.geo.level_rule {
-            LevelRule::Paper => range_offline(&f0),
-            LevelRule::Follow => range_quantiles_kept_or_sure(
+        let kept = |sure: &[bool], p: f32| {
+            range_quantiles_kept_or_sure(
                 &f0,
                 &trusted,
-                &sure,
-                FOLLOW_RANGE_QUANTILE,
+                sure,
+                p,
                 self.held_hops,
                 HELD_TOL_ST,
                 self.shadow_hops,
                 HELD_MIN_SHARE,
                 HELD_MIN_HOPS,
-            ),
+            )
+        };
+        let r = match (self.geo.level_rule, &self.note_side) {
+            (LevelRule::Paper, _) => range_offline(&f0),
+            // A mixture's lead: narrowed to the sure hops ([`MIX_LEAD_SURE`]).
+            (LevelRule::Follow, Some(s)) if self.agree => {
+                let sure: Vec<bool> = (0..n)
+                    .map(|i| s.conf.get(i).copied().unwrap_or(0.0) >= MIX_LEAD_SURE)
+                    .collect();
+                narrow_range(
+                    kept(&[], FOLLOW_RANGE_QUANTILE),
+                    kept(&sure, MIX_LEAD_SURE_QUANTILE),
+                    MIX_LEAD_SURE_MARGIN_ST,
+                )
+            }
+            (LevelRule::Follow, _) => kept(&[], FOLLOW_RANGE_QUANTILE),
         };
         let levels: Vec<u8> = match r {
             Some(r) => f0.iter().map(|&f| self.chain.disc.level(f, r)).collect(),
