@@ -381,10 +381,13 @@ pub fn narrow_range(
     sure: Option<(f32, f32)>,
     margin_st: f32,
 ) -> Option<(f32, f32)> {
-    let ((lo, hi), (ls, hs)) = (range?, match sure {
-        Some(s) => s,
-        None => return range,
-    });
+    let ((lo, hi), (ls, hs)) = (
+        range?,
+        match sure {
+            Some(s) => s,
+            None => return range,
+        },
+    );
     let k = (margin_st / 12.0).exp2();
     let (a, b) = (lo.max(ls / k), hi.min(hs * k));
     if a <= b {

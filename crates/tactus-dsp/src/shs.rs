@@ -1524,7 +1524,8 @@ impl Tracker {
         }
         // The learned salience's confidence in this pitch (module docs, "Learned salience").
         let aperiodicity = if self.learned {
-            let near = state.saturating_sub(CONFIDENCE_BINS)..(state + CONFIDENCE_BINS + 1).min(self.m);
+            let near =
+                state.saturating_sub(CONFIDENCE_BINS)..(state + CONFIDENCE_BINS + 1).min(self.m);
             (1.0 - s[near].iter().sum::<f32>()).clamp(0.0, 1.0)
         } else {
             1.0 - v

@@ -512,6 +512,63 @@ fn tracks_a_clean_bass_line() {
     );
 }
 
+/// A learned tracker's voiced estimate carries the network's confidence in its pitch,
+/// `1 − aperiodicity` = the probability of the candidates within `CONFIDENCE_BINS` of the
+/// decided one (`tactus_dsp::shs` module docs, "Learned salience"): a part of the network's
+/// voicing probability `1 − p(no pitch)`, so never above it, and high inside clean notes. The
+/// harmonic sum's estimates, and the learned tracker's unvoiced ones, keep
+/// `aperiodicity = 1 − voiced_prob`.
+#[test]
+fn a_learned_trackers_estimates_carry_its_confidence_in_their_pitch() {
+    let (x, truth) = bass_line(&[55.0, 82.4, 65.4, 110.0, 49.0, 73.4], 0.5);
+    let mut s = Shs::new(cfg()).unwrap();
+    let out = common::run(&mut s, &x, &[4096]);
+    let hop = s.hop();
+    let (mut inside, mut sure, mut below, mut voiced) = (0, 0, 0, 0);
+    for (h, e) in out.iter().enumerate() {
+        if !e.is_voiced() {
+            assert_eq!(
+                e.aperiodicity.to_bits(),
+                (1.0 - e.voiced_prob).to_bits(),
+                "hop {h}"
+            );
+            continue;
+        }
+        voiced += 1;
+        let c = 1.0 - e.aperiodicity;
+        assert!(
+            (0.0..=e.voiced_prob + 1e-5).contains(&c),
+            "hop {h}: confidence {c} against voicing {}",
+            e.voiced_prob
+        );
+        below += usize::from(c < e.voiced_prob - 0.01);
+        let t = h * hop;
+        if t >= 490 && t + 490 < truth.len() && (t - 490..t + 490).all(|j| truth[j] > 0.0) {
+            inside += 1;
+            sure += usize::from(c >= 0.7);
+        }
+    }
+    assert!(
+        voiced > 100 && inside > 80,
+        "{voiced} voiced, {inside} voiced inside notes"
+    );
+    assert!(
+        sure * 10 >= inside * 9,
+        "sure (≥ 0.7) on {sure} of {inside} hops inside clean notes"
+    );
+    assert!(below > 0, "the confidence is not the voicing probability");
+    let mut c = cfg();
+    c.learned = false;
+    let mut plain = Shs::new(c).unwrap();
+    for (h, e) in common::run(&mut plain, &x, &[4096]).iter().enumerate() {
+        assert_eq!(
+            e.aperiodicity.to_bits(),
+            (1.0 - e.voiced_prob).to_bits(),
+            "hop {h}"
+        );
+    }
+}
+
 #[test]
 fn stated_latency_matches_emission_and_a_step() {
     let c = cfg();

@@ -3,9 +3,10 @@
 //! pitch track (against an obvious offline oracle, streaming = offline, stated latency).
 
 use tactus_dsp::discretize::{
-    agree_mask, held_mask, pitches_agree, range_offline, range_quantiles, range_quantiles_held,
-    range_quantiles_kept, range_quantiles_kept_or, shadow_mask, HeldRange, PriorRange,
-    QuantileRange, RangePrior, MAX_SHADOW_HOPS, SHADOW_TOL_ST,
+    agree_mask, held_mask, narrow_range, pitches_agree, range_offline, range_quantiles,
+    range_quantiles_held, range_quantiles_kept, range_quantiles_kept_or,
+    range_quantiles_kept_or_sure, shadow_mask, HeldRange, PriorRange, QuantileRange, RangePrior,
+    MAX_SHADOW_HOPS, SHADOW_TOL_ST,
 };
 use tactus_dsp::notes::{note_onsets_offline, NoteConfig, NoteOnsets};
 use tactus_dsp::tukey::{reject_outliers_offline, reject_outliers_offline_min_iqr, SlidingTukey};
@@ -1040,6 +1041,115 @@ fn offline_held_or_agreed_range_is_the_rule_written_out() {
             );
         }
     }
+}
+
+#[test]
+fn offline_range_of_sure_held_or_agreed_hops_is_the_rule_written_out() {
+    // `range_quantiles_kept_or_sure`: the held mask is judged on every voiced hop, then a hop
+    // counts when it is (held or trusted) and sure and not a shadow; the fallbacks read the
+    // kept count as before. Against the rule written out, for sure masks that leave out
+    // runs of hops (as a tracker unsure of a stretch does) and single hops.
+    for seed in 1..5u64 {
+        let f = line_with_octave_shadows(1500, seed);
+        let g = second_tracker(&f, seed);
+        let trusted = agree_by_hand(&f, &g, 1.0);
+        let mut x = seed.wrapping_mul(0x2545_f491_4f6c_dd1d) | 1;
+        let mut next = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        // Unsure in runs of 40 hops (one run in three) and on one hop in seven.
+        let runs: Vec<bool> = (0..f.len() / 40 + 1).map(|_| next() % 3 != 0).collect();
+        let sure: Vec<bool> = (0..f.len())
+            .map(|i| runs[i / 40] && next() % 7 != 0)
+            .collect();
+        let mut moved = 0;
+        for (k, w, share, min_hops) in [
+            (8usize, 0usize, 0.25f32, 300u64),
+            (5, 25, 0.25, 50),
+            (0, 25, 0.5, 1),
+            (16, 0, 0.9, 1),
+        ] {
+            let held = held_by_hand(&f, k, 1.0);
+            let shadow = shadow_by_hand(&f, w);
+            let voiced = |x: f32| x.is_finite() && x > 0.0;
+            let mask: Vec<bool> = (0..f.len())
+                .map(|i| {
+                    (held[i] || (trusted[i] && voiced(f[i]))) && sure[i] && !(w > 0 && shadow[i])
+                })
+                .collect();
+            let (kept, _, use_kept) = held_rule_by_hand(&f, &mask, share, min_hops);
+            for p in [0.01f32, 0.02] {
+                let want = range_quantiles(if use_kept { &kept[..] } else { &f[..] }, p);
+                let got = range_quantiles_kept_or_sure(
+                    &f, &trusted, &sure, p, k, 1.0, w, share, min_hops,
+                );
+                assert_eq!(got, want, "seed {seed} k {k} w {w} p {p}");
+                moved += usize::from(
+                    got != range_quantiles_kept_or(&f, &trusted, p, k, 1.0, w, share, min_hops),
+                );
+            }
+            // No sure mask, or every hop sure, is `range_quantiles_kept_or`.
+            let plain = range_quantiles_kept_or(&f, &trusted, 0.01, k, 1.0, w, share, min_hops);
+            assert_eq!(
+                range_quantiles_kept_or_sure(&f, &trusted, &[], 0.01, k, 1.0, w, share, min_hops),
+                plain
+            );
+            assert_eq!(
+                range_quantiles_kept_or_sure(
+                    &f,
+                    &trusted,
+                    &vec![true; f.len()],
+                    0.01,
+                    k,
+                    1.0,
+                    w,
+                    share,
+                    min_hops
+                ),
+                plain
+            );
+        }
+        assert!(moved > 0, "seed {seed}: the sure mask never mattered");
+    }
+}
+
+#[test]
+fn a_range_narrowed_to_its_sure_hops_keeps_at_most_the_margin_beyond_them() {
+    let r = |a: f32, b: f32| Some((hz(a), hz(b)));
+    let st = |x: Option<(f32, f32)>| {
+        let (a, b) = x.unwrap();
+        (hz_to_semitones(a), hz_to_semitones(b))
+    };
+    let close = |a: (f32, f32), b: (f32, f32)| (a.0 - b.0).abs() < 1e-3 && (a.1 - b.1).abs() < 1e-3;
+    // Unsure hops stretched the range 12 semitones down and 5 up: a semitone is left of each.
+    assert!(close(
+        st(narrow_range(r(48.0, 77.0), r(60.0, 72.0), 1.0)),
+        (59.0, 73.0)
+    ));
+    // Within the margin nothing moves; a margin of 0 is the sure range inside the range.
+    assert!(close(
+        st(narrow_range(r(59.5, 72.5), r(60.0, 72.0), 1.0)),
+        (59.5, 72.5)
+    ));
+    assert!(close(
+        st(narrow_range(r(48.0, 77.0), r(60.0, 72.0), 0.0)),
+        (60.0, 72.0)
+    ));
+    // Never wider than the range itself, whatever the sure hops say.
+    assert!(close(
+        st(narrow_range(r(60.0, 72.0), r(50.0, 80.0), 1.0)),
+        (60.0, 72.0)
+    ));
+    // No sure range, no range, or an empty result: the range as it was.
+    assert_eq!(narrow_range(r(48.0, 77.0), None, 1.0), r(48.0, 77.0));
+    assert_eq!(narrow_range(None, r(60.0, 72.0), 1.0), None);
+    assert_eq!(
+        narrow_range(r(48.0, 55.0), r(70.0, 72.0), 1.0),
+        r(48.0, 55.0)
+    );
 }
 
 #[test]

@@ -73,7 +73,7 @@ fn run(
 }
 
 /// The module's rule, written out: the voicing tracker's estimate, with the pitch tracker's
-/// f0 where both are voiced.
+/// f0 and aperiodicity (how sure it is of that pitch) where both are voiced.
 fn merged_by_hand(
     v: &[(usize, PitchEstimate)],
     p: &[(usize, PitchEstimate)],
@@ -86,6 +86,7 @@ fn merged_by_hand(
             let mut e = a;
             if a.f0_hz > 0.0 && b.f0_hz > 0.0 {
                 e.f0_hz = b.f0_hz;
+                e.aperiodicity = b.aperiodicity;
             }
             (i, e)
         })
@@ -129,6 +130,7 @@ fn the_pair_is_the_voicing_trackers_decisions_with_the_pitch_trackers_pitch() {
                 g.0
             );
             assert_eq!(g.1.voiced_prob.to_bits(), w.1.voiced_prob.to_bits());
+            assert_eq!(g.1.aperiodicity.to_bits(), w.1.aperiodicity.to_bits());
         }
         // Reset gives the same again.
         pair.reset();
@@ -179,6 +181,7 @@ fn vetoed_by_hand(
                 let mut e = a;
                 if a.f0_hz > 0.0 {
                     e.f0_hz = b.f0_hz;
+                    e.aperiodicity = b.aperiodicity;
                 }
                 (i, e, a)
             } else {
@@ -234,6 +237,7 @@ fn assert_both_eq(got: &[Both], want: &[Both], chunk: usize) {
             "chunk {chunk} hop {}",
             g.0
         );
+        assert_eq!(g.1.aperiodicity.to_bits(), w.1.aperiodicity.to_bits());
     }
 }
 

@@ -13,8 +13,7 @@
 use tactus_dsp::binner::{bin_beats, bin_levels, BeatBinner, LevelBinner};
 use tactus_dsp::discretize::{
     agree_mask, narrow_range, pitches_agree, range_offline, range_quantiles_kept_or_sure,
-    Discretizer, HeldRange,
-    RangePrior, RunningRange, Scale,
+    Discretizer, HeldRange, RangePrior, RunningRange, Scale,
 };
 use tactus_dsp::flux::{OnsetConfig, OnsetDetector, OnsetFrame};
 use tactus_dsp::median::MedianFilter;
@@ -533,9 +532,9 @@ impl Tracker {
             Tracker::Aligned(t) => {
                 t.process_both(x, &mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz), c(e)))
             }
-            Tracker::View(t) => {
-                t.process_view(x, view.unwrap_or(x), &mut |_, e, _| emit(e.f0_hz, None, c(e)))
-            }
+            Tracker::View(t) => t.process_view(x, view.unwrap_or(x), &mut |_, e, _| {
+                emit(e.f0_hz, None, c(e))
+            }),
         }
     }
 
@@ -544,9 +543,7 @@ impl Tracker {
         match self {
             Tracker::One(t) => t.finish(&mut |_, e| emit(e.f0_hz, None, c(e))),
             Tracker::Pair(p) => p.finish_both(&mut |_, e, v| emit(e.f0_hz, Some(v.f0_hz), c(e))),
-            Tracker::Aligned(t) => {
-                t.finish_both(&mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz), c(e)))
-            }
+            Tracker::Aligned(t) => t.finish_both(&mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz), c(e))),
             Tracker::View(t) => t.finish_view(&mut |_, e, _| emit(e.f0_hz, None, c(e))),
         }
     }
@@ -577,8 +574,8 @@ struct NoteSide {
     tukey: SlidingTukey,
     /// After gate and fences, like `PitchTrack::f0`.
     f0: Vec<f32>,
-    /// The merged estimate's confidence per hop (kept like `raw`; the pair's learned tracker's
-    /// confidence in its pitch, [`MIX_LEAD_SURE`]).
+    /// A mixture's lead (`PitchTrack::agree`): the merged estimate's confidence per hop (kept
+    /// like `raw`; the pair's learned tracker's confidence in its pitch, [`MIX_LEAD_SURE`]).
     conf: Vec<f32>,
     conf_skipped: usize,
 }
@@ -911,12 +908,14 @@ impl PitchTrack {
             None => None,
         };
         let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
-        let side = &mut self.note_side;
+        let (side, agree) = (&mut self.note_side, self.agree);
         self.tracker.process(block, view, &mut |f, nf, c| {
             advanced_push(raw_f0, skipped, advance, f);
             if let (Some(s), Some(nf)) = (side.as_mut(), nf) {
                 advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
-                advanced_push(&mut s.conf, &mut s.conf_skipped, advance, c);
+                if agree {
+                    advanced_push(&mut s.conf, &mut s.conf_skipped, advance, c);
+                }
             }
         });
         let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
@@ -929,12 +928,14 @@ impl PitchTrack {
     /// Ends the stream (and, offline, computes the whole-track statistics).
     pub fn finish(&mut self) {
         let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
-        let side = &mut self.note_side;
+        let (side, agree) = (&mut self.note_side, self.agree);
         self.tracker.finish(&mut |f, nf, c| {
             advanced_push(raw_f0, skipped, advance, f);
             if let (Some(s), Some(nf)) = (side.as_mut(), nf) {
                 advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
-                advanced_push(&mut s.conf, &mut s.conf_skipped, advance, c);
+                if agree {
+                    advanced_push(&mut s.conf, &mut s.conf_skipped, advance, c);
+                }
             }
         });
         // The advanced track ends as long as it would have: the dropped hops come back
@@ -942,7 +943,9 @@ impl PitchTrack {
         raw_f0.extend(std::iter::repeat_n(0.0, *skipped));
         if let Some(s) = side {
             s.raw.extend(std::iter::repeat_n(0.0, s.skipped));
-            s.conf.extend(std::iter::repeat_n(0.0, s.conf_skipped));
+            if agree {
+                s.conf.extend(std::iter::repeat_n(0.0, s.conf_skipped));
+            }
         }
         let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
         self.rms
@@ -1072,6 +1075,18 @@ impl PitchTrack {
         match (&self.tracker, &self.note_side) {
             (Tracker::Pair(_), Some(s)) => &s.f0,
             _ => &self.f0,
+        }
+    }
+
+    /// For a voicing/pitch pair, the pitch tracker's confidence in its pitch per hop (`1 −`
+    /// the merged estimate's aperiodicity; the learned lead's, `tactus_dsp::shs` module docs,
+    /// "Learned salience"), as the tracker gave it, before gate and fences: offline every hop
+    /// (what the offline level range reads, [`MIX_LEAD_SURE`]), streaming only the hops not
+    /// yet consumed. Empty for any other tracker.
+    pub fn pitch_confidence(&self) -> &[f32] {
+        match (&self.tracker, &self.note_side) {
+            (Tracker::Pair(_), Some(s)) => &s.conf,
+            _ => &[],
         }
     }
 

@@ -5,17 +5,21 @@
 //! pitch (since 2026-11-28; before, the harmonic sum's own), offline and streaming, for any
 //! chunking. Its level range comes
 //! from held notes or hops both trackers agree on (README, "The mix's lead range from held or
-//! agreed hops"), against `tactus_dsp`'s range functions replayed on the track's two pitches.
+//! agreed hops"), offline narrowed to the hops where the learned tracker is sure of its pitch
+//! (README, "The mix's lead range narrowed to sure hops"), against `tactus_dsp`'s range
+//! functions replayed on the track's two pitches and its confidence.
 
 use tactus_dsp::discretize::{
-    agree_mask, pitches_agree, range_quantiles_kept_or, Discretizer, HeldRange, RangePrior,
+    agree_mask, narrow_range, pitches_agree, range_quantiles_kept_or, range_quantiles_kept_or_sure,
+    Discretizer, HeldRange, RangePrior,
 };
 use tactus_dsp::Stem;
 use tactus_engine::notes::{NoteRole, PitchNotes};
 use tactus_engine::profile::Profile;
 use tactus_engine::track::{
     prior_span_st, PitchTrack, AGREE_TOL_ST, FOLLOW_PRIOR_FADE_HOPS, FOLLOW_RANGE_QUANTILE,
-    HELD_MIN_HOPS, HELD_MIN_SHARE, HELD_TOL_ST, MIX_LEAD_HELD_HOPS,
+    HELD_MIN_HOPS, HELD_MIN_SHARE, HELD_TOL_ST, MIX_LEAD_HELD_HOPS, MIX_LEAD_SURE,
+    MIX_LEAD_SURE_MARGIN_ST, MIX_LEAD_SURE_QUANTILE,
 };
 use tactus_engine::{Mode, NoteRule, PitchMethod};
 
@@ -55,6 +59,59 @@ fn lead_with_short_extremes() -> Vec<f32> {
         (62.0, 0.4),
         (64.0, 0.4),
     ])
+}
+
+/// The line of [`lead_over_chords`] without its rests, three times, and in the two breaks
+/// between the passes (1 s each) the lead rests while a dyad (D3 + A3, eight harmonics)
+/// sounds over the pad: the pair holds a pitch near B3 there, two and a half semitones
+/// under the lead's lowest note, of which the learned tracker is unsure.
+fn lead_with_a_dyad_in_its_rests() -> Vec<f32> {
+    let notes = [
+        (64.0, 0.4),
+        (67.0, 0.3),
+        (69.0, 0.5),
+        (72.0, 0.3),
+        (71.0, 0.25),
+        (67.0, 0.5),
+        (62.0, 0.4),
+        (64.0, 0.4),
+    ];
+    let sr = SR as f64;
+    let (mut x, mut ph, mut t) = (Vec::new(), 0.0f64, 0.0f64);
+    let pad = |t: f64| -> f64 {
+        [220.0, 261.6]
+            .iter()
+            .map(|pf| 0.03 * (std::f64::consts::TAU * pf * t).sin())
+            .sum()
+    };
+    for pass in 0..3 {
+        for &(st, dur) in &notes {
+            let f = 440.0 * ((st - 69.0) / 12.0f64).exp2();
+            for i in 0..(dur * sr) as usize {
+                let vib = 1.0 + 0.004 * (std::f64::consts::TAU * 5.5 * i as f64 / sr).sin();
+                ph += std::f64::consts::TAU * f * vib / sr;
+                let s: f64 = (1..=8)
+                    .map(|h| 0.08 / h as f64 * (h as f64 * ph).sin())
+                    .sum();
+                x.push((s + pad(t)) as f32);
+                t += 1.0 / sr;
+            }
+        }
+        if pass < 2 {
+            for _ in 0..sr as usize {
+                let mut s = pad(t);
+                for m in [50.0f64, 57.0] {
+                    let f = 440.0 * ((m - 69.0) / 12.0f64).exp2();
+                    for h in 1..=8 {
+                        s += 0.08 / h as f64 * (std::f64::consts::TAU * f * h as f64 * t).sin();
+                    }
+                }
+                x.push(s as f32);
+                t += 1.0 / sr;
+            }
+        }
+    }
+    x
 }
 
 /// Three passes of `notes` (MIDI, seconds; 0 = rest) over the pad.
@@ -202,9 +259,32 @@ fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
         HELD_MIN_SHARE,
         HELD_MIN_HOPS,
     );
+    // Offline, narrowed to a semitone beyond the sure hops' range.
+    let conf = t.pitch_confidence();
+    assert_eq!(conf.len(), t.f0.len());
+    let sure: Vec<bool> = conf.iter().map(|&c| c >= MIX_LEAD_SURE).collect();
+    let unsure = (0..t.f0.len())
+        .filter(|&i| t.f0[i] > 0.0 && !sure[i])
+        .count();
+    assert!(
+        unsure > 0 && unsure * 2 < voiced,
+        "{unsure} of {voiced} voiced hops unsure"
+    );
+    let sure_range = range_quantiles_kept_or_sure(
+        &t.f0,
+        &trusted,
+        &sure,
+        MIX_LEAD_SURE_QUANTILE,
+        MIX_LEAD_HELD_HOPS,
+        HELD_TOL_ST,
+        0,
+        HELD_MIN_SHARE,
+        HELD_MIN_HOPS,
+    );
+    let narrowed = narrow_range(range, sure_range, MIX_LEAD_SURE_MARGIN_ST);
     let want: Vec<u8> =
         t.f0.iter()
-            .map(|&f| range.map_or(0, |r| d.level(f, r)))
+            .map(|&f| narrowed.map_or(0, |r| d.level(f, r)))
             .collect();
     assert_eq!(t.hop_levels, want);
     // The rule matters here: held notes alone lose the low eighth (C4), the agreed hops keep
@@ -227,6 +307,93 @@ fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
     );
     // Streaming, hop by hop: the held range fed each hop's agreement.
     let (s, _) = track(PitchMethod::Learned, Mode::Streaming, &x, 4096);
+    let mut r = HeldRange::with_prior(
+        RangePrior::Span(prior_span_st(hi)),
+        FOLLOW_PRIOR_FADE_HOPS,
+        FOLLOW_RANGE_QUANTILE,
+        MIX_LEAD_HELD_HOPS,
+        HELD_TOL_ST,
+        HELD_MIN_SHARE,
+        HELD_MIN_HOPS,
+    )
+    .unwrap();
+    let want: Vec<u8> =
+        s.f0.iter()
+            .zip(s.voicing_f0())
+            .map(|(&f, &n)| {
+                r.update_trusted(f, pitches_agree(f, n, AGREE_TOL_ST))
+                    .map_or(0, |range| d.level(f, range))
+            })
+            .collect();
+    assert_eq!(s.hop_levels, want);
+}
+
+#[test]
+fn offline_the_mix_leads_range_is_narrowed_to_a_semitone_beyond_its_sure_hops() {
+    let x = lead_with_a_dyad_in_its_rests();
+    let d = Discretizer::default();
+    let (t, _) = track(PitchMethod::Learned, Mode::Offline, &x, 4096);
+    let st = |f: f32| 69.0 + 12.0 * (f / 440.0).log2();
+    let conf = t.pitch_confidence();
+    assert_eq!(conf.len(), t.f0.len());
+    // The held pitch in the breaks is under the lead's compass, and the tracker is unsure of
+    // it; inside the lead's notes it is sure.
+    let (mut low, mut low_unsure, mut lead, mut lead_sure) = (0, 0, 0, 0);
+    for (&f, &c) in t.f0.iter().zip(conf) {
+        if f <= 0.0 {
+            continue;
+        }
+        if st(f) < 61.0 {
+            low += 1;
+            low_unsure += usize::from(c < MIX_LEAD_SURE);
+        } else {
+            lead += 1;
+            lead_sure += usize::from(c >= MIX_LEAD_SURE);
+        }
+    }
+    assert!(
+        low >= 100 && low_unsure == low,
+        "{low_unsure} of {low} low hops unsure"
+    );
+    assert!(
+        lead_sure * 5 >= lead * 4,
+        "{lead_sure} of {lead} lead hops sure"
+    );
+    let trusted = agree_mask(&t.f0, t.voicing_f0(), AGREE_TOL_ST);
+    let sure: Vec<bool> = conf.iter().map(|&c| c >= MIX_LEAD_SURE).collect();
+    let kept = |sure: &[bool], p: f32| {
+        range_quantiles_kept_or_sure(
+            &t.f0,
+            &trusted,
+            sure,
+            p,
+            MIX_LEAD_HELD_HOPS,
+            HELD_TOL_ST,
+            0,
+            HELD_MIN_SHARE,
+            HELD_MIN_HOPS,
+        )
+    };
+    let range = kept(&[], FOLLOW_RANGE_QUANTILE);
+    let narrowed = narrow_range(
+        range,
+        kept(&sure, MIX_LEAD_SURE_QUANTILE),
+        MIX_LEAD_SURE_MARGIN_ST,
+    );
+    let want: Vec<u8> =
+        t.f0.iter()
+            .map(|&f| narrowed.map_or(0, |r| d.level(f, r)))
+            .collect();
+    assert_eq!(t.hop_levels, want);
+    // The rule matters here: the held or agreed hops reach down to the break's pitch, the
+    // narrowed range stops a semitone under the lead's lowest note (D4, MIDI 62).
+    let (a, b) = (range.unwrap(), narrowed.unwrap());
+    assert!(st(a.0) < 60.0, "held or agreed from {}", st(a.0));
+    assert!((st(b.0) - 61.0).abs() < 0.3, "narrowed from {}", st(b.0));
+    assert_eq!(a.1, b.1, "the top is the lead's own");
+    // Streaming has no narrowing: the held or agreed range, hop by hop.
+    let (s, _) = track(PitchMethod::Learned, Mode::Streaming, &x, 4096);
+    let (_, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
     let mut r = HeldRange::with_prior(
         RangePrior::Span(prior_span_st(hi)),
         FOLLOW_PRIOR_FADE_HOPS,
