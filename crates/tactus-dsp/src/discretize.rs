@@ -86,7 +86,9 @@
 //! own extremes can be unsure too (a soprano's low notes under the alto), and dropping them
 //! narrows a short range. So the range of the held or agreed hops is narrowed to at most
 //! `margin` semitones beyond the range of those of them that are also sure: the held test
-//! still reads every voiced hop, and the fallbacks are unchanged.
+//! still reads every voiced hop, and the fallbacks are unchanged. A mixture's bass line uses
+//! the bottom only: its unsure hops under the line are a kick's body or a subharmonic, but
+//! its unsure high notes are real.
 //!
 //! **Register prior** ([`RangePrior::Register`], [`PriorRange::with_prior`], our addition,
 //! issue 16). A span prior pads the first notes symmetrically, but where a line starts says
@@ -373,13 +375,16 @@ pub fn range_quantiles_kept_or_sure(
     }
 }
 
-/// `range` narrowed to at most `margin_st` semitones beyond `sure` at each end (module docs,
-/// "Narrowed to the sure hops"): `(max(lo, lo_s · 2^(−m/12)), min(hi, hi_s · 2^(m/12)))`,
-/// in Hz. `range` itself when `sure` is `None` or the narrowed range would be empty.
+/// `range` narrowed to at most `below_st` semitones under `sure`'s bottom and `above_st`
+/// over its top (module docs, "Narrowed to the sure hops"):
+/// `(max(lo, lo_s · 2^(−below/12)), min(hi, hi_s · 2^(above/12)))`, in Hz; an infinite
+/// margin leaves that end as it is. `range` itself when `sure` is `None` or the narrowed
+/// range would be empty.
 pub fn narrow_range(
     range: Option<(f32, f32)>,
     sure: Option<(f32, f32)>,
-    margin_st: f32,
+    below_st: f32,
+    above_st: f32,
 ) -> Option<(f32, f32)> {
     let ((lo, hi), (ls, hs)) = (
         range?,
@@ -388,8 +393,10 @@ pub fn narrow_range(
             None => return range,
         },
     );
-    let k = (margin_st / 12.0).exp2();
-    let (a, b) = (lo.max(ls / k), hi.min(hs * k));
+    let (a, b) = (
+        lo.max(ls / (below_st / 12.0).exp2()),
+        hi.min(hs * (above_st / 12.0).exp2()),
+    );
     if a <= b {
         Some((a, b))
     } else {

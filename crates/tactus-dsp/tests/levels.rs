@@ -1126,28 +1126,38 @@ fn a_range_narrowed_to_its_sure_hops_keeps_at_most_the_margin_beyond_them() {
     let close = |a: (f32, f32), b: (f32, f32)| (a.0 - b.0).abs() < 1e-3 && (a.1 - b.1).abs() < 1e-3;
     // Unsure hops stretched the range 12 semitones down and 5 up: a semitone is left of each.
     assert!(close(
-        st(narrow_range(r(48.0, 77.0), r(60.0, 72.0), 1.0)),
+        st(narrow_range(r(48.0, 77.0), r(60.0, 72.0), 1.0, 1.0)),
         (59.0, 73.0)
     ));
     // Within the margin nothing moves; a margin of 0 is the sure range inside the range.
     assert!(close(
-        st(narrow_range(r(59.5, 72.5), r(60.0, 72.0), 1.0)),
+        st(narrow_range(r(59.5, 72.5), r(60.0, 72.0), 1.0, 1.0)),
         (59.5, 72.5)
     ));
     assert!(close(
-        st(narrow_range(r(48.0, 77.0), r(60.0, 72.0), 0.0)),
+        st(narrow_range(r(48.0, 77.0), r(60.0, 72.0), 0.0, 0.0)),
         (60.0, 72.0)
+    ));
+    // Each end its own margin; an infinite one leaves that end alone (a bass line's bottom
+    // only).
+    assert!(close(
+        st(narrow_range(r(48.0, 77.0), r(60.0, 72.0), 1.0, 3.0)),
+        (59.0, 75.0)
+    ));
+    assert!(close(
+        st(narrow_range(r(28.0, 55.0), r(40.0, 48.0), 1.0, f32::INFINITY)),
+        (39.0, 55.0)
     ));
     // Never wider than the range itself, whatever the sure hops say.
     assert!(close(
-        st(narrow_range(r(60.0, 72.0), r(50.0, 80.0), 1.0)),
+        st(narrow_range(r(60.0, 72.0), r(50.0, 80.0), 1.0, 1.0)),
         (60.0, 72.0)
     ));
     // No sure range, no range, or an empty result: the range as it was.
-    assert_eq!(narrow_range(r(48.0, 77.0), None, 1.0), r(48.0, 77.0));
-    assert_eq!(narrow_range(None, r(60.0, 72.0), 1.0), None);
+    assert_eq!(narrow_range(r(48.0, 77.0), None, 1.0, 1.0), r(48.0, 77.0));
+    assert_eq!(narrow_range(None, r(60.0, 72.0), 1.0, 1.0), None);
     assert_eq!(
-        narrow_range(r(48.0, 55.0), r(70.0, 72.0), 1.0),
+        narrow_range(r(48.0, 55.0), r(70.0, 72.0), 1.0, 1.0),
         r(48.0, 55.0)
     );
 }

@@ -133,6 +133,49 @@ pub const MIX_LEAD_SURE_QUANTILE: f32 = 0.02;
 /// Semitones the lead's level range may reach beyond its sure hops' range ([`MIX_LEAD_SURE`]).
 pub const MIX_LEAD_SURE_MARGIN_ST: f32 = 1.0;
 
+/// The bass band of a mixture under the learned bass salience, offline: the bottom of the
+/// level range (held notes without octave shadows, [`MIX_BASS_HELD_HOPS`]) is raised to at
+/// most [`MIX_BASS_SURE_MARGIN_ST`] under the bottom ([`FOLLOW_RANGE_QUANTILE`]) of those of
+/// its hops where the learned tracker's confidence in its pitch is at least this; the top is
+/// left alone (README, "The mix's bass range from sure hops, at the bottom"). The unsure
+/// hops under a bass line are mostly a kick's body or a chord's subharmonic; its unsure high
+/// notes are real. Chosen on 204 tuning mixes and checked on 96 spent ones
+/// (`benches/trials/RULE_bass_sure_bottom.md`).
+pub const MIX_BASS_SURE: f32 = 0.95;
+
+/// Semitones the mix bass's level range may reach under its sure hops' bottom
+/// ([`MIX_BASS_SURE`]).
+pub const MIX_BASS_SURE_MARGIN_ST: f32 = 1.0;
+
+/// How a track's offline level range is narrowed to the hops its learned tracker is sure of
+/// (`tactus_dsp::discretize::narrow_range`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct SureRule {
+    /// Confidence at which a hop is sure.
+    min_conf: f32,
+    /// Quantile cut of the sure hops' range.
+    quantile: f32,
+    /// Semitones the range may reach under / over the sure range (∞: that end is kept).
+    below_st: f32,
+    above_st: f32,
+}
+
+/// [`MIX_LEAD_SURE`].
+const LEAD_SURE: SureRule = SureRule {
+    min_conf: MIX_LEAD_SURE,
+    quantile: MIX_LEAD_SURE_QUANTILE,
+    below_st: MIX_LEAD_SURE_MARGIN_ST,
+    above_st: MIX_LEAD_SURE_MARGIN_ST,
+};
+
+/// [`MIX_BASS_SURE`].
+const BASS_SURE: SureRule = SureRule {
+    min_conf: MIX_BASS_SURE,
+    quantile: FOLLOW_RANGE_QUANTILE,
+    below_st: MIX_BASS_SURE_MARGIN_ST,
+    above_st: f32::INFINITY,
+};
+
 /// `--levels-rule follow` on the bass band of a mixture: besides leaving out octave shadows
 /// ([`MIX_BASS_SHADOW_HOPS`]), a hop counts toward the level range only inside a held note,
 /// this many hops on each side within [`HELD_TOL_ST`] (README, "The mix's bass range from
@@ -574,10 +617,6 @@ struct NoteSide {
     tukey: SlidingTukey,
     /// After gate and fences, like `PitchTrack::f0`.
     f0: Vec<f32>,
-    /// A mixture's lead (`PitchTrack::agree`): the merged estimate's confidence per hop (kept
-    /// like `raw`; the pair's learned tracker's confidence in its pitch, [`MIX_LEAD_SURE`]).
-    conf: Vec<f32>,
-    conf_skipped: usize,
 }
 
 /// Pitch feature track of one melodic stem.
@@ -608,6 +647,13 @@ pub struct PitchTrack {
     /// A hop whose pitch the pair's voicing tracker agrees with counts as held
     /// ([`AGREE_TOL_ST`]; a mixture's lead).
     agree: bool,
+    /// Offline, the level range is narrowed to the hops the learned tracker is sure of
+    /// ([`MIX_LEAD_SURE`], [`MIX_BASS_SURE`]); `raw_conf` is then kept.
+    sure: Option<SureRule>,
+    /// The tracker's confidence in its pitch per hop (`1 −` aperiodicity; kept like
+    /// `raw_f0`, only with a `sure` rule).
+    raw_conf: Vec<f32>,
+    skipped_conf: usize,
     /// f0 per hop after gate and fences (streaming: filled as hops arrive; offline: at the end).
     pub f0: Vec<f32>,
     /// The stem's RMS per hop in dBFS, beside `f0` (same hops, before the gate): what note
@@ -753,6 +799,16 @@ impl PitchTrack {
         // (README, "The mix's lead range from held or agreed hops"); offline narrowed to the
         // hops where the learned tracker is sure of its pitch ([`MIX_LEAD_SURE`]).
         let agree = mixture && matches!(tracker, Tracker::Pair(_));
+        // Offline, narrowed to the hops the learned tracker is sure of: both ends for the
+        // lead, the bottom for the mix's learned bass (README, "The mix's lead range narrowed
+        // to sure hops", "The mix's bass range from sure hops, at the bottom").
+        let sure = if agree {
+            Some(LEAD_SURE)
+        } else if mixture && fmax_hz <= BASS_MAX_HZ && method == PitchMethod::Learned {
+            Some(BASS_SURE)
+        } else {
+            None
+        };
         let held_hops = if !mixture && fmax_hz <= BASS_MAX_HZ {
             CLEAN_BASS_HELD_HOPS
         } else if mixture && fmax_hz <= BASS_MAX_HZ {
@@ -779,8 +835,6 @@ impl PitchTrack {
                 tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
                     .with_min_iqr(min_iqr_st),
                 f0: Vec::new(),
-                conf: Vec::new(),
-                conf_skipped: 0,
             }),
             Tracker::One(_) | Tracker::View(_) => None,
         };
@@ -822,6 +876,9 @@ impl PitchTrack {
             held_hops,
             shadow_hops,
             agree,
+            sure,
+            raw_conf: Vec::new(),
+            skipped_conf: 0,
             f0: Vec::new(),
             level_db: Vec::new(),
             hop_levels: Vec::new(),
@@ -908,14 +965,16 @@ impl PitchTrack {
             None => None,
         };
         let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
-        let (side, agree) = (&mut self.note_side, self.agree);
+        let side = &mut self.note_side;
+        let (conf, skipped_conf) = (&mut self.raw_conf, &mut self.skipped_conf);
+        let keep_conf = self.sure.is_some();
         self.tracker.process(block, view, &mut |f, nf, c| {
             advanced_push(raw_f0, skipped, advance, f);
+            if keep_conf {
+                advanced_push(conf, skipped_conf, advance, c);
+            }
             if let (Some(s), Some(nf)) = (side.as_mut(), nf) {
                 advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
-                if agree {
-                    advanced_push(&mut s.conf, &mut s.conf_skipped, advance, c);
-                }
             }
         });
         let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
@@ -928,14 +987,16 @@ impl PitchTrack {
     /// Ends the stream (and, offline, computes the whole-track statistics).
     pub fn finish(&mut self) {
         let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
-        let (side, agree) = (&mut self.note_side, self.agree);
+        let side = &mut self.note_side;
+        let (conf, skipped_conf) = (&mut self.raw_conf, &mut self.skipped_conf);
+        let keep_conf = self.sure.is_some();
         self.tracker.finish(&mut |f, nf, c| {
             advanced_push(raw_f0, skipped, advance, f);
+            if keep_conf {
+                advanced_push(conf, skipped_conf, advance, c);
+            }
             if let (Some(s), Some(nf)) = (side.as_mut(), nf) {
                 advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
-                if agree {
-                    advanced_push(&mut s.conf, &mut s.conf_skipped, advance, c);
-                }
             }
         });
         // The advanced track ends as long as it would have: the dropped hops come back
@@ -943,9 +1004,9 @@ impl PitchTrack {
         raw_f0.extend(std::iter::repeat_n(0.0, *skipped));
         if let Some(s) = side {
             s.raw.extend(std::iter::repeat_n(0.0, s.skipped));
-            if agree {
-                s.conf.extend(std::iter::repeat_n(0.0, s.conf_skipped));
-            }
+        }
+        if keep_conf {
+            conf.extend(std::iter::repeat_n(0.0, *skipped_conf));
         }
         let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
         self.rms
@@ -985,8 +1046,8 @@ impl PitchTrack {
         self.raw_rms.drain(..ready);
         if let Some(s) = &mut self.note_side {
             s.raw.drain(..ready.min(s.raw.len()));
-            s.conf.drain(..ready.min(s.conf.len()));
         }
+        self.raw_conf.drain(..ready.min(self.raw_conf.len()));
     }
 
     fn post_offline(&mut self) {
@@ -1027,20 +1088,22 @@ impl PitchTrack {
                 HELD_MIN_HOPS,
             )
         };
-        let r = match (self.geo.level_rule, &self.note_side) {
+        let r = match (self.geo.level_rule, self.sure) {
             (LevelRule::Paper, _) => range_offline(&f0),
-            // A mixture's lead: narrowed to the sure hops ([`MIX_LEAD_SURE`]).
-            (LevelRule::Follow, Some(s)) if self.agree => {
+            // Narrowed to the hops the learned tracker is sure of ([`MIX_LEAD_SURE`],
+            // [`MIX_BASS_SURE`]).
+            (LevelRule::Follow, Some(rule)) => {
                 let sure: Vec<bool> = (0..n)
-                    .map(|i| s.conf.get(i).copied().unwrap_or(0.0) >= MIX_LEAD_SURE)
+                    .map(|i| self.raw_conf.get(i).copied().unwrap_or(0.0) >= rule.min_conf)
                     .collect();
                 narrow_range(
                     kept(&[], FOLLOW_RANGE_QUANTILE),
-                    kept(&sure, MIX_LEAD_SURE_QUANTILE),
-                    MIX_LEAD_SURE_MARGIN_ST,
+                    kept(&sure, rule.quantile),
+                    rule.below_st,
+                    rule.above_st,
                 )
             }
-            (LevelRule::Follow, _) => kept(&[], FOLLOW_RANGE_QUANTILE),
+            (LevelRule::Follow, None) => kept(&[], FOLLOW_RANGE_QUANTILE),
         };
         let levels: Vec<u8> = match r {
             Some(r) => f0.iter().map(|&f| self.chain.disc.level(f, r)).collect(),
@@ -1063,7 +1126,8 @@ impl PitchTrack {
             + self
                 .note_side
                 .as_ref()
-                .map_or(0, |s| s.raw.len() + s.f0.len() + s.conf.len())
+                .map_or(0, |s| s.raw.len() + s.f0.len())
+            + self.raw_conf.len()
     }
 
     /// For a voicing/pitch pair its voicing tracker's own pitch, per hop (after gate and
@@ -1078,16 +1142,15 @@ impl PitchTrack {
         }
     }
 
-    /// For a voicing/pitch pair, the pitch tracker's confidence in its pitch per hop (`1 −`
-    /// the merged estimate's aperiodicity; the learned lead's, `tactus_dsp::shs` module docs,
-    /// "Learned salience"), as the tracker gave it, before gate and fences: offline every hop
-    /// (what the offline level range reads, [`MIX_LEAD_SURE`]), streaming only the hops not
-    /// yet consumed. Empty for any other tracker.
+    /// For a track whose offline level range is narrowed to sure hops (a mixture's lead
+    /// through the pair, [`MIX_LEAD_SURE`]; a mixture's learned bass, [`MIX_BASS_SURE`]),
+    /// the learned tracker's confidence in its pitch per hop (`1 −` the estimate's
+    /// aperiodicity, `tactus_dsp::shs` module docs, "Learned salience"; for the pair the
+    /// merged estimate's, which is the pitch tracker's), as the tracker gave it, before gate
+    /// and fences: offline every hop, streaming only the hops not yet consumed. Empty for
+    /// any other track.
     pub fn pitch_confidence(&self) -> &[f32] {
-        match (&self.tracker, &self.note_side) {
-            (Tracker::Pair(_), Some(s)) => &s.conf,
-            _ => &[],
-        }
+        &self.raw_conf
     }
 
     /// The pitch the note onsets read, per hop (after gate and fences): for a tracker with

@@ -281,7 +281,12 @@ fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
         HELD_MIN_SHARE,
         HELD_MIN_HOPS,
     );
-    let narrowed = narrow_range(range, sure_range, MIX_LEAD_SURE_MARGIN_ST);
+    let narrowed = narrow_range(
+        range,
+        sure_range,
+        MIX_LEAD_SURE_MARGIN_ST,
+        MIX_LEAD_SURE_MARGIN_ST,
+    );
     let want: Vec<u8> =
         t.f0.iter()
             .map(|&f| narrowed.map_or(0, |r| d.level(f, r)))
@@ -378,6 +383,7 @@ fn offline_the_mix_leads_range_is_narrowed_to_a_semitone_beyond_its_sure_hops() 
     let narrowed = narrow_range(
         range,
         kept(&sure, MIX_LEAD_SURE_QUANTILE),
+        MIX_LEAD_SURE_MARGIN_ST,
         MIX_LEAD_SURE_MARGIN_ST,
     );
     let want: Vec<u8> =
