@@ -1145,7 +1145,12 @@ fn a_range_narrowed_to_its_sure_hops_keeps_at_most_the_margin_beyond_them() {
         (59.0, 75.0)
     ));
     assert!(close(
-        st(narrow_range(r(28.0, 55.0), r(40.0, 48.0), 1.0, f32::INFINITY)),
+        st(narrow_range(
+            r(28.0, 55.0),
+            r(40.0, 48.0),
+            1.0,
+            f32::INFINITY
+        )),
         (39.0, 55.0)
     ));
     // Never wider than the range itself, whatever the sure hops say.

@@ -1,0 +1,180 @@
+//! The mix's learned bass, offline: the bottom of its level range comes from the hops the
+//! learned tracker is sure of ([`MIX_BASS_SURE`], README "The mix's bass range from sure
+//! hops, at the bottom"), through the real learned tracker on audio, against `tactus_dsp`'s
+//! range functions replayed on the track's pitch and confidence. A kick-like thump in the
+//! line's gaps is tracked as a held low pitch the tracker is unsure of: the held-note range
+//! reaches it, the narrowed one stops a semitone under the line. Streaming keeps the
+//! held-note rule, and the harmonic-sum bass has no confidence rule.
+
+use tactus_dsp::discretize::{
+    narrow_range, range_quantiles_kept, range_quantiles_kept_or_sure, Discretizer, HeldRange,
+    RangePrior,
+};
+use tactus_engine::profile::Profile;
+use tactus_engine::track::{
+    prior_span_st, PitchTrack, FOLLOW_PRIOR_FADE_HOPS, FOLLOW_RANGE_QUANTILE, HELD_MIN_HOPS,
+    HELD_MIN_SHARE, HELD_TOL_ST, MIX_BASS_HELD_HOPS, MIX_BASS_SHADOW_HOPS, MIX_BASS_SURE,
+    MIX_BASS_SURE_MARGIN_ST,
+};
+use tactus_engine::{Mode, PitchMethod};
+
+mod common;
+use common::SR;
+
+/// A plucked bass line E2 G2 A2 C3 D3 (0.3 s notes, no two an octave apart, so that the
+/// octave-shadow rule keeps the line), sixteen times (the narrowing needs 300 sure held
+/// hops, `HELD_MIN_HOPS`); after every A2 a 0.3 s thump, a sine gliding down to 55 Hz (A1)
+/// and decaying in 0.1 s, as a kick's body sounds in the bass band. Its pitch, MIDI 33–34, is no octave under a note of the line, so the
+/// octave-shadow rule keeps it.
+fn line_with_thumps() -> Vec<f32> {
+    let sr = SR as f32;
+    let mut x = vec![0.0f32; SR as usize / 4];
+    let mut ph = 0.0f32;
+    for _ in 0..16 {
+        for st in [40.0f32, 43.0, 45.0, 48.0, 50.0] {
+            let f = 440.0 * ((st - 69.0) / 12.0).exp2();
+            for i in 0..(0.3 * sr) as usize {
+                ph += std::f32::consts::TAU * f / sr;
+                let env = 0.4 * (-(i as f32) / (0.5 * sr)).exp();
+                x.push(env * (ph.sin() + 0.6 * (2.0 * ph).sin() + 0.3 * (3.0 * ph).sin()));
+            }
+            if st == 45.0 {
+                let mut kp = 0.0f32;
+                for i in 0..(0.3 * sr) as usize {
+                    let fk = 55.0 * (1.0 + 0.5 * (-(i as f32) / (0.02 * sr)).exp());
+                    kp += std::f32::consts::TAU * fk / sr;
+                    x.push(0.8 * (-(i as f32) / (0.1 * sr)).exp() * kp.sin());
+                }
+            }
+        }
+    }
+    x
+}
+
+fn track(method: PitchMethod, mode: Mode, x: &[f32], chunk: usize) -> PitchTrack {
+    let (lo, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
+    let geo = common::geo(mode, Profile::Full);
+    let mut t = PitchTrack::new(geo, lo, hi, method, true).unwrap();
+    for b in x.chunks(chunk) {
+        t.process(b);
+    }
+    t.finish();
+    t
+}
+
+fn levels(f0: &[f32], range: Option<(f32, f32)>) -> Vec<u8> {
+    let d = Discretizer::default();
+    f0.iter()
+        .map(|&f| range.map_or(0, |r| d.level(f, r)))
+        .collect()
+}
+
+fn st(f: f32) -> f32 {
+    69.0 + 12.0 * (f / 440.0).log2()
+}
+
+#[test]
+fn offline_the_mix_bass_range_bottom_comes_from_its_sure_hops() {
+    let x = line_with_thumps();
+    let t = track(PitchMethod::Learned, Mode::Offline, &x, 4096);
+    let conf = t.pitch_confidence();
+    assert_eq!(conf.len(), t.f0.len());
+    // The thumps are tracked under the line and the tracker is unsure of them; it is sure
+    // of two thirds of the line.
+    let (mut low, mut low_unsure, mut line, mut line_sure) = (0, 0, 0, 0);
+    for (&f, &c) in t.f0.iter().zip(conf) {
+        if f <= 0.0 {
+            continue;
+        }
+        if st(f) < 38.5 {
+            low += 1;
+            low_unsure += usize::from(c < MIX_BASS_SURE);
+        } else {
+            line += 1;
+            line_sure += usize::from(c >= MIX_BASS_SURE);
+        }
+    }
+    assert!(
+        low >= 80 && low_unsure == low,
+        "{low_unsure} of {low} thump hops unsure"
+    );
+    assert!(
+        line_sure * 3 >= line * 2,
+        "{line_sure} of {line} line hops sure"
+    );
+    let sure: Vec<bool> = conf.iter().map(|&c| c >= MIX_BASS_SURE).collect();
+    let kept = |sure: &[bool]| {
+        range_quantiles_kept_or_sure(
+            &t.f0,
+            &[],
+            sure,
+            FOLLOW_RANGE_QUANTILE,
+            MIX_BASS_HELD_HOPS,
+            HELD_TOL_ST,
+            MIX_BASS_SHADOW_HOPS,
+            HELD_MIN_SHARE,
+            HELD_MIN_HOPS,
+        )
+    };
+    let range = kept(&[]);
+    assert_eq!(
+        range,
+        range_quantiles_kept(
+            &t.f0,
+            FOLLOW_RANGE_QUANTILE,
+            MIX_BASS_HELD_HOPS,
+            HELD_TOL_ST,
+            MIX_BASS_SHADOW_HOPS,
+            HELD_MIN_SHARE,
+            HELD_MIN_HOPS,
+        )
+    );
+    let narrowed = narrow_range(range, kept(&sure), MIX_BASS_SURE_MARGIN_ST, f32::INFINITY);
+    assert_eq!(t.hop_levels, levels(&t.f0, narrowed));
+    // The rule matters here: the held-note range reaches the thumps, the narrowed one stops
+    // a semitone under E2 (MIDI 40), and the top is the line's own.
+    let (a, b) = (range.unwrap(), narrowed.unwrap());
+    assert!(st(a.0) < 35.0, "held notes from {}", st(a.0));
+    assert!((st(b.0) - 39.0).abs() < 0.3, "narrowed from {}", st(b.0));
+    assert_eq!(a.1, b.1);
+    assert_ne!(t.hop_levels, levels(&t.f0, range));
+}
+
+#[test]
+fn the_sure_bottom_is_offline_and_learned_only() {
+    let x = line_with_thumps();
+    let (_, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
+    // Streaming: the held-note range without shadows, hop by hop, as before.
+    let s = track(PitchMethod::Learned, Mode::Streaming, &x, 4096);
+    let mut r = HeldRange::with_prior(
+        RangePrior::Span(prior_span_st(hi)),
+        FOLLOW_PRIOR_FADE_HOPS,
+        FOLLOW_RANGE_QUANTILE,
+        MIX_BASS_HELD_HOPS,
+        HELD_TOL_ST,
+        HELD_MIN_SHARE,
+        HELD_MIN_HOPS,
+    )
+    .unwrap()
+    .with_shadow(MIX_BASS_SHADOW_HOPS)
+    .unwrap();
+    let d = Discretizer::default();
+    let want: Vec<u8> =
+        s.f0.iter()
+            .map(|&f| r.update(f).map_or(0, |range| d.level(f, range)))
+            .collect();
+    assert_eq!(s.hop_levels, want);
+    // The harmonic-sum bass keeps no confidence and the held-note range.
+    let h = track(PitchMethod::Shs, Mode::Offline, &x, 4096);
+    assert!(h.pitch_confidence().is_empty());
+    let range = range_quantiles_kept(
+        &h.f0,
+        FOLLOW_RANGE_QUANTILE,
+        MIX_BASS_HELD_HOPS,
+        HELD_TOL_ST,
+        MIX_BASS_SHADOW_HOPS,
+        HELD_MIN_SHARE,
+        HELD_MIN_HOPS,
+    );
+    assert_eq!(h.hop_levels, levels(&h.f0, range));
+}
