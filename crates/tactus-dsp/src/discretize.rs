@@ -411,10 +411,10 @@ pub fn narrow_range(
 pub struct HeldRange {
     all: PriorRange,
     held: PriorRange,
-    /// Semitones (NaN = unvoiced), Hz and the trusted flag
-    /// ([`HeldRange::update_trusted`]) of the last `2·max(k, w) + 1` hops, hop `i` at
-    /// `i % len`.
-    ring: [(f32, f32, bool); 2 * MAX_SHADOW_HOPS + 1],
+    /// Semitones (NaN = unvoiced), Hz, the trusted flag ([`HeldRange::update_trusted`]) and
+    /// the sure flag ([`HeldRange::update_sure`]) of the last `2·max(k, w) + 1` hops, hop `i`
+    /// at `i % len`.
+    ring: [(f32, f32, bool, bool); 2 * MAX_SHADOW_HOPS + 1],
     k: usize,
     /// Octave-shadow window ([`HeldRange::with_shadow`]); 0 = off.
     w: usize,
@@ -476,7 +476,7 @@ impl HeldRange {
         Ok(HeldRange {
             all: PriorRange::with_prior(prior, fade_hops, p)?,
             held: PriorRange::with_prior(prior, fade_hops, p)?,
-            ring: [(f32::NAN, 0.0, false); 2 * MAX_SHADOW_HOPS + 1],
+            ring: [(f32::NAN, 0.0, false, true); 2 * MAX_SHADOW_HOPS + 1],
             k,
             w: 0,
             tol_st,
@@ -515,6 +515,15 @@ impl HeldRange {
     /// streaming side of [`range_quantiles_kept_or`]). With `k = 0` and `w = 0` every voiced
     /// hop counts anyway.
     pub fn update_trusted(&mut self, f0_hz: f32, trusted: bool) -> Option<(f32, f32)> {
+        self.update_sure(f0_hz, trusted, true)
+    }
+
+    /// As [`HeldRange::update_trusted`], where a hop that is not `sure` (its tracker is not
+    /// confident of its pitch) never counts as held or agreed, though it still lets its
+    /// neighbours be held (the streaming side of [`range_quantiles_kept_or_sure`]; module
+    /// docs, "Narrowed to the sure hops"). [`HeldRange::holds`] says whether the range
+    /// returned is the held one.
+    pub fn update_sure(&mut self, f0_hz: f32, trusted: bool, sure: bool) -> Option<(f32, f32)> {
         let all = self.all.update(f0_hz);
         if self.k == 0 && self.w == 0 {
             return all;
@@ -525,14 +534,15 @@ impl HeldRange {
         self.held.n += u64::from(st.is_some());
         let m = self.k.max(self.w);
         let len = 2 * m + 1;
-        self.ring[self.n_in % len] = (st.unwrap_or(f32::NAN), f0_hz, trusted);
+        self.ring[self.n_in % len] = (st.unwrap_or(f32::NAN), f0_hz, trusted, sure);
         self.n_in += 1;
         if self.n_in >= len {
             // The centre of the last 2m + 1 hops.
             let ci = self.n_in - 1 - m;
-            let (c, f, trusted) = self.ring[ci % len];
+            let (c, f, trusted, sure) = self.ring[ci % len];
             let at = |j: usize| self.ring[j % len].0;
             if !c.is_nan()
+                && sure
                 && (trusted
                     || (ci - self.k..=ci + self.k).all(|j| (at(j) - c).abs() <= self.tol_st))
                 && !(ci - self.w..=ci + self.w).any(|j| (at(j) - (c + 12.0)).abs() <= SHADOW_TOL_ST)
@@ -541,20 +551,27 @@ impl HeldRange {
                 self.n_held += 1;
             }
         }
-        if self.n_held >= self.min_hops.max(1)
-            && self.n_held as f32 >= self.min_share * self.n_voiced as f32
-        {
+        if self.holds() {
             self.held.get()
         } else {
             all
         }
     }
 
+    /// Whether the last range returned was the held hops' (enough of them: at least
+    /// `min_hops` and `min_share` of the voiced ones) rather than every voiced hop's. False
+    /// with `k = 0` and `w = 0`, where every voiced hop counts anyway.
+    pub fn holds(&self) -> bool {
+        (self.k > 0 || self.w > 0)
+            && self.n_held >= self.min_hops.max(1)
+            && self.n_held as f32 >= self.min_share * self.n_voiced as f32
+    }
+
     /// Back to empty.
     pub fn reset(&mut self) {
         self.all.reset();
         self.held.reset();
-        self.ring = [(f32::NAN, 0.0, false); 2 * MAX_SHADOW_HOPS + 1];
+        self.ring = [(f32::NAN, 0.0, false, true); 2 * MAX_SHADOW_HOPS + 1];
         self.n_in = 0;
         self.n_voiced = 0;
         self.n_held = 0;

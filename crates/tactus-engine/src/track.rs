@@ -479,6 +479,9 @@ struct LevelChain {
     tukey: SlidingTukey,
     range: RunningRange,
     prior_range: HeldRange,
+    /// The same range of the sure hops only, and the rule that narrows `prior_range` to it
+    /// (a track with a [`SureRule`]; README, "The mix's lead range narrowed to sure hops").
+    sure_range: Option<(HeldRange, SureRule)>,
     rule: LevelRule,
     disc: Discretizer,
     binner: LevelBinner,
@@ -494,11 +497,26 @@ impl LevelChain {
     }
 
     /// Hop `i`'s level from its fenced pitch `f0` (`trusted`: a second tracker agrees,
-    /// [`HeldRange::update_trusted`]); completed bins go to `bins`.
-    fn level(&mut self, i: usize, f0: f32, trusted: bool, bins: &mut Vec<u8>) -> u8 {
+    /// [`HeldRange::update_trusted`]; `sure`: the learned tracker is sure of it, for a track
+    /// with a [`SureRule`]); completed bins go to `bins`.
+    fn level(&mut self, i: usize, f0: f32, trusted: bool, sure: bool, bins: &mut Vec<u8>) -> u8 {
         let range = match self.rule {
             LevelRule::Paper => self.range.update(f0),
-            LevelRule::Follow => self.prior_range.update_trusted(f0, trusted),
+            LevelRule::Follow => {
+                let r = self.prior_range.update_trusted(f0, trusted);
+                match &mut self.sure_range {
+                    // Narrowed once the sure hops hold a range of their own.
+                    Some((sr, rule)) => {
+                        let s = sr.update_sure(f0, trusted, sure);
+                        if sr.holds() {
+                            narrow_range(r, s, rule.below_st, rule.above_st)
+                        } else {
+                            r
+                        }
+                    }
+                    None => r,
+                }
+            }
         };
         let level = range.map_or(0, |r| self.disc.level(f0, r));
         self.binner.push(i, level, &mut |_, l| bins.push(l));
@@ -515,6 +533,9 @@ impl LevelChain {
             &mut self.binner,
         ];
         stages.into_iter().for_each(|s| s.reset());
+        if let Some((sr, _)) = &mut self.sure_range {
+            sr.reset();
+        }
     }
 
     /// The sum of the latencies of the stages a hop goes through.
@@ -529,6 +550,26 @@ impl LevelChain {
             + self.disc.latency_samples()
             + self.binner.latency_samples()
     }
+}
+
+/// The streaming level range of a track: `prior` (and its fade) padding the quantile-`p`
+/// range of the hops held `k` hops on each side, octave shadows within `w` hops left out.
+fn held_range(
+    prior: (RangePrior, f32),
+    p: f32,
+    k: usize,
+    w: usize,
+) -> Result<HeldRange, ConfigError> {
+    HeldRange::with_prior(
+        prior.0,
+        prior.1,
+        p,
+        k,
+        HELD_TOL_ST,
+        HELD_MIN_SHARE,
+        HELD_MIN_HOPS,
+    )?
+    .with_shadow(w)
 }
 
 /// [`HopFilter::reset`] for a chain whose stages have different value types.
@@ -794,6 +835,10 @@ impl PitchTrack {
             }
         };
         let hop_s = hop as f32 / geo.sample_rate as f32;
+        let span = (
+            RangePrior::Span(prior_span_st(fmax_hz)),
+            FOLLOW_PRIOR_FADE_HOPS,
+        );
         // A clean bass stem: the range from held notes (README, "Bass levels from held notes").
         // A mixture's lead through the pair: from held notes or hops both trackers agree on
         // (README, "The mix's lead range from held or agreed hops"); offline narrowed to the
@@ -858,16 +903,14 @@ impl PitchTrack {
                 tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
                     .with_min_iqr(min_iqr_st),
                 range: RunningRange::new(),
-                prior_range: HeldRange::new(
-                    prior_span_st(fmax_hz),
-                    FOLLOW_PRIOR_FADE_HOPS,
-                    FOLLOW_RANGE_QUANTILE,
-                    held_hops,
-                    HELD_TOL_ST,
-                    HELD_MIN_SHARE,
-                    HELD_MIN_HOPS,
-                )?
-                .with_shadow(shadow_hops)?,
+                prior_range: held_range(span, FOLLOW_RANGE_QUANTILE, held_hops, shadow_hops)?,
+                sure_range: match sure {
+                    Some(rule) => Some((
+                        held_range(span, rule.quantile, held_hops, shadow_hops)?,
+                        rule,
+                    )),
+                    None => None,
+                },
                 rule: geo.level_rule,
                 disc: Discretizer::new(geo.levels, Scale::Semitones)?,
                 binner: LevelBinner::new(hop, geo.bin_samples)?,
@@ -893,16 +936,15 @@ impl PitchTrack {
     /// `(lo_hz, hi_hz)` instead of the prior span ([`RangePrior::Register`], fading over
     /// [`REGISTER_FADE_HOPS`]). Offline output is unchanged. Call before the first block.
     pub fn set_register_prior(&mut self, register_hz: (f32, f32)) -> Result<(), ConfigError> {
-        self.chain.prior_range = HeldRange::with_prior(
+        let prior = (
             RangePrior::Register(register_hz.0, register_hz.1),
             REGISTER_FADE_HOPS,
-            FOLLOW_RANGE_QUANTILE,
-            self.held_hops,
-            HELD_TOL_ST,
-            HELD_MIN_SHARE,
-            HELD_MIN_HOPS,
-        )?
-        .with_shadow(self.shadow_hops)?;
+        );
+        let (k, w) = (self.held_hops, self.shadow_hops);
+        self.chain.prior_range = held_range(prior, FOLLOW_RANGE_QUANTILE, k, w)?;
+        if let Some((sr, rule)) = &mut self.chain.sure_range {
+            *sr = held_range(prior, rule.quantile, k, w)?;
+        }
         Ok(())
     }
 
@@ -1036,7 +1078,10 @@ impl PitchTrack {
                 s.f0.push(nf);
                 trusted = self.agree && pitches_agree(f0, nf, AGREE_TOL_ST);
             }
-            let level = self.chain.level(self.next, f0, trusted, &mut self.bins);
+            let sure = self
+                .sure
+                .is_some_and(|r| self.raw_conf.get(j).copied().unwrap_or(0.0) >= r.min_conf);
+            let level = self.chain.level(self.next, f0, trusted, sure, &mut self.bins);
             self.f0.push(f0);
             self.level_db.push(self.raw_rms[j]);
             self.hop_levels.push(level);
