@@ -77,8 +77,8 @@
 //! the held range (same fallbacks, same lag); a hop that is neither held nor agreed is left
 //! out.
 //!
-//! **Narrowed to the sure hops** ([`range_quantiles_kept_or_sure`], [`narrow_range`], our
-//! addition, issue 16; offline). A learned tracker knows how sure it is of a pitch (the
+//! **Narrowed to the sure hops** ([`range_quantiles_kept_or_sure`], [`narrow_range`],
+//! [`HeldRange::update_sure`], our addition, issue 16). A learned tracker knows how sure it is of a pitch (the
 //! network's probability near the decided candidate, `tactus_dsp::shs` module docs, "Learned
 //! salience"). On a mixture's lead the unsure hops are mostly where it sits on a chord tone,
 //! an octave or the bass while the voice rests or is masked, and those set the range's ends
@@ -88,7 +88,10 @@
 //! `margin` semitones beyond the range of those of them that are also sure: the held test
 //! still reads every voiced hop, and the fallbacks are unchanged. A mixture's bass line uses
 //! the bottom only: its unsure hops under the line are a kick's body or a subharmonic, but
-//! its unsure high notes are real.
+//! its unsure high notes are real. Streaming, a second [`HeldRange`] fed the same hops keeps
+//! only the sure ones ([`HeldRange::update_sure`]), and the running range is narrowed to it
+//! once it holds ([`HeldRange::holds`]); leaving the unsure hops out of the running range
+//! itself delays it and drops early extremes.
 //!
 //! **Register prior** ([`RangePrior::Register`], [`PriorRange::with_prior`], our addition,
 //! issue 16). A span prior pads the first notes symmetrically, but where a line starts says

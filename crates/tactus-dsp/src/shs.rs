@@ -109,8 +109,9 @@
 //! decided pitch: a voiced hop's `aperiodicity` is `1 − Σ p` over the network's probabilities
 //! of the candidates within [`CONFIDENCE_BINS`] of the decided one (2 bins: ⅔ semitone), its
 //! `voiced_prob` the network's `1 − p(no pitch)`. (The harmonic sum's estimates keep
-//! `aperiodicity = 1 − voiced_prob`.) The engine leaves a mixture's lead's unsure hops out of
-//! its level range ([`crate::discretize`] module docs, "Only sure hops").
+//! `aperiodicity = 1 − voiced_prob`.) The engine narrows a mixture's lead's and bass's level
+//! ranges to the hops it is sure of ([`crate::discretize`] module docs, "Narrowed to the sure
+//! hops").
 //!
 //! ## Latency
 //! `frame − frame / 2` (the framer) + `lag_hops × hop` samples, stated by

@@ -796,6 +796,7 @@ fn streaming_shadow_range_is_the_padded_quantile_range_of_the_kept_prefix_within
                 prior,
                 &f,
                 None,
+                None,
                 &[
                     (0, 25, 0.25, 300),
                     (0, 3, 0.5, 1),
@@ -812,12 +813,15 @@ fn streaming_shadow_range_is_the_padded_quantile_range_of_the_kept_prefix_within
 /// max(k, w) ≤ i and i + max(k, w) < j + 1 that are held (k), or, with `trusted`, voiced and
 /// trusted, and not shadows (w), all by hand on the prefix; then the held-range rule and
 /// padding as in `check_held_range`, within one cell. `trusted = None` feeds
-/// `HeldRange::update`, else `HeldRange::update_trusted`. Each `(k, w, share, min_hops)` must
-/// use the kept range at some hop.
+/// `HeldRange::update`, else `HeldRange::update_trusted`; with `sure`,
+/// `HeldRange::update_sure`, and only sure hops are kept. `HeldRange::holds` must say at
+/// every hop whether the kept range is used. Each `(k, w, share, min_hops)` must use the
+/// kept range at some hop.
 fn check_streaming_kept_range(
     prior: RangePrior,
     f: &[f32],
     trusted: Option<&[bool]>,
+    sure: Option<&[bool]>,
     configs: &[(usize, usize, f32, u64)],
     what: &str,
 ) {
@@ -830,9 +834,10 @@ fn check_streaming_kept_range(
         let m = k.max(w);
         let mut used = false;
         for j in 0..f.len() {
-            let got = match trusted {
-                None => r.update(f[j]),
-                Some(t) => r.update_trusted(f[j], t[j]),
+            let got = match (trusted, sure) {
+                (t, Some(s)) => r.update_sure(f[j], t.is_some_and(|t| t[j]), s[j]),
+                (None, None) => r.update(f[j]),
+                (Some(t), None) => r.update_trusted(f[j], t[j]),
             };
             let pre = &f[..=j];
             let held = held_by_hand(pre, k, 1.0);
@@ -840,11 +845,13 @@ fn check_streaming_kept_range(
             let mask: Vec<bool> = (0..pre.len())
                 .map(|i| {
                     let agreed = trusted.is_some_and(|t| t[i] && pre[i] > 0.0);
-                    i >= m && i + m < pre.len() && (held[i] || agreed) && !shadow[i]
+                    let is_sure = sure.is_none_or(|s| s[i]);
+                    i >= m && i + m < pre.len() && (held[i] || agreed) && is_sure && !shadow[i]
                 })
                 .collect();
             let (kept, voiced, use_kept) = held_rule_by_hand(pre, &mask, share, min_hops);
             used |= use_kept;
+            assert_eq!(r.holds(), use_kept, "{what} k {k} w {w} hop {j}: holds");
             let kept_or_all = if use_kept { &kept[..] } else { pre };
             let want = padded_by_hand(prior, fade, range_quantiles(kept_or_all, p), voiced);
             assert_within_a_cell(got, want, &format!("{what} k {k} w {w} hop {j}"));
@@ -1043,6 +1050,66 @@ fn offline_held_or_agreed_range_is_the_rule_written_out() {
     }
 }
 
+/// Sure in runs of 40 hops (one run in three unsure) and unsure on one hop in seven besides,
+/// as a tracker unsure of a stretch and of single hops.
+fn sure_mask(n: usize, seed: u64) -> Vec<bool> {
+    let mut x = seed.wrapping_mul(0x2545_f491_4f6c_dd1d) | 1;
+    let mut next = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    let runs: Vec<bool> = (0..n / 40 + 1).map(|_| next() % 3 != 0).collect();
+    (0..n).map(|i| runs[i / 40] && next() % 7 != 0).collect()
+}
+
+#[test]
+fn streaming_range_of_sure_held_or_agreed_hops_is_the_padded_quantile_range_of_the_kept_prefix_within_one_cell(
+) {
+    // `HeldRange::update_sure`: the oracle of the held-or-agreed range with only the sure
+    // hops kept; the held test still reads every hop. With and without a second tracker.
+    let prior = RangePrior::Register(hz(30.0), hz(50.0));
+    for seed in 1..3u64 {
+        let f = line_with_octave_shadows(1200, seed);
+        let trusted = agree_by_hand(&f, &second_tracker(&f, seed), 1.0);
+        let sure = sure_mask(f.len(), seed);
+        check_streaming_kept_range(
+            prior,
+            &f,
+            Some(&trusted),
+            Some(&sure),
+            &[(8, 0, 0.25, 300), (3, 25, 0.25, 100)],
+            &format!("sure, agreed, seed {seed}"),
+        );
+        check_streaming_kept_range(
+            prior,
+            &f,
+            None,
+            Some(&sure),
+            &[(3, 25, 0.25, 100)],
+            &format!("sure, seed {seed}"),
+        );
+    }
+    // Every hop sure is `update_trusted`, bit for bit; sure hops stream without allocating.
+    let f = line_with_octave_shadows(2000, 7);
+    let trusted = agree_by_hand(&f, &second_tracker(&f, 7), 1.0);
+    let sure = sure_mask(f.len(), 7);
+    let mk = || HeldRange::new(20.0, 300.0, 0.01, 8, 1.0, 0.25, 300).unwrap();
+    let (mut a, mut b, mut c) = (mk(), mk(), mk());
+    let mut differ = 0;
+    for j in 0..f.len() {
+        let x = a.update_trusted(f[j], trusted[j]);
+        assert_eq!(b.update_sure(f[j], trusted[j], true), x, "hop {j}");
+        let allocs = tactus_testkit::allocations_during(|| {
+            differ +=
+                usize::from(std::hint::black_box(c.update_sure(f[j], trusted[j], sure[j])) != x);
+        });
+        assert_eq!(allocs, 0);
+    }
+    assert!(differ > 0, "the sure mask never mattered");
+}
+
 #[test]
 fn offline_range_of_sure_held_or_agreed_hops_is_the_rule_written_out() {
     // `range_quantiles_kept_or_sure`: the held mask is judged on every voiced hop, then a hop
@@ -1053,18 +1120,7 @@ fn offline_range_of_sure_held_or_agreed_hops_is_the_rule_written_out() {
         let f = line_with_octave_shadows(1500, seed);
         let g = second_tracker(&f, seed);
         let trusted = agree_by_hand(&f, &g, 1.0);
-        let mut x = seed.wrapping_mul(0x2545_f491_4f6c_dd1d) | 1;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
-        // Unsure in runs of 40 hops (one run in three) and on one hop in seven.
-        let runs: Vec<bool> = (0..f.len() / 40 + 1).map(|_| next() % 3 != 0).collect();
-        let sure: Vec<bool> = (0..f.len())
-            .map(|i| runs[i / 40] && next() % 7 != 0)
-            .collect();
+        let sure = sure_mask(f.len(), seed);
         let mut moved = 0;
         for (k, w, share, min_hops) in [
             (8usize, 0usize, 0.25f32, 300u64),
@@ -1180,6 +1236,7 @@ fn streaming_held_or_agreed_range_is_the_padded_quantile_range_of_the_kept_prefi
             prior,
             &f,
             Some(&trusted),
+            None,
             &[(8, 0, 0.25, 300), (5, 10, 0.25, 50), (0, 3, 0.5, 1)],
             &format!("seed {seed}"),
         );

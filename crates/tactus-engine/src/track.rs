@@ -118,13 +118,15 @@ pub const MIX_LEAD_HELD_HOPS: usize = 8;
 /// Semitones within which the pair's two trackers agree ([`MIX_LEAD_HELD_HOPS`]).
 pub const AGREE_TOL_ST: f32 = 1.0;
 
-/// A mixture's lead through the pair, offline: the level range of the held or agreed hops is
+/// A mixture's lead through the pair: the level range of the held or agreed hops is
 /// narrowed to at most [`MIX_LEAD_SURE_MARGIN_ST`] beyond the range ([`MIX_LEAD_SURE_QUANTILE`])
 /// of those of them where the learned tracker is sure of its pitch: its confidence (the
 /// network's probability within ⅔ semitone of it, `tactus_dsp::shs` module docs, "Learned
 /// salience") is at least this (`tactus_dsp::discretize::narrow_range`; README, "The mix's
 /// lead range narrowed to sure hops"). Chosen on 204 tuning mixes and checked on 96 spent ones
-/// (`benches/trials/RULE_lead_sure_margin.md`).
+/// (`benches/trials/RULE_lead_sure_margin.md`). Offline since 2026-11-28 07:08; streaming
+/// since 07:47, once the sure hops hold a range of their own
+/// (`tactus_dsp::discretize::HeldRange::holds`; `benches/trials/RULE_streaming_sure.md`).
 pub const MIX_LEAD_SURE: f32 = 0.7;
 
 /// Quantile cut from each end of the sure hops' range ([`MIX_LEAD_SURE`]).
@@ -133,21 +135,21 @@ pub const MIX_LEAD_SURE_QUANTILE: f32 = 0.02;
 /// Semitones the lead's level range may reach beyond its sure hops' range ([`MIX_LEAD_SURE`]).
 pub const MIX_LEAD_SURE_MARGIN_ST: f32 = 1.0;
 
-/// The bass band of a mixture under the learned bass salience, offline: the bottom of the
+/// The bass band of a mixture under the learned bass salience: the bottom of the
 /// level range (held notes without octave shadows, [`MIX_BASS_HELD_HOPS`]) is raised to at
 /// most [`MIX_BASS_SURE_MARGIN_ST`] under the bottom ([`FOLLOW_RANGE_QUANTILE`]) of those of
 /// its hops where the learned tracker's confidence in its pitch is at least this; the top is
 /// left alone (README, "The mix's bass range from sure hops, at the bottom"). The unsure
 /// hops under a bass line are mostly a kick's body or a chord's subharmonic; its unsure high
 /// notes are real. Chosen on 204 tuning mixes and checked on 96 spent ones
-/// (`benches/trials/RULE_bass_sure_bottom.md`).
+/// (`benches/trials/RULE_bass_sure_bottom.md`). Streaming as [`MIX_LEAD_SURE`].
 pub const MIX_BASS_SURE: f32 = 0.95;
 
 /// Semitones the mix bass's level range may reach under its sure hops' bottom
 /// ([`MIX_BASS_SURE`]).
 pub const MIX_BASS_SURE_MARGIN_ST: f32 = 1.0;
 
-/// How a track's offline level range is narrowed to the hops its learned tracker is sure of
+/// How a track's level range is narrowed to the hops its learned tracker is sure of
 /// (`tactus_dsp::discretize::narrow_range`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct SureRule {
@@ -841,10 +843,10 @@ impl PitchTrack {
         );
         // A clean bass stem: the range from held notes (README, "Bass levels from held notes").
         // A mixture's lead through the pair: from held notes or hops both trackers agree on
-        // (README, "The mix's lead range from held or agreed hops"); offline narrowed to the
+        // (README, "The mix's lead range from held or agreed hops"); narrowed to the
         // hops where the learned tracker is sure of its pitch ([`MIX_LEAD_SURE`]).
         let agree = mixture && matches!(tracker, Tracker::Pair(_));
-        // Offline, narrowed to the hops the learned tracker is sure of: both ends for the
+        // Narrowed to the hops the learned tracker is sure of: both ends for the
         // lead, the bottom for the mix's learned bass (README, "The mix's lead range narrowed
         // to sure hops", "The mix's bass range from sure hops, at the bottom").
         let sure = if agree {
@@ -1081,7 +1083,9 @@ impl PitchTrack {
             let sure = self
                 .sure
                 .is_some_and(|r| self.raw_conf.get(j).copied().unwrap_or(0.0) >= r.min_conf);
-            let level = self.chain.level(self.next, f0, trusted, sure, &mut self.bins);
+            let level = self
+                .chain
+                .level(self.next, f0, trusted, sure, &mut self.bins);
             self.f0.push(f0);
             self.level_db.push(self.raw_rms[j]);
             self.hop_levels.push(level);
@@ -1187,7 +1191,7 @@ impl PitchTrack {
         }
     }
 
-    /// For a track whose offline level range is narrowed to sure hops (a mixture's lead
+    /// For a track whose level range is narrowed to sure hops (a mixture's lead
     /// through the pair, [`MIX_LEAD_SURE`]; a mixture's learned bass, [`MIX_BASS_SURE`]),
     /// the learned tracker's confidence in its pitch per hop (`1 −` the estimate's
     /// aperiodicity, `tactus_dsp::shs` module docs, "Learned salience"; for the pair the

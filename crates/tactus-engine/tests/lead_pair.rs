@@ -240,7 +240,6 @@ fn the_mix_leads_pair_keeps_the_harmonic_sums_own_pitch_beside_its_own_and_may_o
 fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
     let x = lead_with_short_extremes();
     let d = Discretizer::default();
-    let (_, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
     let (t, _) = track(PitchMethod::Learned, Mode::Offline, &x, 4096);
     let trusted = agree_mask(&t.f0, t.voicing_f0(), AGREE_TOL_ST);
     let agreed = trusted.iter().filter(|&&a| a).count();
@@ -310,27 +309,51 @@ fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
         (a.0 / 261.63 - 1.0).abs() < 0.03 && a.0 < b.0 * 0.95,
         "{a:?} against {b:?}"
     );
-    // Streaming, hop by hop: the held range fed each hop's agreement.
+    // Streaming, hop by hop: the held range fed each hop's agreement, narrowed to the sure
+    // hops' once they hold.
     let (s, _) = track(PitchMethod::Learned, Mode::Streaming, &x, 4096);
-    let mut r = HeldRange::with_prior(
-        RangePrior::Span(prior_span_st(hi)),
-        FOLLOW_PRIOR_FADE_HOPS,
-        FOLLOW_RANGE_QUANTILE,
-        MIX_LEAD_HELD_HOPS,
-        HELD_TOL_ST,
-        HELD_MIN_SHARE,
-        HELD_MIN_HOPS,
-    )
-    .unwrap();
-    let want: Vec<u8> =
-        s.f0.iter()
-            .zip(s.voicing_f0())
-            .map(|(&f, &n)| {
-                r.update_trusted(f, pitches_agree(f, n, AGREE_TOL_ST))
-                    .map_or(0, |range| d.level(f, range))
-            })
-            .collect();
-    assert_eq!(s.hop_levels, want);
+    assert_eq!(
+        s.hop_levels,
+        streaming_levels(&s, t.pitch_confidence(), true)
+    );
+}
+
+/// The streaming rule replayed by hand on a streaming lead track: the held range of the
+/// held or agreed hops and, with `narrow`, the same range of the sure ones (`conf`: the
+/// learned tracker's confidence per hop, which the tracker gives alike offline and
+/// streaming), once that holds, clipping it to a semitone beyond its ends.
+fn streaming_levels(s: &PitchTrack, conf: &[f32], narrow: bool) -> Vec<u8> {
+    let (_, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
+    let range = |p: f32| {
+        HeldRange::with_prior(
+            RangePrior::Span(prior_span_st(hi)),
+            FOLLOW_PRIOR_FADE_HOPS,
+            p,
+            MIX_LEAD_HELD_HOPS,
+            HELD_TOL_ST,
+            HELD_MIN_SHARE,
+            HELD_MIN_HOPS,
+        )
+        .unwrap()
+    };
+    let (mut r, mut rs) = (range(FOLLOW_RANGE_QUANTILE), range(MIX_LEAD_SURE_QUANTILE));
+    let d = Discretizer::default();
+    assert_eq!(conf.len(), s.f0.len());
+    s.f0.iter()
+        .zip(s.voicing_f0())
+        .zip(conf)
+        .map(|((&f, &n), &c)| {
+            let trusted = pitches_agree(f, n, AGREE_TOL_ST);
+            let a = r.update_trusted(f, trusted);
+            let b = rs.update_sure(f, trusted, c >= MIX_LEAD_SURE);
+            let range = if narrow && rs.holds() {
+                narrow_range(a, b, MIX_LEAD_SURE_MARGIN_ST, MIX_LEAD_SURE_MARGIN_ST)
+            } else {
+                a
+            };
+            range.map_or(0, |range| d.level(f, range))
+        })
+        .collect()
 }
 
 #[test]
@@ -397,28 +420,20 @@ fn offline_the_mix_leads_range_is_narrowed_to_a_semitone_beyond_its_sure_hops() 
     assert!(st(a.0) < 60.0, "held or agreed from {}", st(a.0));
     assert!((st(b.0) - 61.0).abs() < 0.3, "narrowed from {}", st(b.0));
     assert_eq!(a.1, b.1, "the top is the lead's own");
-    // Streaming has no narrowing: the held or agreed range, hop by hop.
+    // Streaming: the held or agreed range hop by hop, narrowed the same way once the sure
+    // hops hold a range; here that matters too. Any chunking gives the same.
     let (s, _) = track(PitchMethod::Learned, Mode::Streaming, &x, 4096);
-    let (_, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
-    let mut r = HeldRange::with_prior(
-        RangePrior::Span(prior_span_st(hi)),
-        FOLLOW_PRIOR_FADE_HOPS,
-        FOLLOW_RANGE_QUANTILE,
-        MIX_LEAD_HELD_HOPS,
-        HELD_TOL_ST,
-        HELD_MIN_SHARE,
-        HELD_MIN_HOPS,
-    )
-    .unwrap();
-    let want: Vec<u8> =
-        s.f0.iter()
-            .zip(s.voicing_f0())
-            .map(|(&f, &n)| {
-                r.update_trusted(f, pitches_agree(f, n, AGREE_TOL_ST))
-                    .map_or(0, |range| d.level(f, range))
-            })
-            .collect();
+    let want = streaming_levels(&s, conf, true);
     assert_eq!(s.hop_levels, want);
+    assert_ne!(
+        want,
+        streaming_levels(&s, conf, false),
+        "the rule matters streaming"
+    );
+    for chunk in [441, 10_000] {
+        let (c, _) = track(PitchMethod::Learned, Mode::Streaming, &x, chunk);
+        assert_eq!(c.hop_levels, want, "chunk {chunk}");
+    }
 }
 
 /// The lead over its chords with a bass line under them (a root a bar, harmonics of

@@ -1,10 +1,11 @@
-//! The mix's learned bass, offline: the bottom of its level range comes from the hops the
-//! learned tracker is sure of ([`MIX_BASS_SURE`], README "The mix's bass range from sure
-//! hops, at the bottom"), through the real learned tracker on audio, against `tactus_dsp`'s
-//! range functions replayed on the track's pitch and confidence. A kick-like thump in the
-//! line's gaps is tracked as a held low pitch the tracker is unsure of: the held-note range
-//! reaches it, the narrowed one stops a semitone under the line. Streaming keeps the
-//! held-note rule, and the harmonic-sum bass has no confidence rule.
+//! The mix's learned bass: the bottom of its level range comes from the hops the learned
+//! tracker is sure of ([`MIX_BASS_SURE`], README "The mix's bass range from sure hops, at the
+//! bottom"), through the real learned tracker on audio, against `tactus_dsp`'s range
+//! functions replayed on the track's pitch and confidence. A kick-like thump in the line's
+//! gaps is tracked as a held low pitch the tracker is unsure of: the held-note range reaches
+//! it, the narrowed one stops a semitone under the line. Streaming narrows the same way once
+//! the sure hops hold a range (README, "Streaming ranges narrowed to sure hops"), and the
+//! harmonic-sum bass has no confidence rule.
 
 use tactus_dsp::discretize::{
     narrow_range, range_quantiles_kept, range_quantiles_kept_or_sure, Discretizer, HeldRange,
@@ -141,29 +142,56 @@ fn offline_the_mix_bass_range_bottom_comes_from_its_sure_hops() {
 }
 
 #[test]
-fn the_sure_bottom_is_offline_and_learned_only() {
+fn streaming_the_bottom_is_narrowed_once_the_sure_hops_hold_and_the_harmonic_sum_keeps_the_old_rule(
+) {
     let x = line_with_thumps();
     let (_, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
-    // Streaming: the held-note range without shadows, hop by hop, as before.
+    // Streaming: the held-note range without shadows hop by hop and the same range of the
+    // sure hops (the tracker's confidence is the same offline and streaming); once the
+    // latter holds, the bottom is raised to a semitone under it.
+    let conf = track(PitchMethod::Learned, Mode::Offline, &x, 4096)
+        .pitch_confidence()
+        .to_vec();
     let s = track(PitchMethod::Learned, Mode::Streaming, &x, 4096);
-    let mut r = HeldRange::with_prior(
-        RangePrior::Span(prior_span_st(hi)),
-        FOLLOW_PRIOR_FADE_HOPS,
-        FOLLOW_RANGE_QUANTILE,
-        MIX_BASS_HELD_HOPS,
-        HELD_TOL_ST,
-        HELD_MIN_SHARE,
-        HELD_MIN_HOPS,
-    )
-    .unwrap()
-    .with_shadow(MIX_BASS_SHADOW_HOPS)
-    .unwrap();
-    let d = Discretizer::default();
-    let want: Vec<u8> =
+    assert_eq!(conf.len(), s.f0.len());
+    let replay = |narrow: bool| {
+        let range = || {
+            HeldRange::with_prior(
+                RangePrior::Span(prior_span_st(hi)),
+                FOLLOW_PRIOR_FADE_HOPS,
+                FOLLOW_RANGE_QUANTILE,
+                MIX_BASS_HELD_HOPS,
+                HELD_TOL_ST,
+                HELD_MIN_SHARE,
+                HELD_MIN_HOPS,
+            )
+            .unwrap()
+            .with_shadow(MIX_BASS_SHADOW_HOPS)
+            .unwrap()
+        };
+        let (mut r, mut rs) = (range(), range());
+        let d = Discretizer::default();
         s.f0.iter()
-            .map(|&f| r.update(f).map_or(0, |range| d.level(f, range)))
-            .collect();
+            .zip(&conf)
+            .map(|(&f, &c)| {
+                let a = r.update(f);
+                let b = rs.update_sure(f, false, c >= MIX_BASS_SURE);
+                let range = if narrow && rs.holds() {
+                    narrow_range(a, b, MIX_BASS_SURE_MARGIN_ST, f32::INFINITY)
+                } else {
+                    a
+                };
+                range.map_or(0, |range| d.level(f, range))
+            })
+            .collect::<Vec<u8>>()
+    };
+    let want = replay(true);
     assert_eq!(s.hop_levels, want);
+    assert_ne!(want, replay(false), "the rule matters streaming");
+    for chunk in [441, 10_000] {
+        let c = track(PitchMethod::Learned, Mode::Streaming, &x, chunk);
+        assert_eq!(c.hop_levels, want, "chunk {chunk}");
+    }
     // The harmonic-sum bass keeps no confidence and the held-note range.
     let h = track(PitchMethod::Shs, Mode::Offline, &x, 4096);
     assert!(h.pitch_confidence().is_empty());
