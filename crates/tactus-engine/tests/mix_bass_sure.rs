@@ -20,7 +20,7 @@ use tactus_engine::track::{
 use tactus_engine::{Mode, PitchMethod};
 
 mod common;
-use common::SR;
+use common::{levels, SR};
 
 /// A plucked bass line E2 G2 A2 C3 D3 (0.3 s notes, no two an octave apart, so that the
 /// octave-shadow rule keeps the line), sixteen times (the narrowing needs 300 sure held
@@ -61,13 +61,6 @@ fn track(method: PitchMethod, mode: Mode, x: &[f32], chunk: usize) -> PitchTrack
     }
     t.finish();
     t
-}
-
-fn levels(f0: &[f32], range: Option<(f32, f32)>) -> Vec<u8> {
-    let d = Discretizer::default();
-    f0.iter()
-        .map(|&f| range.map_or(0, |r| d.level(f, r)))
-        .collect()
 }
 
 fn st(f: f32) -> f32 {
@@ -118,18 +111,6 @@ fn offline_the_mix_bass_range_bottom_comes_from_its_sure_hops() {
         )
     };
     let range = kept(&[]);
-    assert_eq!(
-        range,
-        range_quantiles_kept(
-            &t.f0,
-            FOLLOW_RANGE_QUANTILE,
-            MIX_BASS_HELD_HOPS,
-            HELD_TOL_ST,
-            MIX_BASS_SHADOW_HOPS,
-            HELD_MIN_SHARE,
-            HELD_MIN_HOPS,
-        )
-    );
     let narrowed = narrow_range(range, kept(&sure), MIX_BASS_SURE_MARGIN_ST, f32::INFINITY);
     assert_eq!(t.hop_levels, levels(&t.f0, narrowed));
     // The rule matters here: the held-note range reaches the thumps, the narrowed one stops

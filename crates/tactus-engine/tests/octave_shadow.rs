@@ -19,7 +19,7 @@ use tactus_engine::track::{
 use tactus_engine::{Mode, PitchMethod};
 
 mod common;
-use common::SR;
+use common::{levels, SR};
 
 fn geo(mode: Mode) -> Geometry {
     common::geo(mode, Profile::Full)
@@ -63,13 +63,6 @@ fn track(mode: Mode, mixture: bool, register: bool, x: &[f32], chunk: usize) -> 
     }
     t.finish();
     t
-}
-
-fn levels(f0: &[f32], range: Option<(f32, f32)>) -> Vec<u8> {
-    let d = Discretizer::default();
-    f0.iter()
-        .map(|&f| range.map_or(0, |r| d.level(f, r)))
-        .collect()
 }
 
 #[test]

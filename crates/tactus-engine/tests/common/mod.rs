@@ -18,3 +18,14 @@ pub fn geo(mode: Mode, profile: Profile) -> Geometry {
         profile,
     }
 }
+
+/// The levels the default discretizer gives `f0` in `range` (0 unvoiced or without a range):
+/// what a pitch track's `hop_levels` must equal once its range rule is replayed by hand.
+/// (Not every test file uses it.)
+#[allow(dead_code)]
+pub fn levels(f0: &[f32], range: Option<(f32, f32)>) -> Vec<u8> {
+    let d = tactus_dsp::discretize::Discretizer::default();
+    f0.iter()
+        .map(|&f| range.map_or(0, |r| d.level(f, r)))
+        .collect()
+}
