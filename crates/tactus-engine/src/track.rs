@@ -690,11 +690,8 @@ pub struct PitchTrack {
     /// A hop whose pitch the pair's voicing tracker agrees with counts as held
     /// ([`AGREE_TOL_ST`]; a mixture's lead).
     agree: bool,
-    /// Offline, the level range is narrowed to the hops the learned tracker is sure of
-    /// ([`MIX_LEAD_SURE`], [`MIX_BASS_SURE`]); `raw_conf` is then kept.
-    sure: Option<SureRule>,
     /// The tracker's confidence in its pitch per hop (`1 −` aperiodicity; kept like
-    /// `raw_f0`, only with a `sure` rule).
+    /// `raw_f0`, only for a track with a [`SureRule`], [`PitchTrack::sure_rule`]).
     raw_conf: Vec<f32>,
     skipped_conf: usize,
     /// f0 per hop after gate and fences (streaming: filled as hops arrive; offline: at the end).
@@ -921,7 +918,6 @@ impl PitchTrack {
             held_hops,
             shadow_hops,
             agree,
-            sure,
             raw_conf: Vec::new(),
             skipped_conf: 0,
             f0: Vec::new(),
@@ -1011,7 +1007,7 @@ impl PitchTrack {
         let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
         let side = &mut self.note_side;
         let (conf, skipped_conf) = (&mut self.raw_conf, &mut self.skipped_conf);
-        let keep_conf = self.sure.is_some();
+        let keep_conf = self.chain.sure_range.is_some();
         self.tracker.process(block, view, &mut |f, nf, c| {
             advanced_push(raw_f0, skipped, advance, f);
             if keep_conf {
@@ -1033,7 +1029,7 @@ impl PitchTrack {
         let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
         let side = &mut self.note_side;
         let (conf, skipped_conf) = (&mut self.raw_conf, &mut self.skipped_conf);
-        let keep_conf = self.sure.is_some();
+        let keep_conf = self.chain.sure_range.is_some();
         self.tracker.finish(&mut |f, nf, c| {
             advanced_push(raw_f0, skipped, advance, f);
             if keep_conf {
@@ -1081,7 +1077,7 @@ impl PitchTrack {
                 trusted = self.agree && pitches_agree(f0, nf, AGREE_TOL_ST);
             }
             let sure = self
-                .sure
+                .sure_rule()
                 .is_some_and(|r| self.raw_conf.get(j).copied().unwrap_or(0.0) >= r.min_conf);
             let level = self
                 .chain
@@ -1137,7 +1133,7 @@ impl PitchTrack {
                 HELD_MIN_HOPS,
             )
         };
-        let r = match (self.geo.level_rule, self.sure) {
+        let r = match (self.geo.level_rule, self.sure_rule()) {
             (LevelRule::Paper, _) => range_offline(&f0),
             // Narrowed to the hops the learned tracker is sure of ([`MIX_LEAD_SURE`],
             // [`MIX_BASS_SURE`]).
@@ -1162,6 +1158,12 @@ impl PitchTrack {
         self.f0 = f0;
         self.level_db = self.raw_rms[..n].to_vec();
         self.hop_levels = levels;
+    }
+
+    /// The rule that narrows this track's level range to its sure hops ([`MIX_LEAD_SURE`],
+    /// [`MIX_BASS_SURE`]), kept with the streaming range it narrows to.
+    fn sure_rule(&self) -> Option<SureRule> {
+        self.chain.sure_range.as_ref().map(|&(_, r)| r)
     }
 
     /// Per-hop and per-bin values held (what [`crate::Engine::retained_values`] sums).
