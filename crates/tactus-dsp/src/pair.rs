@@ -12,7 +12,8 @@
 //! Both trackers get the same input, a block at a time, and emit hop `i` in order. For each
 //! hop: unvoiced when the voicing tracker says so (its estimate unchanged); otherwise the
 //! voicing tracker's estimate with `f0_hz` and `aperiodicity` (how sure of that pitch) taken
-//! from the pitch tracker when that one is voiced there, else its own. Both trackers must have the same hop.
+//! from the pitch tracker when that one is voiced there, else its own. Both trackers must
+//! have the same hop.
 //!
 //! **Veto** ([`VoicingPitchPair::with_veto`]). Where the pitch tracker is unvoiced the hop is
 //! unvoiced too, in the merged estimate and in the voicing tracker's own as emitted by
