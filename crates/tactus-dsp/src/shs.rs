@@ -75,10 +75,16 @@
 //!    [`ATTACK_HOLD_HOPS`] hops (within a bin), and the frame's band level (the mean
 //!    power over the searched band, in dB of the input's units) rises from `h` to the
 //!    jump by at least `attack_rise_db` in all and falls by no more than that from one hop
-//!    to the next, hop `h` reports `B` (refined on its own salience). The decoded state
+//!    to the next, hop `h` reports `B` (refined on its own salience). A cross-fade between
+//!    two sung notes need not raise the band level, so with `attack_salience_ratio` = r > 0
+//!    hop `h` also reports `B` (same jump and hold) when `B` already sounds there, its
+//!    salience (the largest within a bin of `B`) at least r times `A`'s at `h`, and it
+//!    grows towards the jump, falling by no more than [`ATTACK_SALIENCE_TOL`] from one hop
+//!    to the next; the band level's fall then does not end the search. The decoded state
 //!    still drives everything else (contour voicing, register, the Viterbi), and
 //!    [`Shs::process_both`] gives both. No latency is added: only the lag is read. Off by
-//!    default; the engine turns it on (0.5 dB) for a lead that comes as its own stem.
+//!    default; the engine turns it on (0.5 dB, r = 0.3) for a lead that comes as its own
+//!    stem.
 //!
 //! ## Defaults ([`ShsConfig::new`])
 //! Range 35–400 Hz (the bass stem of docs/design.md); hop 10 ms; frame = the power of two nearest
@@ -307,6 +313,10 @@ pub struct ShsConfig {
     /// falls by no more than that in any one hop). 0 turns it off. Harmonic sum only (a
     /// learned salience has no band level here).
     pub attack_rise_db: f32,
+    /// With [`ShsConfig::attack_rise_db`] > 0: the attack alignment also moves a note change
+    /// back to a hop where the new note's salience is at least this share of the old one's
+    /// and grows towards the change (module docs, step 9). 0 turns it off.
+    pub attack_salience_ratio: f32,
 }
 
 /// The power of two nearest `target` samples (rounding down when the next one up is more
@@ -357,6 +367,7 @@ impl ShsConfig {
             learned_ensemble: false,
             learned_harmonic: false,
             attack_rise_db: 0.0,
+            attack_salience_ratio: 0.0,
         }
     }
 
@@ -505,6 +516,14 @@ impl ShsConfig {
         }
         if !(self.attack_rise_db.is_finite() && (0.0..=40.0).contains(&self.attack_rise_db)) {
             return Err(ConfigError::invalid("attack_rise_db", "must be in [0, 40]"));
+        }
+        if !(self.attack_salience_ratio.is_finite()
+            && (0.0..=10.0).contains(&self.attack_salience_ratio))
+        {
+            return Err(ConfigError::invalid(
+                "attack_salience_ratio",
+                "must be in [0, 10]",
+            ));
         }
         Ok(m)
     }
@@ -711,6 +730,8 @@ struct Tracker {
     level_ring: Vec<f32>,
     /// [`ShsConfig::attack_rise_db`].
     attack_db: f32,
+    /// [`ShsConfig::attack_salience_ratio`].
+    attack_ratio: f32,
     /// A jump of at least this many bins is a change of note (a semitone).
     note_jump_bins: usize,
     contour: ContourGate,
@@ -728,6 +749,10 @@ impl crate::simd::ViterbiStep for Tracker {
         Tracker::step(self, slot, l_unvoiced);
     }
 }
+
+/// The attack alignment's salience criterion (module docs, step 9): the new note's salience
+/// may fall from one hop to the next towards the change to no less than this share.
+pub const ATTACK_SALIENCE_TOL: f32 = 0.8;
 
 /// Candidates on each side of the decided one whose probabilities a learned tracker's
 /// confidence sums (module docs, "Learned salience").
@@ -1017,6 +1042,7 @@ impl Tracker {
             peak_ring: vec![0.0; ring],
             level_ring: vec![SILENT_DB; ring],
             attack_db: if cfg.learned { 0.0 } else { cfg.attack_rise_db },
+            attack_ratio: cfg.attack_salience_ratio,
             note_jump_bins: cfg.bins_per_semitone as usize,
             register: Register {
                 k: if cfg.register_sigma_st > 0.0 {
@@ -1127,22 +1153,43 @@ impl Tracker {
             return state;
         }
         let level = |h: usize| self.level_ring[h % self.ring];
+        // The largest salience within a bin of candidate `c` at hop `h`.
+        let sal = |h: usize, c: usize| {
+            let row = &self.sal_ring[(h % self.ring) * m..(h % self.ring + 1) * m];
+            row[c.saturating_sub(1)..(c + 2).min(m)]
+                .iter()
+                .fold(0.0f32, |a, &b| a.max(b))
+        };
         let mut prev = state;
+        // The band level has not fallen by more than `attack_db` in one hop so far.
+        let mut level_ok = true;
         for (k, &s) in ahead.iter().enumerate() {
             let (s, h) = (s as usize, hop + 1 + k);
             if s >= m || self.silent[h % self.ring] {
                 return state;
             }
             if level(h) < level(h - 1) - self.attack_db {
-                return state;
+                if self.attack_ratio <= 0.0 {
+                    return state;
+                }
+                level_ok = false;
             }
             if s.abs_diff(prev) >= self.note_jump_bins {
                 let held = ahead.get(k..k + ATTACK_HOLD_HOPS).is_some_and(|run| {
                     run.iter()
                         .all(|&x| (x as usize) < m && (x as usize).abs_diff(s) <= 1)
                 });
-                let rise = level(h) - level(hop);
-                return if held && rise >= self.attack_db {
+                if !held {
+                    return state;
+                }
+                if level_ok && level(h) - level(hop) >= self.attack_db {
+                    return s;
+                }
+                // The new note already sounds at `hop` and grows towards the jump.
+                let (a, b) = (sal(hop, state), sal(hop, s));
+                let grows = (hop..h).all(|x| sal(x + 1, s) >= ATTACK_SALIENCE_TOL * sal(x, s));
+                return if self.attack_ratio > 0.0 && a > 0.0 && b >= self.attack_ratio * a && grows
+                {
                     s
                 } else {
                     state

@@ -335,6 +335,13 @@ pub const CLEAN_LEAD_HARMONICS: usize = 12;
 /// on it (README, "The clean lead's note changes at the attack").
 pub const CLEAN_LEAD_ATTACK_RISE_DB: f32 = 0.5;
 
+/// The attack alignment of a clean lead also follows the new note's own salience
+/// ([`ShsConfig::attack_salience_ratio`]; `tactus_dsp::shs` module docs, step 9): a cross-fade
+/// between two sung notes (a choir patch's slow attack over the old note's release) does
+/// not raise the band level. Chosen over 0.1–1.0 on 204 tuning songs
+/// (`benches/trials/RULE_attack_salience.md`).
+pub const CLEAN_LEAD_ATTACK_SALIENCE_RATIO: f32 = 0.3;
+
 /// How many hops a pitch track on the spectral separator's bass or vocals stem is moved
 /// earlier ([`PitchTrack::set_advance_hops`]): the separator's harmonic time median spans more
 /// past frames than look-ahead ones (5 + 2, the bass 8 + 2, of 23 ms), so a new note reaches
@@ -803,6 +810,7 @@ impl PitchTrack {
                 if clean_lead {
                     sc.harmonics = CLEAN_LEAD_HARMONICS;
                     sc.attack_rise_db = CLEAN_LEAD_ATTACK_RISE_DB;
+                    sc.attack_salience_ratio = CLEAN_LEAD_ATTACK_SALIENCE_RATIO;
                 }
                 sc.learned = method == PitchMethod::Learned && fmax_hz <= BASS_MAX_HZ;
                 if sc.learned {
