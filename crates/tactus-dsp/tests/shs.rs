@@ -1043,7 +1043,15 @@ fn naive_attack_align(c: &ShsConfig, x: &[f32]) -> (Vec<usize>, Vec<usize>) {
     let known = naive_known_paths(c, &hops);
     let sounding = |h: usize| hops[h].peak > 1e-9;
     let db = c.attack_rise_db as f64;
+    let ratio = c.attack_salience_ratio as f64;
     let step = c.bins_per_semitone as usize;
+    // The largest salience within a bin of candidate `b` at hop `h`.
+    let near = |h: usize, b: usize| {
+        hops[h].sal[b.saturating_sub(1)..(b + 2).min(m)]
+            .iter()
+            .fold(0.0f64, |a, &x| a.max(x))
+    };
+    let tol = tactus_dsp::shs::ATTACK_SALIENCE_TOL as f64;
     let mut reported = Vec::new();
     let mut decided = Vec::new();
     for h in 0..hops.len() {
@@ -1054,15 +1062,28 @@ fn naive_attack_align(c: &ShsConfig, x: &[f32]) -> (Vec<usize>, Vec<usize>) {
         let mut out = s;
         if db > 0.0 && s < m && sounding(h) {
             let mut prev = s;
+            let mut level_ok = true;
             for k in h + 1..=end {
-                if path[k] >= m || !sounding(k) || levels[k] < levels[k - 1] - db {
+                if path[k] >= m || !sounding(k) {
                     break;
+                }
+                if levels[k] < levels[k - 1] - db {
+                    if ratio <= 0.0 {
+                        break;
+                    }
+                    level_ok = false;
                 }
                 if path[k].abs_diff(prev) >= step {
                     let b = path[k];
                     let held =
                         k + 2 <= end && (k..k + 3).all(|j| path[j] < m && path[j].abs_diff(b) <= 1);
-                    if held && levels[k] - levels[h] >= db {
+                    let rises = level_ok && levels[k] - levels[h] >= db;
+                    // Or the new note already sounds at h and grows towards the jump.
+                    let sounds = ratio > 0.0
+                        && near(h, s) > 0.0
+                        && near(h, b) >= ratio * near(h, s)
+                        && (h..k).all(|x| near(x + 1, b) >= tol * near(x, b));
+                    if held && (rises || sounds) {
                         out = b;
                     }
                     break;
@@ -1229,4 +1250,56 @@ fn attack_alignment_config_is_validated() {
         c.attack_rise_db = bad;
         assert!(Shs::new(c).is_err(), "{bad}");
     }
+    for bad in [-0.1, f32::NAN, f32::INFINITY, 11.0] {
+        let mut c = cfg();
+        c.attack_salience_ratio = bad;
+        assert!(Shs::new(c).is_err(), "{bad}");
+    }
+}
+
+/// The salience criterion of step 9 (`attack_salience_ratio`): notes that cross-fade, the
+/// old one dying faster than the new one's slow attack grows, so the band level dips at
+/// every change and the level criterion never moves one. Against the slow oracle, for any
+/// chunking; with the ratio the changes move back and the pitch is right on more hops.
+#[test]
+fn attack_alignment_follows_the_new_notes_salience_through_a_cross_fade() {
+    let mut c = small(cfg());
+    c.attack_rise_db = 0.5;
+    let pitches = [55.0, 82.4, 61.7, 98.0, 73.4, 110.0, 65.4];
+    let (x, truth) = overlapping_notes(SR, &pitches, 0.5, 0.15, 0.04, &[1.0, 0.6, 0.4, 0.3]);
+    let rpa = |est: &[PitchEstimate]| {
+        let (mut ok, mut n) = (0, 0);
+        for (i, e) in est.iter().enumerate() {
+            let t = truth.get(i * c.hop).copied().unwrap_or(0.0);
+            if t > 0.0 {
+                n += 1;
+                ok += (e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0) as usize;
+            }
+        }
+        ok as f64 / n as f64
+    };
+    let moved = |rep: &[PitchEstimate], dec: &[PitchEstimate]| {
+        rep.iter().zip(dec).filter(|(r, d)| r != d).count()
+    };
+    let (lrep, ldec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, x.len());
+    c.attack_salience_ratio = 0.3;
+    let (want_rep, want_dec) = naive_attack_align(&c, &x);
+    for chunk in [x.len(), 777, 98] {
+        let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, chunk);
+        assert_states(&c, &rep, &want_rep, &format!("chunk {chunk}, reported: "));
+        assert_states(&c, &dec, &want_dec, &format!("chunk {chunk}, decoded: "));
+    }
+    let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, x.len());
+    assert_eq!(
+        dec, ldec,
+        "the decoding is the same with or without the ratio"
+    );
+    let (by_level, by_salience) = (moved(&lrep, &ldec), moved(&rep, &dec));
+    eprintln!(
+        "moved: level {by_level}, salience {by_salience}; RPA {:.3} -> {:.3}",
+        rpa(&lrep),
+        rpa(&rep)
+    );
+    assert!(by_salience >= by_level + 4, "{by_level} -> {by_salience}");
+    assert!(rpa(&rep) > rpa(&lrep), "{} -> {}", rpa(&lrep), rpa(&rep));
 }
