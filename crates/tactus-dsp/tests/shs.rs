@@ -1096,6 +1096,20 @@ fn naive_attack_align(c: &ShsConfig, x: &[f32]) -> (Vec<usize>, Vec<usize>) {
     (reported, decided)
 }
 
+/// Raw pitch accuracy of `est` (one estimate per `hop` samples) against the per-sample
+/// `truth` (0 = silent): the share of the truth's voiced hops estimated within 50 cents.
+fn raw_pitch_accuracy(est: &[PitchEstimate], truth: &[f64], hop: usize) -> f64 {
+    let (mut ok, mut n) = (0, 0);
+    for (i, e) in est.iter().enumerate() {
+        let t = truth.get(i * hop).copied().unwrap_or(0.0);
+        if t > 0.0 {
+            n += 1;
+            ok += (e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0) as usize;
+        }
+    }
+    ok as f64 / n as f64
+}
+
 /// Runs `s` over `x` in blocks of `chunk` samples with both estimates per hop.
 fn run_both(s: &mut Shs, x: &[f32], chunk: usize) -> (Vec<PitchEstimate>, Vec<PitchEstimate>) {
     let (mut rep, mut dec) = (Vec::new(), Vec::new());
@@ -1206,17 +1220,8 @@ fn attack_alignment_finds_a_slow_attack_sooner_and_leaves_level_changes_alone() 
     let amps: Vec<f64> = (1..=10).map(|h| 1.0 / h as f64).collect();
     let pitches = [220.0, 247.0, 196.0, 262.0, 220.0, 294.0, 247.0, 330.0];
     let (x, truth) = overlapping_notes(MSR, &pitches, 0.6, 0.1, 0.3, &amps);
-    let rpa = |est: &[PitchEstimate]| {
-        let (mut ok, mut n) = (0, 0);
-        for (i, e) in est.iter().enumerate() {
-            let t = truth.get(i * c.hop).copied().unwrap_or(0.0);
-            if t > 0.0 {
-                n += 1;
-                ok += (e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0) as usize;
-            }
-        }
-        ok as f64 / n as f64
-    };
+    let hop = c.hop;
+    let rpa = |est: &[PitchEstimate]| raw_pitch_accuracy(est, &truth, hop);
     c.attack_rise_db = 0.5; // the engine's clean lead
     let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, 4096);
     let (a, d) = (rpa(&rep), rpa(&dec));
@@ -1267,17 +1272,8 @@ fn attack_alignment_follows_the_new_notes_salience_through_a_cross_fade() {
     c.attack_rise_db = 0.5;
     let pitches = [55.0, 82.4, 61.7, 98.0, 73.4, 110.0, 65.4];
     let (x, truth) = overlapping_notes(SR, &pitches, 0.5, 0.15, 0.04, &[1.0, 0.6, 0.4, 0.3]);
-    let rpa = |est: &[PitchEstimate]| {
-        let (mut ok, mut n) = (0, 0);
-        for (i, e) in est.iter().enumerate() {
-            let t = truth.get(i * c.hop).copied().unwrap_or(0.0);
-            if t > 0.0 {
-                n += 1;
-                ok += (e.f0_hz > 0.0 && cents(e.f0_hz as f64, t).abs() <= 50.0) as usize;
-            }
-        }
-        ok as f64 / n as f64
-    };
+    let hop = c.hop;
+    let rpa = |est: &[PitchEstimate]| raw_pitch_accuracy(est, &truth, hop);
     let moved = |rep: &[PitchEstimate], dec: &[PitchEstimate]| {
         rep.iter().zip(dec).filter(|(r, d)| r != d).count()
     };
