@@ -31,6 +31,12 @@
 //!    the track, the player did not).
 //! 5. **Attacked changes** (`pitch_needs_attack`, off by default; the engine turns it on for
 //!    the bass of a mixture): a change of note counts only where rule 2 finds an attack.
+//! 6. **Guided onsets** (`guide_back_hops`, off by default; the engine's clean lead, 5): a
+//!    pitch onset that rule 2 did not move goes back to where a *guide* pitch fed beside
+//!    the decoded one ([`NoteOnsets::push_guided`]: the harmonic-sum tracker's
+//!    attack-aligned pitch) already holds the new note, within the attack search's
+//!    window: a choir's slow attack cross-fades with the old note's release without
+//!    raising the level, but the new note's own salience grows from its start.
 //!
 //! Without a level (NaN) rules 1, 2 and 4 find no attack, so the rule never adds an onset the
 //! pitch rule lacks. The kick leaking into a separated bass stem also raises its level, but on
@@ -122,6 +128,16 @@ pub struct NoteConfig {
     /// level swings inside a held note several times a second, a played repeat of one pitch
     /// rarely does. Below `min_ioi_hops` it changes nothing. 0 = off.
     pub reattack_min_hops: usize,
+    /// Rule 6, **guided onsets**: a pitch onset that no attack moved (rule 2 found none)
+    /// goes back to the first hop of the run, ending at the decided hop, over which the
+    /// *guide* pitch ([`NoteOnsets::push_guided`]) already holds the new note (within
+    /// `tolerance_st` of the stable window's median), at most this many hops back (and at
+    /// most `attack_back_hops`), not within `min_ioi_hops` of the previous onset;
+    /// `pitch_back_hops` applies where the guide has no such run. For a tracker that
+    /// reports an attack-aligned pitch beside the decoded one: a choir's slow attack
+    /// cross-fades without a level rise, but the aligned pitch changes where the new note
+    /// starts to sound. 0 = off; without a guide it changes nothing.
+    pub guide_back_hops: usize,
 }
 
 impl NoteConfig {
@@ -142,6 +158,7 @@ impl NoteConfig {
             backtrack_hops: 0,
             pitch_back_hops: 0,
             reattack_min_hops: 0,
+            guide_back_hops: 0,
         }
     }
 
@@ -173,6 +190,8 @@ pub struct NoteOnsets {
     st: [f32; HIST],
     /// Level in dB (NaN = unknown) of hop `k` at `k % HIST`.
     db: [f32; HIST],
+    /// Guide pitch in semitones (NaN = unvoiced or none) of hop `k` at `k % HIST`.
+    guide: [f32; HIST],
     /// Onset flag of decided, not yet emitted hop `k` at `k % HIST`.
     flag: [bool; HIST],
     /// Hops pushed.
@@ -238,6 +257,7 @@ impl NoteOnsets {
             cfg,
             st: [f32::NAN; HIST],
             db: [f32::NAN; HIST],
+            guide: [f32::NAN; HIST],
             flag: [false; HIST],
             n_in: 0,
             decided: 0,
@@ -275,13 +295,29 @@ impl NoteOnsets {
     /// Feeds hop `i`'s f0 and the stem's level at that hop (dB; NaN = unknown, which never
     /// rises); calls `emit(j, onset)` for hop `j = i − latency_hops()` once it is decided.
     pub fn push_level(&mut self, f0_hz: f32, level_db: f32, emit: &mut dyn FnMut(usize, bool)) {
-        let st = if f0_hz.is_finite() && f0_hz > 0.0 {
-            hz_to_semitones(f0_hz)
-        } else {
-            f32::NAN
+        self.push_guided(f0_hz, level_db, f32::NAN, emit);
+    }
+
+    /// Feeds hop `i`'s f0, level and guide pitch (Hz, 0 or NaN = none; read only by rule 6,
+    /// [`NoteConfig::guide_back_hops`]); calls `emit(j, onset)` for hop `j = i − latency_hops()`
+    /// once it is decided.
+    pub fn push_guided(
+        &mut self,
+        f0_hz: f32,
+        level_db: f32,
+        guide_hz: f32,
+        emit: &mut dyn FnMut(usize, bool),
+    ) {
+        let semis = |f: f32| {
+            if f.is_finite() && f > 0.0 {
+                hz_to_semitones(f)
+            } else {
+                f32::NAN
+            }
         };
         let k = self.n_in % HIST;
-        self.st[k] = st;
+        self.st[k] = semis(f0_hz);
+        self.guide[k] = semis(guide_hz);
         self.db[k] = if level_db.is_finite() {
             level_db
         } else {
@@ -425,7 +461,7 @@ impl NoteOnsets {
                     && self.cfg.attack_back_hops > 0
                     && self.current.is_some());
             self.current = Some(med);
-            self.pitch_onset_at(j, need);
+            self.pitch_onset_at(j, med, need);
             return;
         }
         if stable {
@@ -453,7 +489,7 @@ impl NoteOnsets {
 
     /// A pitch onset decided at hop `j`: moved back to the attack before it, dropped when a
     /// note already started there, or kept at `j`.
-    fn pitch_onset_at(&mut self, j: usize, need_attack: bool) {
+    fn pitch_onset_at(&mut self, j: usize, med: f32, need_attack: bool) {
         let back = self.cfg.attack_back_hops;
         if back > 0 {
             let from = j.saturating_sub(back).max(self.emitted);
@@ -483,6 +519,10 @@ impl NoteOnsets {
             }
         }
         if self.spaced(j) {
+            if let Some(h) = self.guided_start(j, med) {
+                self.mark(h);
+                return;
+            }
             let mut h = j.saturating_sub(self.cfg.pitch_back_hops);
             if self.cfg.pitch_back_hops > 0 {
                 h = h.max(j.saturating_sub(back));
@@ -492,6 +532,32 @@ impl NoteOnsets {
             }
             self.mark(h);
         }
+    }
+
+    /// Rule 6 ([`NoteConfig::guide_back_hops`]): the first hop of the run of hops before `j`
+    /// whose guide pitch holds the note `med` (within `tolerance_st`), reaching back at most
+    /// `guide_back_hops` and `attack_back_hops`, never to an emitted hop nor within the
+    /// minimum interval of the last onset; `None` when the run is empty or the rule is off.
+    fn guided_start(&self, j: usize, med: f32) -> Option<usize> {
+        if self.cfg.guide_back_hops == 0 {
+            return None;
+        }
+        let mut lo = j
+            .saturating_sub(self.cfg.attack_back_hops)
+            .max(self.emitted);
+        if let Some(l) = self.last_onset {
+            lo = lo.max(l + self.cfg.min_ioi_hops.max(1));
+        }
+        let lo = lo.max(j.saturating_sub(self.cfg.guide_back_hops));
+        let mut h = j;
+        while h > lo {
+            let g = self.guide[(h - 1) % HIST];
+            if g.is_nan() || (g - med).abs() > self.cfg.tolerance_st {
+                break;
+            }
+            h -= 1;
+        }
+        (h < j).then_some(h)
     }
 
     /// The foot of the rise that attacks at hop `h` (decided at hop `j`): walks back over
@@ -529,6 +595,7 @@ impl NoteOnsets {
     pub fn reset(&mut self) {
         self.st = [f32::NAN; HIST];
         self.db = [f32::NAN; HIST];
+        self.guide = [f32::NAN; HIST];
         self.flag = [false; HIST];
         self.n_in = 0;
         self.decided = 0;
@@ -561,6 +628,18 @@ pub fn note_onsets_offline_level(
     level_db: &[f32],
     cfg: NoteConfig,
 ) -> Result<Vec<bool>, ConfigError> {
+    note_onsets_offline_guided(f0_hz, level_db, &[], cfg)
+}
+
+/// Note onsets of a whole pitch track (Hz per hop), the stem's level per hop (dB) and a
+/// guide pitch per hop (Hz; [`NoteConfig::guide_back_hops`]; a missing value counts as none): one
+/// flag per hop. Allocates the result.
+pub fn note_onsets_offline_guided(
+    f0_hz: &[f32],
+    level_db: &[f32],
+    guide_hz: &[f32],
+    cfg: NoteConfig,
+) -> Result<Vec<bool>, ConfigError> {
     let mut d = NoteOnsets::new(cfg)?;
     let mut out = vec![false; f0_hz.len()];
     let mut put = |j: usize, o: bool| {
@@ -569,7 +648,9 @@ pub fn note_onsets_offline_level(
         }
     };
     for (i, &f) in f0_hz.iter().enumerate() {
-        d.push_level(f, level_db.get(i).copied().unwrap_or(f32::NAN), &mut put);
+        let l = level_db.get(i).copied().unwrap_or(f32::NAN);
+        let g = guide_hz.get(i).copied().unwrap_or(f32::NAN);
+        d.push_guided(f, l, g, &mut put);
     }
     d.finish(&mut put);
     Ok(out)

@@ -18,7 +18,7 @@
 //! needed the level instead (README, "Note onsets from the attack": held-out isolated bass
 //! note F 0.73 → 0.97 on the sung and drum corpora).
 
-use tactus_dsp::notes::{note_onsets_offline_level, NoteConfig, NoteOnsets};
+use tactus_dsp::notes::{note_onsets_offline_guided, NoteConfig, NoteOnsets};
 use tactus_dsp::ConfigError;
 
 use crate::profile::Profile;
@@ -67,6 +67,13 @@ pub const CLEAN_LEAD_PITCH_BACK_HOPS: usize = 2;
 /// `benches/trials/RULE_clean_lead_reattack_interval.md`).
 pub const CLEAN_LEAD_REATTACK_MIN_HOPS: usize = 25;
 
+/// [`NoteConfig::guide_back_hops`] of a clean lead whose tracker reports an attack-aligned
+/// pitch beside the decoded one (`PitchTrack::note_guide`): a pitch onset without an attack
+/// moves back to where the aligned pitch already holds the new note, at most 50 ms.
+/// Chosen over 4, 5, 6 and 8 hops on 204 tuning songs
+/// (`benches/trials/RULE_guided_onsets.md`).
+pub const CLEAN_LEAD_GUIDE_BACK_HOPS: usize = 5;
+
 impl NoteRule {
     /// The detector's configuration for `profile` and the stem's `role`. The clean lead's
     /// moves need the attack search (the full profile): they never reach before it, so
@@ -78,6 +85,7 @@ impl NoteRule {
                     backtrack_hops: CLEAN_LEAD_BACKTRACK_HOPS,
                     pitch_back_hops: CLEAN_LEAD_PITCH_BACK_HOPS,
                     reattack_min_hops: CLEAN_LEAD_REATTACK_MIN_HOPS,
+                    guide_back_hops: CLEAN_LEAD_GUIDE_BACK_HOPS,
                     ..c
                 }
             } else {
@@ -139,9 +147,11 @@ impl PitchNotes {
         }
         let (det, beats) = (&mut self.det, &mut self.beats);
         let f0 = pitch.note_f0();
+        let guide = pitch.note_guide();
         for (k, &f) in f0.iter().enumerate().skip(self.consumed) {
             let l = pitch.level_db.get(k).copied().unwrap_or(f32::NAN);
-            det.push_level(f, l, &mut |j, o| beats.push(j, o));
+            let g = guide.get(k).copied().unwrap_or(f32::NAN);
+            det.push_guided(f, l, g, &mut |j, o| beats.push(j, o));
         }
         self.consumed = f0.len();
     }
@@ -156,7 +166,8 @@ impl PitchNotes {
         } else {
             // The config was validated in `new`, so this cannot fail; stay silent if it did.
             let f0 = pitch.note_f0();
-            let onsets = note_onsets_offline_level(f0, &pitch.level_db, self.cfg)
+            let onsets =
+                note_onsets_offline_guided(f0, &pitch.level_db, pitch.note_guide(), self.cfg)
                 .unwrap_or_else(|_| vec![false; f0.len()]);
             self.beats
                 .set_offline(onsets, self.hop, self.geo.bin_samples);

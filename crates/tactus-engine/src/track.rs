@@ -1222,6 +1222,17 @@ impl PitchTrack {
         }
     }
 
+    /// The guide pitch of the note onsets, per hop (after gate and fences;
+    /// `tactus_dsp::notes::NoteConfig::guide_back_hops`): for a tracker with the attack alignment
+    /// its aligned pitch ([`PitchTrack::f0`]), beside the decoded one that
+    /// [`PitchTrack::note_f0`] gives; empty for any other tracker.
+    pub fn note_guide(&self) -> &[f32] {
+        match (&self.tracker, &self.note_side) {
+            (Tracker::Aligned(_), Some(_)) => &self.f0,
+            _ => &[],
+        }
+    }
+
     /// Streaming: forgets the first `d` bins and the per-hop values already binned
     /// ([`crate::Engine::discard_before`]).
     pub fn discard(&mut self, d: usize) {
