@@ -31,7 +31,8 @@
 //!    the track, the player did not).
 //! 5. **Attacked changes** (`pitch_needs_attack`, off by default; the engine turns it on for
 //!    the bass of a mixture): a change of note counts only where rule 2 finds an attack.
-//! 6. **Guided onsets** (`guide_back_hops`, off by default; the engine's clean lead, 5): a
+//! 6. **Guided onsets** (`guide_back_hops`, off by default and in the engine: tried, not
+//!    adopted, `benches/trials/RULE_guided_onsets.md`): a
 //!    pitch onset that rule 2 did not move goes back to where a *guide* pitch fed beside
 //!    the decoded one ([`NoteOnsets::push_guided`]: the harmonic-sum tracker's
 //!    attack-aligned pitch) already holds the new note, within the attack search's

@@ -5,8 +5,8 @@
 //! on seeded random tracks and on musical cases with known answers.
 
 use tactus_dsp::notes::{
-    note_onsets_offline, note_onsets_offline_level, NoteConfig, NoteOnsets, RISE_AHEAD_HOPS,
-    RISE_BEHIND_HOPS,
+    note_onsets_offline, note_onsets_offline_guided, note_onsets_offline_level, NoteConfig,
+    NoteOnsets, RISE_AHEAD_HOPS, RISE_BEHIND_HOPS,
 };
 use tactus_dsp::{hz_to_semitones, semitones_to_hz};
 use tactus_testkit::Rng;
@@ -16,11 +16,15 @@ static A: tactus_testkit::Counting = tactus_testkit::Counting;
 
 /// The rule as the module docs state it, on whole arrays.
 fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
+    oracle_guided(f0, db, &[], c)
+}
+
+/// The rule as the module docs state it, with a guide pitch per hop (rule 6).
+fn oracle_guided(f0: &[f32], db: &[f32], guide: &[f32], c: NoteConfig) -> Vec<bool> {
     let n = f0.len();
-    let st: Vec<Option<f32>> = f0
-        .iter()
-        .map(|&f| (f.is_finite() && f > 0.0).then(|| hz_to_semitones(f)))
-        .collect();
+    let semis = |f: &f32| (f.is_finite() && *f > 0.0).then(|| hz_to_semitones(*f));
+    let st: Vec<Option<f32>> = f0.iter().map(semis).collect();
+    let gst: Vec<Option<f32>> = (0..n).map(|i| guide.get(i).and_then(semis)).collect();
     let lv = |h: isize| -> Option<f32> {
         if h < 0 || h as usize >= n {
             return None;
@@ -140,6 +144,25 @@ fn oracle(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
                 }
             }
             if spaced(last, j) {
+                // Rule 6: back over the run of hops before j whose guide holds the new note,
+                // at most guide_back_hops and attack_back_hops, not within the interval.
+                if c.guide_back_hops > 0 {
+                    let mut lo = j
+                        .saturating_sub(c.attack_back_hops)
+                        .max(j.saturating_sub(c.guide_back_hops));
+                    if let Some(l) = last {
+                        lo = lo.max(l + c.min_ioi_hops.max(1));
+                    }
+                    let mut h = j;
+                    while h > lo && gst[h - 1].is_some_and(|g| (g - m).abs() <= c.tolerance_st) {
+                        h -= 1;
+                    }
+                    if h < j {
+                        out[h] = true;
+                        last = Some(h);
+                        continue;
+                    }
+                }
                 // No attack: the pitch onset moves `pitch_back_hops` back, not before the
                 // attack window nor within the minimum interval.
                 let mut h = j;
@@ -195,6 +218,45 @@ fn streamed(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
         got.push(o);
     });
     got
+}
+
+/// Streaming with a guide pitch, one hop at a time: checks the stated latency.
+fn streamed_guided(f0: &[f32], db: &[f32], guide: &[f32], c: NoteConfig) -> Vec<bool> {
+    let mut d = NoteOnsets::new(c).unwrap();
+    let lat = d.latency_hops();
+    let mut got = Vec::new();
+    for (i, &f) in f0.iter().enumerate() {
+        d.push_guided(f, db[i], guide[i], &mut |j, o| {
+            assert_eq!(j + lat, i, "hop {j} emitted at hop {i}, latency {lat}");
+            assert_eq!(j, got.len());
+            got.push(o);
+        });
+    }
+    d.finish(&mut |j, o| {
+        assert_eq!(j, got.len());
+        got.push(o);
+    });
+    got
+}
+
+/// A guide for a random track: its pitch `lead` hops earlier (an aligned pitch changes
+/// before the decoded one), off by a semitone now and then, unvoiced now and then.
+fn random_guide(f0: &[f32], seed: u64, lead: usize) -> Vec<f32> {
+    let mut r = Rng::new(seed ^ 0x9e37);
+    let n = f0.len();
+    (0..n)
+        .map(|i| {
+            let u = (r.next_f32() + 1.0) * 0.5;
+            let f = f0[(i + lead).min(n - 1)];
+            if u < 0.03 {
+                0.0
+            } else if u < 0.08 {
+                f * 2f32.powf(1.0 / 12.0)
+            } else {
+                f
+            }
+        })
+        .collect()
 }
 
 /// A random track: notes (often repeated) with attacks and decays, dropouts, gaps, glides,
@@ -312,6 +374,109 @@ fn streaming_equals_the_slow_oracle_on_random_tracks() {
         // Onsets happen: the comparison is not between two empty tracks.
         assert!(onsets >= 60, "{c:?}: {onsets} onsets");
     }
+}
+
+#[test]
+fn guided_onsets_equal_the_slow_oracle_on_random_tracks() {
+    let d = NoteConfig::default();
+    let lead = NoteConfig {
+        backtrack_hops: 3,
+        pitch_back_hops: 2,
+        reattack_min_hops: 25,
+        ..d
+    };
+    let cfgs = [
+        // The engine's clean lead (`CLEAN_LEAD_GUIDE_BACK_HOPS`).
+        NoteConfig {
+            guide_back_hops: 5,
+            ..lead
+        },
+        NoteConfig {
+            guide_back_hops: 16,
+            attack_back_hops: 16,
+            min_ioi_hops: 0,
+            ..lead
+        },
+        NoteConfig {
+            guide_back_hops: 8,
+            attack_back_hops: 3,
+            ..d
+        },
+    ];
+    for c in cfgs {
+        let mut moved = 0;
+        for seed in 0..12u64 {
+            let n = 50 + (seed as usize * 97) % 900;
+            let (f0, db) = random_track(seed, n);
+            // A flat level too, where no attack is ever found and rule 6 does all the work.
+            let flat = vec![-20.0f32; n];
+            for (lv, k) in [(&db, 4usize), (&flat, 6)] {
+                let guide = random_guide(&f0, seed, k);
+                let want = oracle_guided(&f0, lv, &guide, c);
+                let got = streamed_guided(&f0, lv, &guide, c);
+                let diff: Vec<usize> = (0..n).filter(|&i| got[i] != want[i]).collect();
+                assert!(diff.is_empty(), "{c:?} seed {seed}: differs at {diff:?}");
+                assert_eq!(
+                    note_onsets_offline_guided(&f0, lv, &guide, c).unwrap(),
+                    want
+                );
+                // Without the guide the rule changes nothing.
+                assert_eq!(
+                    note_onsets_offline_guided(&f0, lv, &[], c).unwrap(),
+                    oracle(&f0, lv, c)
+                );
+                let plain = oracle(&f0, lv, c);
+                moved += (0..n).filter(|&i| want[i] && !plain[i]).count();
+            }
+        }
+        // The guide moves onsets: the comparison is not between unchanged tracks.
+        assert!(moved >= 30, "{c:?}: {moved} onsets moved");
+    }
+}
+
+#[test]
+fn a_cross_fade_without_an_attack_starts_where_the_guide_changes() {
+    // Two held notes, a flat level (a choir patch's cross-fade), the decoded pitch changing
+    // at hop 60 and the aligned guide at hop 54.
+    let (a, b) = (semitones_to_hz(60.0), semitones_to_hz(62.0));
+    let f0: Vec<f32> = (0..120).map(|i| if i < 60 { a } else { b }).collect();
+    let guide: Vec<f32> = (0..120).map(|i| if i < 54 { a } else { b }).collect();
+    let db = vec![-20.0f32; 120];
+    let lead = NoteConfig {
+        backtrack_hops: 3,
+        pitch_back_hops: 2,
+        reattack_min_hops: 25,
+        ..NoteConfig::default()
+    };
+    let at = |c: NoteConfig, g: &[f32]| -> Vec<usize> {
+        let o = note_onsets_offline_guided(&f0, &db, g, c).unwrap();
+        (0..o.len()).filter(|&i| o[i]).collect()
+    };
+    // Off: the pitch onset at 60 moves `pitch_back_hops` back.
+    assert_eq!(at(lead, &guide), vec![0, 58]);
+    // On: back to the guide's change, at most `guide_back_hops`.
+    let on = |k| NoteConfig {
+        guide_back_hops: k,
+        ..lead
+    };
+    assert_eq!(at(on(8), &guide), vec![0, 54]);
+    assert_eq!(at(on(5), &guide), vec![0, 55]);
+    // A guide that changes with the decoded pitch, or none, leaves the old placement.
+    assert_eq!(at(on(5), &f0), vec![0, 58]);
+    assert_eq!(at(on(5), &[]), vec![0, 58]);
+    // An attack found by rule 2 wins over the guide.
+    let mut attacked = db.clone();
+    for (i, v) in attacked.iter_mut().enumerate().skip(57) {
+        *v = if i < 58 { -32.0 } else { -14.0 };
+    }
+    attacked[56] = -30.0;
+    let o = note_onsets_offline_guided(&f0, &attacked, &guide, on(5)).unwrap();
+    let got: Vec<usize> = (0..o.len()).filter(|&i| o[i]).collect();
+    assert_eq!(
+        got,
+        vec![0, 57],
+        "the foot of the attack's rise (57), not the guide's 55"
+    );
 }
 
 #[test]

@@ -68,11 +68,12 @@ pub const CLEAN_LEAD_PITCH_BACK_HOPS: usize = 2;
 pub const CLEAN_LEAD_REATTACK_MIN_HOPS: usize = 25;
 
 /// [`NoteConfig::guide_back_hops`] of a clean lead whose tracker reports an attack-aligned
-/// pitch beside the decoded one (`PitchTrack::note_guide`): a pitch onset without an attack
-/// moves back to where the aligned pitch already holds the new note, at most 50 ms.
-/// Chosen over 4, 5, 6 and 8 hops on 204 tuning songs
-/// (`benches/trials/RULE_guided_onsets.md`).
-pub const CLEAN_LEAD_GUIDE_BACK_HOPS: usize = 5;
+/// pitch beside the decoded one (`PitchTrack::note_guide`): 0, off. At 5 (a pitch onset
+/// without an attack moves back to where the aligned pitch already holds the new note, at
+/// most 50 ms) it raised isolated lead note F on the tuning songs (mean +0.013) and the
+/// Choir Aahs chorales of its held-out draw (+0.05–0.07 each), but the held-out mean only by
+/// 0.006, under its adoption rule's 0.01 (`benches/trials/RULE_guided_onsets.md`).
+pub const CLEAN_LEAD_GUIDE_BACK_HOPS: usize = 0;
 
 impl NoteRule {
     /// The detector's configuration for `profile` and the stem's `role`. The clean lead's
@@ -168,7 +169,7 @@ impl PitchNotes {
             let f0 = pitch.note_f0();
             let onsets =
                 note_onsets_offline_guided(f0, &pitch.level_db, pitch.note_guide(), self.cfg)
-                .unwrap_or_else(|_| vec![false; f0.len()]);
+                    .unwrap_or_else(|_| vec![false; f0.len()]);
             self.beats
                 .set_offline(onsets, self.hop, self.geo.bin_samples);
         }

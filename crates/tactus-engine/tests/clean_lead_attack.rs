@@ -104,6 +104,38 @@ fn a_clean_leads_late_changes_move_to_the_attack_and_its_onsets_read_the_decoded
             other, want,
             "{mode:?}: the aligned pitch gives other onsets here"
         );
+        // The aligned pitch is the guide of rule 6 (`NoteConfig::guide_back_hops`, off in
+        // the engine: `benches/trials/RULE_guided_onsets.md`); turned on by hand, it moves
+        // this cross-fading lead's onsets towards the notes' starts.
+        assert_eq!(t.note_guide(), &f0[..]);
+        let guided = tactus_dsp::notes::NoteConfig {
+            guide_back_hops: 5,
+            ..cfg
+        };
+        let g =
+            tactus_dsp::notes::note_onsets_offline_guided(dec, &t.level_db, f0, guided).unwrap();
+        let err = |o: &[bool]| -> usize {
+            let per = (0.5 * SR as f64) as usize;
+            (0..o.len())
+                .filter(|&i| o[i])
+                .map(|i| {
+                    let s = i * hop;
+                    let k = (s + per / 2) / per;
+                    s.abs_diff(k * per)
+                })
+                .sum()
+        };
+        assert_ne!(g, want, "{mode:?}: the guide moves onsets here");
+        assert_eq!(
+            g.iter().filter(|&&o| o).count(),
+            want.iter().filter(|&&o| o).count()
+        );
+        assert!(
+            err(&g) < err(&want),
+            "{mode:?}: guided onsets {} samples off in all, decoded {}",
+            err(&g),
+            err(&want)
+        );
         if mode == Mode::Streaming {
             for chunk in [1, 441, 10_000] {
                 let (c, o) = track(mode, false, &x, chunk);
@@ -117,4 +149,5 @@ fn a_clean_leads_late_changes_move_to_the_attack_and_its_onsets_read_the_decoded
     // A band of the mix keeps one pitch.
     let (m, _) = track(Mode::Offline, true, &x, 4096);
     assert_eq!(m.note_f0(), &m.f0[..]);
+    assert!(m.note_guide().is_empty());
 }
