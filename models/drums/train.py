@@ -340,11 +340,39 @@ def near_onset(Y, reach=3):
     return near
 
 
+def superpose(x, y, w, X, Y, W, pool, rng, p):
+    """Superposition augmentation: a fraction p of the batch's examples each get a window
+    from near another onset (pool: indices into X) added in power, its peak SUPER_DB below
+    to above the example's own (both windows are normalised to a maximum of 0, in nepers of
+    power), then the window normalisation again. Targets are the union; a positive keeps
+    the larger weight, a negative the smaller (so the unweighted hops beside an onset stay
+    unweighted). Real kits sound together; this teaches the sum, not only the parts."""
+    sel = np.flatnonzero(rng.random(len(x)) < p)
+    if len(sel) == 0:
+        return x, y, w
+    j = pool[rng.integers(0, len(pool), len(sel))]
+    lo, hi = (d / (10.0 / np.log(10.0)) for d in SUPER_DB)
+    g = rng.uniform(lo, hi, (len(sel), 1)).astype(np.float32)
+    x, y, w = x.copy(), y.copy(), w.copy()
+    z = np.logaddexp(x[sel], X[j] + g)
+    x[sel] = np.maximum(z - z.max(axis=1, keepdims=True), np.float32(FLOOR))
+    ya, yb, wa, wb = y[sel], Y[j], w[sel], W[j]
+    pos = np.maximum(ya, yb)
+    wpos = np.maximum(wa * ya, wb * yb)
+    w[sel] = np.where(pos > 0, wpos, np.minimum(wa, wb))
+    y[sel] = pos
+    return x, y, w
+
+
+SUPER_DB = (-20.0, 5.0)  # --superpose: the added window's peak relative to the example's
+
+
 def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=None,
-          mean=None, std=None, aug=True, decay=1e-5, neg_keep=1.0, in_drop=0.0):
+          mean=None, std=None, aug=True, decay=1e-5, neg_keep=1.0, in_drop=0.0, sup=0.0):
     """Adam on weighted binary cross-entropy. neg_keep < 1: each epoch uses every frame
     near an onset (+-3 hops) and a fresh random fraction neg_keep of the others, weighted
-    1 / neg_keep (the same expected loss, fewer frames per epoch)."""
+    1 / neg_keep (the same expected loss, fewer frames per epoch). sup > 0: the
+    superposition augmentation (superpose) on that fraction of each batch."""
     m = [[np.zeros_like(W_), np.zeros_like(b_)] for W_, b_ in ps]
     v = [[np.zeros_like(W_), np.zeros_like(b_)] for W_, b_ in ps]
     t = 0
@@ -365,6 +393,8 @@ def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=N
             x, y, w = X[idx], Y[idx], W[idx]
             if neg_keep < 1.0:
                 w = w * np.where(near[idx], 1.0, 1.0 / neg_keep).astype(np.float32)[:, None]
+            if sup > 0:
+                x, y, w = superpose(x, y, w, X, Y, W, near_idx, rng, sup)
             if aug:
                 x = augment(x, rng)
             x = (with_flux(x) - mean) / std
@@ -556,7 +586,7 @@ def report(ps, thr, sets):
 
 
 def main():
-    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX, WHITEN, BACK
+    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX, WHITEN, BACK, SUPER_DB
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
     ap.add_argument("--epochs", type=int, default=20)
@@ -594,11 +624,17 @@ def main():
     ap.add_argument("--whiten", type=float, default=0.0,
                     help="input: subtract each band's running mean power over this many seconds "
                          "(adaptive whitening; 0: none)")
+    ap.add_argument("--superpose", type=float, default=0.0,
+                    help="augmentation: fraction of examples with a window from near another "
+                         "onset added in power (0: none, the committed recipe)")
+    ap.add_argument("--superpose-db", default="-20,5",
+                    help="range of the added window's peak relative to the example's, dB")
     ap.add_argument("--backing", action="store_true",
                     help="input: also the separator's backing (bass + vocals + other) beside "
                          "its drum stem, as a second view (silent for a supplied drum stem)")
     a = ap.parse_args()
     BACK = a.backing
+    SUPER_DB = tuple(float(v) for v in a.superpose_db.split(","))
     if not os.path.exists(dumper_path()):
         sys.exit("build the feature dumper first: cargo build --release -p tactus-engine --example drum_features")
     conds = a.conds.split(",")
@@ -645,7 +681,8 @@ def main():
         sizes = [with_flux(X[:1]).shape[1]] + [int(h) for h in a.hidden.split(",")] + [4]
         ps = init(sizes, rng)
         ps = train(ps, X, Y, W, Xv, Yv, Wv, a.epochs, rng, pos_weight=pos_weight, mean=mean, std=std,
-                   aug=not a.no_augment, neg_keep=a.neg_keep, in_drop=a.in_drop, decay=a.decay)
+                   aug=not a.no_augment, neg_keep=a.neg_keep, in_drop=a.in_drop, decay=a.decay,
+                   sup=a.superpose)
         # Tune thresholds on validation, over every condition pooled.
         acts = [sigmoid(forward(ps, (with_flux(prep(m)) - mean) / std)[-1]) for (_, _, _, m, _) in D_va]
         thr = tune(acts, [t for (*_, t) in D_va])
