@@ -299,6 +299,12 @@ enum Cmd {
         /// dots each, the link and the lead (stdout must be a terminal).
         #[arg(long)]
         tui: bool,
+        /// A song: render it whole (offline) before playing, so every level range is the
+        /// song's own from its first note, at the cost of a wait before the sound starts
+        /// (about 1 % of the song's duration). Without it the song is rendered as it plays
+        /// (streaming), and its first seconds are the least accurate.
+        #[arg(long, conflicts_with = "audio")]
+        whole: bool,
         #[command(flatten)]
         engine: EngineArgs,
     },
@@ -469,6 +475,7 @@ fn run(cli: Cli) -> Result<()> {
             no_audio,
             audio,
             tui,
+            whole,
             engine,
         } => play::run(
             &input,
@@ -477,6 +484,7 @@ fn run(cli: Cli) -> Result<()> {
             no_audio,
             audio.as_deref(),
             tui,
+            whole,
             &engine,
         ),
         Cmd::Live {

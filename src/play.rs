@@ -28,6 +28,7 @@ pub fn run(
     no_audio: bool,
     audio: Option<&Path>,
     tui: bool,
+    whole: bool,
     engine: &EngineArgs,
 ) -> Result<()> {
     let spec: SinkSpec = glove.parse().with_context(|| format!("--glove {glove}"))?;
@@ -43,6 +44,12 @@ pub fn run(
         ..PlayOptions::default()
     };
     if is_pattern {
+        if whole {
+            bail!(
+                "{}: --whole is for a song; a pattern file is already rendered whole",
+                input.display()
+            );
+        }
         let given = engine.given();
         if !given.is_empty() {
             bail!(
@@ -134,7 +141,12 @@ pub fn run(
     if audio.is_some() {
         bail!("--audio is for a pattern file's song; a song plays itself");
     }
-    let (config, stems) = engine.config(Command::Play, ModeArg::Streaming)?;
+    let mode = if whole {
+        ModeArg::Offline
+    } else {
+        ModeArg::Streaming
+    };
+    let (config, stems) = engine.config(Command::Play, mode)?;
     let req = RenderRequest {
         input: input.to_path_buf(),
         stems,
@@ -146,7 +158,19 @@ pub fn run(
             latency: Some(lead(opts.lead_ms)),
             ..ViewExtra::default()
         });
-        tactus_session::play_song(req, sink, &WallClock::new(), &opts, &stop)
+        if whole {
+            let mut rendered = |s: f64| eprintln!("tactus: rendered the whole song in {s:.2} s");
+            tactus_session::play_song_whole(
+                req,
+                sink,
+                &WallClock::new(),
+                &opts,
+                &stop,
+                &mut rendered,
+            )
+        } else {
+            tactus_session::play_song(req, sink, &WallClock::new(), &opts, &stop)
+        }
     });
     print_play(&report?, &spec, &stats);
     Ok(())

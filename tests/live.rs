@@ -222,6 +222,40 @@ fn song_and_pattern(d: &Path) -> (std::path::PathBuf, std::path::PathBuf, Vec<St
     (song, pattern, frames)
 }
 
+/// `play SONG --whole` on the audio clock: the song rendered offline first, its frames then
+/// sent on the sound's own clock, every one from 300 ms on.
+#[test]
+fn play_whole_follows_the_audio_clock_with_the_offline_frames() {
+    let test = "play_whole_follows_the_audio_clock_with_the_offline_frames";
+    let Some(pulse) = Pulse::start(test, &["pulseaudio", "pactl"]) else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let (song, _pattern, _streaming) = song_and_pattern(d.path());
+    let offline = d.path().join("offline.json");
+    let o = Command::new(bin())
+        .args(["render", "--bin-ms", "25", "-o"])
+        .arg(&offline)
+        .arg(&song)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let pat: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&offline).unwrap()).unwrap();
+    let expected: Vec<String> = pat["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap().to_string())
+        .collect();
+    let (wall, got) = play_on_audio(&pulse, &song, &["--whole"], d.path());
+    assert_every_frame_from_300_ms(&got, &expected);
+    assert!(
+        (4.0..12.0).contains(&wall),
+        "play took {wall:.3} s for a 4 s song"
+    );
+}
+
 #[test]
 fn play_pattern_plays_its_song_on_the_audio_clock() {
     let test = "play_pattern_plays_its_song_on_the_audio_clock";

@@ -210,3 +210,82 @@ fn play_pattern_over_a_pty_into_the_emulator() {
         assert!(d.abs() <= tol, "{b}");
     }
 }
+
+/// The frames a render of the demo makes in `mode` at 25 ms bins (what `play` sends).
+fn demo_frames(d: &Path, mode: &str) -> Vec<String> {
+    let song = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/demo.ogg");
+    let out = d.join(format!("demo-{mode}.json"));
+    let o = Command::new(bin())
+        .args(["render", "--mode", mode, "--bin-ms", "25", "-o"])
+        .arg(&out)
+        .arg(&song)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let p: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    p["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap().to_string())
+        .collect()
+}
+
+/// `play SONG --whole` renders the song offline first and sends that render's frames (every
+/// one after the first three, which are due at once and coalesce in the sink), not the
+/// streaming render's; with a pattern file it is an error.
+#[test]
+fn play_whole_sends_the_offline_render_s_frames() {
+    let d = tempfile::tempdir().unwrap();
+    let offline = demo_frames(d.path(), "offline");
+    let streaming = demo_frames(d.path(), "streaming");
+    let differ = offline
+        .iter()
+        .zip(&streaming)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        differ > 100,
+        "the demo's two renders must differ for this test to mean anything ({differ} frames)"
+    );
+    let song = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/demo.ogg");
+    let log = d.path().join("whole.jsonl");
+    let o = Command::new(bin())
+        .arg("play")
+        .arg(&song)
+        .args(["--whole", "--no-audio", "--glove"])
+        .arg(format!("file:{}", log.display()))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("rendered the whole song in"), "{err}");
+    let got: Vec<String> = std::fs::read_to_string(&log)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+        .filter(|v| v["type"] == "pins")
+        .map(|v| v["frame"].as_str().unwrap().to_string())
+        .collect();
+    let tail = &offline[3..];
+    assert!(
+        got.len() >= tail.len() && got[got.len() - tail.len()..] == *tail,
+        "play --whole sent {} frames, not the offline render's {}",
+        got.len(),
+        offline.len()
+    );
+    assert_ne!(got[got.len() - tail.len()..], streaming[3..]);
+
+    // A pattern is already whole.
+    let pattern = d.path().join("demo-offline.json");
+    let o = Command::new(bin())
+        .arg("play")
+        .arg(&pattern)
+        .args(["--whole", "--no-audio", "--glove", "null"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(err.contains("--whole is for a song"), "{err}");
+}

@@ -294,6 +294,28 @@ pub fn render_tapped(
     on_block: &mut dyn FnMut(&[f32], &[f32]),
     on_frame: &mut dyn FnMut(usize, tactus_glove::Frame) -> bool,
 ) -> Result<RenderOutput, EngineError> {
+    render_inner(req, progress, on_block, on_frame, &mut || true)
+}
+
+/// [`render`], asking `keep_going()` after every decoded block (about 2 s of audio): `false`
+/// stops decoding and rendering and the call returns [`EngineError::Cancelled`]. In
+/// `offline` mode no frame exists before the end, so this is how a caller stops a
+/// whole-song render early (`tactus play --whole` on Ctrl-C).
+pub fn render_until(
+    req: &RenderRequest,
+    progress: &mut dyn FnMut(f64),
+    keep_going: &mut dyn FnMut() -> bool,
+) -> Result<RenderOutput, EngineError> {
+    render_inner(req, progress, &mut |_, _| {}, &mut |_, _| true, keep_going)
+}
+
+fn render_inner(
+    req: &RenderRequest,
+    progress: &mut dyn FnMut(f64),
+    on_block: &mut dyn FnMut(&[f32], &[f32]),
+    on_frame: &mut dyn FnMut(usize, tactus_glove::Frame) -> bool,
+    keep_going: &mut dyn FnMut() -> bool,
+) -> Result<RenderOutput, EngineError> {
     let t_all = Instant::now();
     let mut warnings = Vec::new();
     let source = AudioSource::open(&req.input)?;
@@ -359,6 +381,9 @@ pub fn render_tapped(
             }
         }
         on_block(&block.left, &block.right);
+        if !keep_going() {
+            return Err(EngineError::Cancelled);
+        }
         if total > 0 {
             progress(match engine.segment_stats() {
                 Some(st) => {

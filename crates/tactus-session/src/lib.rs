@@ -4,6 +4,7 @@
 //! |---|---|
 //! | [`live::live`] | capture → engine → sink, as it plays; memory stays flat however long it runs |
 //! | [`play::play_song`] | a song rendered frame by frame as it plays (decoded once for the engine and the speakers) |
+//! | [`play::play_song_whole`] | a song rendered whole first (offline: every level range the song's own from its first note), then played like a pattern |
 //! | [`play::play_pattern`] | a pattern's frames, on its song's audio clock or the caller's clock |
 //! | [`view::with_view`] | any of them with the terminal glove view drawn live beside it |
 //!
@@ -53,7 +54,7 @@ pub mod view;
 pub use live::{
     live, BlockTimes, LiveEngine, LiveInput, LiveOptions, LiveReport, LiveStatus, MAX_BACKLOG,
 };
-pub use play::{pattern_song, play_pattern, play_song, Late, PlayOptions, PlayReport, SoundReport};
+pub use play::{pattern_song, play_pattern, play_song, play_song_whole, Late, PlayOptions, PlayReport, SoundReport};
 
 /// Why a session stopped with an error. Each message is one line a user understands; the
 /// cause stays reachable through [`std::error::Error::source`].

@@ -12,7 +12,9 @@ use tactus_audio::resample::StreamResampler;
 use tactus_audio::ring::capture_ring;
 use tactus_engine::render::RenderRequest;
 use tactus_engine::{Engine, ENGINE_RATE};
-use tactus_session::{live, play_pattern, play_song, Late, LiveInput, LiveOptions, PlayOptions};
+use tactus_session::{
+    live, play_pattern, play_song, play_song_whole, Late, LiveInput, LiveOptions, PlayOptions,
+};
 use tactus_testkit::{allocations, Counting};
 use tactus_transport::{open_sink, Clock, FakeClock, SinkOptions, SinkSpec};
 
@@ -165,6 +167,62 @@ fn play_song_on_a_fake_clock_sends_every_frame() {
         "{} vs {last}",
         clock.now_ms()
     );
+}
+
+#[test]
+fn play_song_whole_renders_offline_then_plays_from_the_render_s_end() {
+    // Asked for streaming: the whole-song session renders offline all the same.
+    let config = tactus_engine::EngineConfig {
+        mode: tactus_engine::Mode::Streaming,
+        bin_ms: 25,
+        ..tactus_engine::EngineConfig::default()
+    };
+    let req = RenderRequest {
+        input: demo(),
+        stems: Vec::new(),
+        config,
+    };
+    let offline = RenderRequest {
+        config: tactus_engine::EngineConfig {
+            mode: tactus_engine::Mode::Offline,
+            ..req.config.clone()
+        },
+        ..req.clone()
+    };
+    let rendered = tactus_engine::render::render(&offline, &mut |_| {}).unwrap();
+    let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
+    // The caller's clock already reads 5 s when playback starts (the render's time, say).
+    let clock = FakeClock::new(5000.0);
+    let stop = Arc::new(AtomicBool::new(false));
+    let opts = PlayOptions::default();
+    let mut told = None;
+    let report =
+        play_song_whole(req.clone(), &sink, &clock, &opts, &stop, &mut |s| told = Some(s))
+            .unwrap();
+    sink.close();
+    assert!(told.is_some_and(|s| s >= 0.0));
+    assert_eq!(report.timing.frames_sent, rendered.pattern.frames.len());
+    assert_eq!(report.timing.skipped, 0);
+    assert!(!report.timing.stopped);
+    // Every frame on time from the shifted zero: none was due before playback started.
+    assert!(report.timing.jitter_max_ms < 1.0, "{:?}", report.timing.jitter_max_ms);
+    let last = 5000.0 + report.timing.frames_sent as f64 * 25.0 - opts.lead_ms as f64;
+    assert!(
+        clock.now_ms() >= last && clock.now_ms() < last + 1.0,
+        "{} vs {last}",
+        clock.now_ms()
+    );
+
+    // A stop before (or during) the render: nothing played, a stopped report, no error.
+    let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
+    let stop = Arc::new(AtomicBool::new(true));
+    let r = play_song_whole(req, &sink, &clock, &opts, &stop, &mut |_| {
+        panic!("the render finished after a stop")
+    })
+    .unwrap();
+    sink.close();
+    assert!(r.timing.stopped);
+    assert_eq!(r.timing.frames_sent, 0);
 }
 
 #[test]
