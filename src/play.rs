@@ -21,6 +21,8 @@ use crate::{stop_flag, EngineArgs, ModeArg};
 const DROPPED: &str = "frames replaced by a newer one before the link could send them; \
                        each frame carries the whole glove state, so nothing is lost but time";
 
+// Eight arguments: each is one `play` option as parsed; bundling them would only rename them.
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     input: &Path,
     glove: &str,

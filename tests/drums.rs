@@ -239,7 +239,7 @@ fn backing_only_model() -> Vec<u8> {
     f.extend((-16f32).to_le_bytes());
     f.extend(2u32.to_le_bytes());
     f.extend(6f32.to_le_bytes());
-    let mut push_layer = |f: &mut Vec<u8>, n_in: usize, n_out: usize, w: &[f32], b: &[f32]| {
+    let push_layer = |f: &mut Vec<u8>, n_in: usize, n_out: usize, w: &[f32], b: &[f32]| {
         f.extend((n_in as u32).to_le_bytes());
         f.extend((n_out as u32).to_le_bytes());
         w.iter().chain(b).for_each(|v| f.extend(v.to_le_bytes()));
