@@ -54,7 +54,10 @@ pub mod view;
 pub use live::{
     live, BlockTimes, LiveEngine, LiveInput, LiveOptions, LiveReport, LiveStatus, MAX_BACKLOG,
 };
-pub use play::{pattern_song, play_pattern, play_song, play_song_whole, Late, PlayOptions, PlayReport, SoundReport};
+pub use play::{
+    pattern_song, play_pattern, play_song, play_song_whole, Late, PlayOptions, PlayReport,
+    SoundReport,
+};
 
 /// Why a session stopped with an error. Each message is one line a user understands; the
 /// cause stays reachable through [`std::error::Error::source`].

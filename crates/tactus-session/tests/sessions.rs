@@ -196,16 +196,21 @@ fn play_song_whole_renders_offline_then_plays_from_the_render_s_end() {
     let stop = Arc::new(AtomicBool::new(false));
     let opts = PlayOptions::default();
     let mut told = None;
-    let report =
-        play_song_whole(req.clone(), &sink, &clock, &opts, &stop, &mut |s| told = Some(s))
-            .unwrap();
+    let report = play_song_whole(req.clone(), &sink, &clock, &opts, &stop, &mut |s| {
+        told = Some(s)
+    })
+    .unwrap();
     sink.close();
     assert!(told.is_some_and(|s| s >= 0.0));
     assert_eq!(report.timing.frames_sent, rendered.pattern.frames.len());
     assert_eq!(report.timing.skipped, 0);
     assert!(!report.timing.stopped);
     // Every frame on time from the shifted zero: none was due before playback started.
-    assert!(report.timing.jitter_max_ms < 1.0, "{:?}", report.timing.jitter_max_ms);
+    assert!(
+        report.timing.jitter_max_ms < 1.0,
+        "{:?}",
+        report.timing.jitter_max_ms
+    );
     let last = 5000.0 + report.timing.frames_sent as f64 * 25.0 - opts.lead_ms as f64;
     assert!(
         clock.now_ms() >= last && clock.now_ms() < last + 1.0,
