@@ -204,21 +204,7 @@ fn song_and_pattern(d: &Path) -> (std::path::PathBuf, std::path::PathBuf, Vec<St
     let song = d.join("song.wav");
     write_hits(&song, 44_100, 4.0, 0.1, 0.5);
     let pattern = d.join("song.json");
-    let o = Command::new(bin())
-        .args(["render", "--mode", "streaming", "--bin-ms", "25", "-o"])
-        .arg(&pattern)
-        .arg(&song)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let pat: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&pattern).unwrap()).unwrap();
-    let frames = pat["frames"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|f| f.as_str().unwrap().to_string())
-        .collect();
+    let frames = common::render_frames(&song, &pattern, "streaming");
     (song, pattern, frames)
 }
 
@@ -232,22 +218,7 @@ fn play_whole_follows_the_audio_clock_with_the_offline_frames() {
     };
     let d = tempfile::tempdir().unwrap();
     let (song, _pattern, _streaming) = song_and_pattern(d.path());
-    let offline = d.path().join("offline.json");
-    let o = Command::new(bin())
-        .args(["render", "--bin-ms", "25", "-o"])
-        .arg(&offline)
-        .arg(&song)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let pat: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&offline).unwrap()).unwrap();
-    let expected: Vec<String> = pat["frames"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|f| f.as_str().unwrap().to_string())
-        .collect();
+    let expected = common::render_frames(&song, &d.path().join("offline.json"), "offline");
     let (wall, got) = play_on_audio(&pulse, &song, &["--whole"], d.path());
     assert_every_frame_from_300_ms(&got, &expected);
     assert!(

@@ -214,22 +214,7 @@ fn play_pattern_over_a_pty_into_the_emulator() {
 /// The frames a render of the demo makes in `mode` at 25 ms bins (what `play` sends).
 fn demo_frames(d: &Path, mode: &str) -> Vec<String> {
     let song = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/demo.ogg");
-    let out = d.join(format!("demo-{mode}.json"));
-    let o = Command::new(bin())
-        .args(["render", "--mode", mode, "--bin-ms", "25", "-o"])
-        .arg(&out)
-        .arg(&song)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let p: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
-    p["frames"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|f| f.as_str().unwrap().to_string())
-        .collect()
+    common::render_frames(&song, &d.join(format!("demo-{mode}.json")), mode)
 }
 
 /// `play SONG --whole` renders the song offline first and sends that render's frames (every

@@ -43,6 +43,29 @@ where
     );
 }
 
+/// `tactus render SONG --mode MODE --bin-ms 25 -o OUT` (what `play` sends, 25 ms bins); the
+/// pattern's frames as hex strings.
+pub fn render_frames(song: &std::path::Path, out: &std::path::Path, mode: &str) -> Vec<String> {
+    tactus_ok([
+        "render".as_ref(),
+        song.as_os_str(),
+        "--mode".as_ref(),
+        mode.as_ref(),
+        "--bin-ms".as_ref(),
+        "25".as_ref(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    let p: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap();
+    p["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap().to_string())
+        .collect()
+}
+
 /// `tactus eval FEATURES --truth SONG --json OUT`; the parsed report.
 pub fn eval(
     features: &std::path::Path,

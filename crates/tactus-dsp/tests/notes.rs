@@ -203,21 +203,7 @@ fn oracle_guided(f0: &[f32], db: &[f32], guide: &[f32], c: NoteConfig) -> Vec<bo
 
 /// Streaming, one hop at a time: checks the stated latency and returns the flags.
 fn streamed(f0: &[f32], db: &[f32], c: NoteConfig) -> Vec<bool> {
-    let mut d = NoteOnsets::new(c).unwrap();
-    let lat = d.latency_hops();
-    let mut got = Vec::new();
-    for (i, &f) in f0.iter().enumerate() {
-        d.push_level(f, db[i], &mut |j, o| {
-            assert_eq!(j + lat, i, "hop {j} emitted at hop {i}, latency {lat}");
-            assert_eq!(j, got.len());
-            got.push(o);
-        });
-    }
-    d.finish(&mut |j, o| {
-        assert_eq!(j, got.len());
-        got.push(o);
-    });
-    got
+    streamed_guided(f0, db, &vec![f32::NAN; f0.len()], c)
 }
 
 /// Streaming with a guide pitch, one hop at a time: checks the stated latency.

@@ -129,18 +129,22 @@ fn forgetting_sent_bins_changes_no_frame() {
     assert_eq!(a, b);
 }
 
-#[test]
-fn play_song_on_a_fake_clock_sends_every_frame() {
-    let config = tactus_engine::EngineConfig {
-        mode: tactus_engine::Mode::Streaming,
-        bin_ms: 25,
-        ..tactus_engine::EngineConfig::default()
-    };
-    let req = RenderRequest {
+/// The demo at 25 ms bins in `mode`.
+fn demo_request(mode: tactus_engine::Mode) -> RenderRequest {
+    RenderRequest {
         input: demo(),
         stems: Vec::new(),
-        config,
-    };
+        config: tactus_engine::EngineConfig {
+            mode,
+            bin_ms: 25,
+            ..tactus_engine::EngineConfig::default()
+        },
+    }
+}
+
+#[test]
+fn play_song_on_a_fake_clock_sends_every_frame() {
+    let req = demo_request(tactus_engine::Mode::Streaming);
     // The frames a streaming render makes, for comparison.
     let rendered = tactus_engine::render::render(&req, &mut |_| {}).unwrap();
     let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
@@ -172,23 +176,8 @@ fn play_song_on_a_fake_clock_sends_every_frame() {
 #[test]
 fn play_song_whole_renders_offline_then_plays_from_the_render_s_end() {
     // Asked for streaming: the whole-song session renders offline all the same.
-    let config = tactus_engine::EngineConfig {
-        mode: tactus_engine::Mode::Streaming,
-        bin_ms: 25,
-        ..tactus_engine::EngineConfig::default()
-    };
-    let req = RenderRequest {
-        input: demo(),
-        stems: Vec::new(),
-        config,
-    };
-    let offline = RenderRequest {
-        config: tactus_engine::EngineConfig {
-            mode: tactus_engine::Mode::Offline,
-            ..req.config.clone()
-        },
-        ..req.clone()
-    };
+    let req = demo_request(tactus_engine::Mode::Streaming);
+    let offline = demo_request(tactus_engine::Mode::Offline);
     let rendered = tactus_engine::render::render(&offline, &mut |_| {}).unwrap();
     let sink = open_sink(&SinkSpec::Null, &SinkOptions::default()).unwrap();
     // The caller's clock already reads 5 s when playback starts (the render's time, say).
