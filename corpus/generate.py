@@ -254,6 +254,11 @@ def write_midi(path, notes, bpm, channel, program, bends=None, drums=False):
         for ctl, val in ((101, 0), (100, 0), (6, int(BEND_RANGE)), (38, 0)):
             events.append((0, 2, mido.Message("control_change", channel=channel, control=ctl, value=val)))
     for s, e, p, v in notes:
+        # A note that ends before it starts (a grace note shorter than the release gap, as
+        # in bwv299) would get its note-off first and then sound forever: fluidsynth's fast
+        # render of a sustained patch never ends. It has no f0 in the truth either.
+        if e <= s:
+            continue
         events.append((int(round(s * TPB)), 5, mido.Message("note_on", channel=channel, note=p, velocity=v)))
         events.append((int(round(e * TPB)), 4, mido.Message("note_off", channel=channel, note=p, velocity=0)))
     for t, semis in bends or []:
