@@ -290,10 +290,13 @@ pub const LEARNED_LEAD_HARMONIC: bool = true;
 /// The spectral separator's bass: whether the learned bass salience's network reads the
 /// separator's harmonic sum (vocals + bass + other) with the harmonic-view bass model, the
 /// harmonic sum it is blended with still the bass stem ([`PitchTrack::new_harmonic_view`]).
-/// Off: held out it raised every group's bass RPA, levels and note F, but the mean RPA by
-/// 0.009 where its rule asked 0.01 (README, "The bass reads the harmonic sum (tried, not
-/// adopted)"; `benches/trials/RULE_bass_harmonic_view.md`).
-pub const LEARNED_BASS_HARMONIC: bool = false;
+/// On since 2026-11-28 10:47: the bass stem keeps only what lies under the separator's
+/// 250 Hz crossover, so a note of 100–175 Hz reached the network as one partial and was
+/// read an octave low. Its first trial missed its rule by 0.0008 of mean RPA
+/// (`benches/trials/RULE_bass_harmonic_view.md`). The second raised the held-out mix bass
+/// RPA by 0.016–0.035 per group (`benches/trials/RULE_bass_harmonic_view_2.md`; README,
+/// "The bass reads the harmonic sum").
+pub const LEARNED_BASS_HARMONIC: bool = true;
 
 /// [`tactus_dsp::shs::ShsConfig::learned_ensemble`] of the learned lead salience's tracker:
 /// the mean of the committed lead model and the one trained with 80 more sung songs (README,

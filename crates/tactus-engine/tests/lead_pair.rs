@@ -550,11 +550,11 @@ fn the_engines_mix_lead_reads_the_separators_harmonic_sum() {
 }
 
 /// The spectral separator's bass through the engine (README, "The bass reads the harmonic
-/// sum (tried, not adopted)"): with [`LEARNED_BASS_HARMONIC`] the thumb's pitch is a
-/// harmonic-view bass track fed by hand with the separator's bass stem and its harmonic
-/// sum, each through the bass chain's 30 Hz denoiser, with the engine's register prior and
-/// advance, bit for bit; without it (the default) it is the plain learned bass track on the
-/// stem, and the two differ.
+/// sum"): with [`LEARNED_BASS_HARMONIC`] (the default since 2026-11-28) the thumb's pitch
+/// is a harmonic-view bass track fed by hand with the separator's bass stem and its
+/// harmonic sum, each through the bass chain's 30 Hz denoiser, with the engine's register
+/// prior and advance, bit for bit; without it, the plain learned bass track on the stem; and
+/// the two differ.
 #[test]
 fn the_engines_mix_bass_reads_the_harmonic_sum_only_when_switched_on() {
     use tactus_engine::track::{BASS_REGISTER_HZ, LEARNED_BASS_HARMONIC};
