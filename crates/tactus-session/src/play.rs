@@ -407,27 +407,24 @@ pub fn play_song_whole(
 ) -> Result<PlayReport, SessionError> {
     req.config.mode = tactus_engine::Mode::Offline;
     let t = std::time::Instant::now();
-    let out = match render_until(&req, &mut |_| {}, &mut || !stop.load(Ordering::Relaxed)) {
-        Ok(out) => out,
-        Err(EngineError::Cancelled) => {
-            sink.all_down();
-            return Ok(PlayReport {
-                timing: tactus_transport::PlayReport {
-                    frames_sent: 0,
-                    skipped: 0,
-                    stopped: true,
-                    jitter_max_ms: 0.0,
-                    jitter_p95_ms: 0.0,
-                    jitter_mean_ms: 0.0,
-                    late_ms: Vec::new(),
-                    end_ms: 0.0,
-                },
-                sound: None,
-                warnings: Vec::new(),
-            });
-        }
-        Err(e) => return Err(e.into()),
-    };
+    // Only the frames are kept for playback: the rest of the render (the features file's
+    // per-hop records) is dropped with the match arm.
+    let (pattern, mut warnings) =
+        match render_until(&req, &mut |_| {}, &mut || !stop.load(Ordering::Relaxed)) {
+            Ok(out) => (out.pattern, out.warnings),
+            Err(EngineError::Cancelled) => {
+                sink.all_down();
+                return Ok(PlayReport {
+                    timing: tactus_transport::PlayReport {
+                        stopped: true,
+                        ..Default::default()
+                    },
+                    sound: None,
+                    warnings: Vec::new(),
+                });
+            }
+            Err(e) => return Err(e.into()),
+        };
     rendered(t.elapsed().as_secs_f64());
     // Playback starts now: the caller's clock, read from here (the render took its time).
     let zero = clock.now_ms();
@@ -436,8 +433,8 @@ pub fn play_song_whole(
         zero: if zero.is_finite() { zero } else { 0.0 },
     };
     let mut report = play_pattern(
-        &out.pattern.frames,
-        out.pattern.bin_ms,
+        &pattern.frames,
+        pattern.bin_ms,
         Some(&req.input),
         sink,
         &after,
@@ -445,7 +442,6 @@ pub fn play_song_whole(
         stop,
         &mut |_| {},
     )?;
-    let mut warnings = out.warnings;
     warnings.append(&mut report.warnings);
     report.warnings = warnings;
     Ok(report)

@@ -52,7 +52,7 @@ pub struct PlayStatus {
 }
 
 /// What a playback did.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct PlayReport {
     /// Frames handed to the sink.
     pub frames_sent: usize,
