@@ -8,8 +8,7 @@
 //! harmonic-sum bass has no confidence rule.
 
 use tactus_dsp::discretize::{
-    narrow_range, range_quantiles_kept, range_quantiles_kept_or_sure, Discretizer, HeldRange,
-    RangePrior,
+    narrow_range, range_quantiles_kept, range_quantiles_kept_or_sure, Discretizer, RangePrior,
 };
 use tactus_engine::profile::Profile;
 use tactus_engine::track::{
@@ -137,18 +136,11 @@ fn streaming_the_bottom_is_narrowed_once_the_sure_hops_hold_and_the_harmonic_sum
     assert_eq!(conf.len(), s.f0.len());
     let replay = |narrow: bool| {
         let range = || {
-            HeldRange::with_prior(
+            common::mix_bass_held_range(
                 RangePrior::Span(prior_span_st(hi)),
                 FOLLOW_PRIOR_FADE_HOPS,
-                FOLLOW_RANGE_QUANTILE,
-                MIX_BASS_HELD_HOPS,
-                HELD_TOL_ST,
-                HELD_MIN_SHARE,
-                HELD_MIN_HOPS,
+                MIX_BASS_SHADOW_HOPS,
             )
-            .unwrap()
-            .with_shadow(MIX_BASS_SHADOW_HOPS)
-            .unwrap()
         };
         let (mut r, mut rs) = (range(), range());
         let d = Discretizer::default();

@@ -8,7 +8,7 @@
 //! held-note rule.
 
 use tactus_dsp::discretize::{
-    range_quantiles, range_quantiles_held, range_quantiles_kept, Discretizer, HeldRange, RangePrior,
+    range_quantiles, range_quantiles_held, range_quantiles_kept, Discretizer, RangePrior,
 };
 use tactus_engine::profile::Profile;
 use tactus_engine::track::{
@@ -121,18 +121,7 @@ fn a_mixtures_streaming_bass_range_leaves_out_its_octave_shadows_hop_by_hop() {
             (RangePrior::Span(prior_span_st(hi)), FOLLOW_PRIOR_FADE_HOPS)
         };
         let oracle = |w: usize| {
-            let mut r = HeldRange::with_prior(
-                prior.0,
-                prior.1,
-                FOLLOW_RANGE_QUANTILE,
-                MIX_BASS_HELD_HOPS,
-                HELD_TOL_ST,
-                HELD_MIN_SHARE,
-                HELD_MIN_HOPS,
-            )
-            .unwrap()
-            .with_shadow(w)
-            .unwrap();
+            let mut r = common::mix_bass_held_range(prior.0, prior.1, w);
             let d = Discretizer::default();
             t.f0.iter()
                 .map(|&f| r.update(f).map_or(0, |range| d.level(f, range)))

@@ -29,3 +29,30 @@ pub fn levels(f0: &[f32], range: Option<(f32, f32)>) -> Vec<u8> {
         .map(|&f| range.map_or(0, |r| d.level(f, r)))
         .collect()
 }
+
+/// The streaming level range of a mixture's bass as the engine builds it: a held range
+/// (`MIX_BASS_HELD_HOPS`, the follow quantile) with `prior` fading over `fade` voiced hops
+/// and the octave-shadow window `shadow`, for replaying the rule by hand.
+/// (Not every test file uses it.)
+#[allow(dead_code)]
+pub fn mix_bass_held_range(
+    prior: tactus_dsp::discretize::RangePrior,
+    fade: f32,
+    shadow: usize,
+) -> tactus_dsp::discretize::HeldRange {
+    use tactus_engine::track::{
+        FOLLOW_RANGE_QUANTILE, HELD_MIN_HOPS, HELD_MIN_SHARE, HELD_TOL_ST, MIX_BASS_HELD_HOPS,
+    };
+    tactus_dsp::discretize::HeldRange::with_prior(
+        prior,
+        fade,
+        FOLLOW_RANGE_QUANTILE,
+        MIX_BASS_HELD_HOPS,
+        HELD_TOL_ST,
+        HELD_MIN_SHARE,
+        HELD_MIN_HOPS,
+    )
+    .unwrap()
+    .with_shadow(shadow)
+    .unwrap()
+}
