@@ -10,7 +10,8 @@ registers. The replay of the engine's own rule matches `tactus eval` to ±0.004 
 
     python3 benches/bass_eval.py --bin B --out OUT --tuned SONGS... --inputs isolated --modes streaming
     python3 benches/range_replay.py --out OUT --stem bass SONGS... \\
-        [--prior span:20 | register:28:62] [--fade 200] [--held-hops 5] [--truth-f0]
+        [--prior span:20 | register:28:62] [--fade 200] [--held-hops 5] [--truth-f0] \\
+        [--quantile 0.01] [--octave-above W] [--min-hops 300]
 
 `--truth-f0` replays the true f0 instead of the tracker's: a bound for any tracker under that
 causal rule.
@@ -52,20 +53,30 @@ def truth_levels(f0, hop_s, bin_s=0.1, levels=8):
                      for x in binned])
 
 
-def held(s, k, tol):
-    """`tactus_dsp::discretize::held_mask` on semitones (NaN = unvoiced)."""
+def held(s, k, tol, above=0):
+    """`tactus_dsp::discretize::held_mask` on semitones (NaN = unvoiced); with `above` > 0,
+    also not a hop with a hop an octave below it (±1 semitone) within `above` hops on either
+    side (an octave-up error next to its true note; a replay-only rule, not the engine's)."""
     n, out = len(s), np.zeros(len(s), bool)
     for i in range(n):
         if math.isnan(s[i]) or (k and (i < k or i + k >= n)):
             continue
-        w = s[i - k:i + k + 1]
-        out[i] = not np.isnan(w).any() and bool(np.all(np.abs(w - s[i]) <= tol))
+        if k:
+            w = s[i - k:i + k + 1]
+            if np.isnan(w).any() or not bool(np.all(np.abs(w - s[i]) <= tol)):
+                continue
+        if above:
+            a, b = max(0, i - above), min(n, i + above + 1)
+            if bool(np.any(np.abs(s[a:b] - (s[i] - 12.0)) <= 1.0)):
+                continue
+        out[i] = True
     return out
 
 
-def replay(s, prior, fade, k, p=0.01, tol=1.0, min_share=0.25, min_hops=300, levels=8):
+def replay(s, prior, fade, k, p=0.01, tol=1.0, min_share=0.25, min_hops=300, levels=8, above=0):
     """Per-hop levels of the streaming rule (`HeldRange::with_prior`), exact quantiles."""
-    h = held(s, k, tol) if k else None
+    m = max(k, above)
+    h = held(s, k, tol, above) if m else None
     every, kept = [], []
     nv = nh = 0
     out = np.zeros(len(s), int)
@@ -73,10 +84,10 @@ def replay(s, prior, fade, k, p=0.01, tol=1.0, min_share=0.25, min_hops=300, lev
         if not math.isnan(x):
             bisect.insort(every, x)
             nv += 1
-        if k and i >= k and h[i - k]:
-            bisect.insort(kept, s[i - k])
+        if m and i >= m and h[i - m]:
+            bisect.insort(kept, s[i - m])
             nh += 1
-        v = kept if k and nh >= max(1, min_hops) and nh >= min_share * nv else every
+        v = kept if m and nh >= max(1, min_hops) and nh >= min_share * nv else every
         if math.isnan(x) or not v:
             continue
         j = int(round((len(v) - 1) * p))
@@ -116,6 +127,12 @@ def main():
     ap.add_argument("--fade", type=float, default=None, help="voiced hops (default: the engine's)")
     ap.add_argument("--held-hops", type=int, default=None)
     ap.add_argument("--truth-f0", action="store_true")
+    ap.add_argument("--quantile", type=float, default=0.01, help="cut from each end (the engine: 0.01)")
+    ap.add_argument("--octave-above", type=int, default=0, metavar="W",
+                    help="leave out of the range hops with a hop an octave below within W hops (replay only)")
+    ap.add_argument("--min-hops", type=int, default=300, help="kept hops before the kept range is used")
+    ap.add_argument("--pitch-of", default="streaming", choices=["streaming", "offline"],
+                    help="replay the pitch of the streaming or of the offline features file")
     ap.add_argument("songs", nargs="+")
     a = ap.parse_args()
     bass = a.stem == "bass"
@@ -134,13 +151,14 @@ def main():
         if a.truth_f0:
             f0 = truth["f0_hz"][a.stem]
         else:
-            feat = os.path.join(a.out, f"{tag}.{a.input}.streaming.features.json")
+            feat = os.path.join(a.out, f"{tag}.{a.input}.{a.pitch_of}.features.json")
             f0 = json.load(open(feat))["pitch_hz"][a.stem]
         s = np.array([st(f) if f > 0 else np.nan for f in f0])
-        r = within_1(tl, bins(replay(s, prior, fade, k)))
+        r = within_1(tl, bins(replay(s, prior, fade, k, p=a.quantile, min_hops=a.min_hops,
+                                      above=a.octave_above)))
         scores.append(r)
         print(f"{tag:40s} {r:.3f}")
-    print(f"mean over {len(scores)} songs: {np.mean(scores):.3f} "
+    print(f"mean over {len(scores)} songs: {np.mean(scores):.4f} "
           f"({a.stem}, {a.input}, prior {prior}, fade {fade:g}, held hops {k})")
 
 
