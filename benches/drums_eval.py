@@ -19,6 +19,11 @@ held-out and training splits. In Python, from the features file's onsets_s and t
   +-50 ms ("heard as ..."), else "silent";
 * recall by hit type: backbeat vs ghost snare (velocity <= 45), rim 37, closed / pedal /
   open hat, ride, crash-like, toms.
+* per finger (what the glove says): the index finger's onsets are the union of the kick's
+  and the snare's, the middle finger's of the toms' and the cymbals' (onsets closer than
+  30 ms count once, as the truth's hits of one class do), matched to the union of the same
+  classes' true onsets: a kick called on a snare still raises the right finger, a tom
+  called on a snare does not.
 
 Methods are free-form argument strings appended to both renders:
     --method bands="--drums bands" --method embedded="" --method adtlib="--drums adtlib --drum-model X"
@@ -90,12 +95,36 @@ def nearest(t, times, w=WINDOW_S):
     return best
 
 
+FINGERS = (("index", ("kick", "snare")), ("middle", ("toms", "cymbals")))
+MERGE_S = 0.03  # onsets of one finger closer than this count once (truth.json's onsets_rule)
+
+
+def merged(times, gap=MERGE_S):
+    """Sorted times with those less than `gap` after the previous kept one dropped."""
+    out = []
+    for t in sorted(times):
+        if not out or t - out[-1] >= gap:
+            out.append(t)
+    return out
+
+
+def finger_counts(est, ref):
+    """TP / FP / FN of each finger: its classes' onsets merged, matched one to one (±50 ms)."""
+    out = {}
+    for finger, classes in FINGERS:
+        e = merged([t for c in classes for t in est[c]])
+        r = merged([t for c in classes for t in ref[c]])
+        mref, mest = match(r, e)
+        out[finger] = {"tp": len(mref), "fp": len(e) - len(mest), "fn": len(r) - len(mref)}
+    return out
+
+
 def analyse(features, truth):
     """Python-side per-class matching, confusion and subtype recall for one song."""
     est = {c: sorted(features.get("onsets_s", {}).get(c, []) or []) for c in CLASSES}
     tr = {c: sorted(truth["onsets"].get(c, []), key=lambda h: h["time_s"]) for c in CLASSES}
     ref = {c: [h["time_s"] for h in tr[c]] for c in CLASSES}
-    out = {"counts": {}, "fp_near": {}, "fn_heard": {}, "subtype": {}}
+    out = {"counts": {}, "fp_near": {}, "fn_heard": {}, "subtype": {}, "finger": finger_counts(est, ref)}
     for c in CLASSES:
         mref, mest = match(ref[c], est[c])
         out["counts"][c] = {"tp": len(mref), "fp": len(est[c]) - len(mest), "fn": len(ref[c]) - len(mref)}
@@ -206,12 +235,14 @@ def aggregate(results):
             g["wall_s"] += r["wall_s"]
             g["duration_s"] += r["duration_s"]
             add(g, {"counts": r["counts"], "fp_near": r["py"]["fp_near"], "fn_heard": r["py"]["fn_heard"],
-                    "subtype": r["py"]["subtype"]})
+                    "subtype": r["py"]["subtype"], "finger": r["py"]["finger"]})
     for a in agg.values():
         for groups in a.values():
             for g in groups.values():
                 g["scores"] = {c: dict(zip(("p", "r", "f"), prf(g["counts"][c]["tp"], g["counts"][c]["fp"], g["counts"][c]["fn"])))
                                for c in CLASSES}
+                g["finger_scores"] = {k: dict(zip(("p", "r", "f"), prf(v["tp"], v["fp"], v["fn"])))
+                                      for k, v in g["finger"].items()}
     return agg
 
 
@@ -256,6 +287,18 @@ def markdown(agg, args, methods, n_songs, errors, mismatches, songs=()):
                 k, s = g["counts"][c], g["scores"][c]
                 L.append(f"| {sp.replace('_', '-')} | {g['songs']} | {c} | {k['tp']} | {k['fp']} | {k['fn']} | "
                          f"{fmt(s['p'])} | {fmt(s['r'])} | **{fmt(s['f'])}** |")
+        L.append("")
+        L.append("Per finger (the index's onsets: kick or snare; the middle's: toms or cymbals; closer than "
+                 "30 ms once), P / R / F:\n")
+        L.append("| split | songs | index | middle |")
+        L.append("|---|---|---|---|")
+        for sp in splits:
+            g = a["split"].get(sp)
+            if not g:
+                continue
+            cells = [f"{fmt(g['finger_scores'][k]['p'])} / {fmt(g['finger_scores'][k]['r'])} / "
+                     f"**{fmt(g['finger_scores'][k]['f'])}**" for k, _ in FINGERS]
+            L.append(f"| {sp.replace('_', '-')} | {g['songs']} | " + " | ".join(cells) + " |")
         L.append("")
         L.append("Per family, P / R / F:\n")
         L.append("| family | songs | " + " | ".join(CLASSES) + " | render s/song |")
