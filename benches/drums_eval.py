@@ -260,6 +260,11 @@ def song_list(songs, data):
     return "; ".join(out)
 
 
+def present(a, splits):
+    """(split, its aggregate) for the splits a method-condition has songs in, in order."""
+    return [(sp, a["split"][sp]) for sp in splits if a["split"].get(sp)]
+
+
 def markdown(agg, args, methods, n_songs, errors, mismatches, songs=()):
     L = []
     L.append("# Drum transcription: per-instrument onset scores\n")
@@ -279,10 +284,7 @@ def markdown(agg, args, methods, n_songs, errors, mismatches, songs=()):
         L.append(f"## {m}, {cond}\n")
         L.append("| split | songs | class | TP | FP | FN | P | R | F |")
         L.append("|---|---|---|---|---|---|---|---|---|")
-        for sp in splits:
-            g = a["split"].get(sp)
-            if not g:
-                continue
+        for sp, g in present(a, splits):
             for c in CLASSES:
                 k, s = g["counts"][c], g["scores"][c]
                 L.append(f"| {sp.replace('_', '-')} | {g['songs']} | {c} | {k['tp']} | {k['fp']} | {k['fn']} | "
@@ -292,10 +294,7 @@ def markdown(agg, args, methods, n_songs, errors, mismatches, songs=()):
                  "30 ms once), P / R / F:\n")
         L.append("| split | songs | index | middle |")
         L.append("|---|---|---|---|")
-        for sp in splits:
-            g = a["split"].get(sp)
-            if not g:
-                continue
+        for sp, g in present(a, splits):
             cells = [f"{fmt(g['finger_scores'][k]['p'])} / {fmt(g['finger_scores'][k]['r'])} / "
                      f"**{fmt(g['finger_scores'][k]['f'])}**" for k, _ in FINGERS]
             L.append(f"| {sp.replace('_', '-')} | {g['songs']} | " + " | ".join(cells) + " |")
@@ -308,10 +307,7 @@ def markdown(agg, args, methods, n_songs, errors, mismatches, songs=()):
             tag = " (held out)" if fam in args.held_out else ""
             L.append(f"| {fam}{tag} | {g['songs']} | " + " | ".join(cells) + f" | {g['wall_s'] / g['songs']:.2f} |")
         L.append("")
-        for sp in splits:
-            g = a["split"].get(sp)
-            if not g:
-                continue
+        for sp, g in present(a, splits):
             L.append(f"Confusion, {sp.replace('_', '-')}: false positives of each detected class by the nearest true "
                      "onset of another class within ±50 ms; misses by the nearest detection of another class.\n")
             L.append("| class | FP | near kick | near snare | near toms | near cymbals | double | nothing || FN | heard as kick | snare | toms | cymbals | silent |")
