@@ -160,6 +160,41 @@ def labels(truth, n, hard_neg=1.0, ghost=1.0):
 
 GHOST_VEL = 45  # the bench's ghost-snare bound (benches/drums_eval.py, "Recall by hit type")
 
+# --aux: finer kinds of hit, learnt beside the four classes by extra outputs that only
+# training sees (the written model keeps the four class outputs). Each kind is a set of GM
+# notes and, for the snare, a velocity range; a kind's target is 1 on the hop of any of its
+# hits (truth.json "hits", every MIDI hit), unweighted on the hops beside it.
+AUX_KINDS = [
+    ("closed hat", (42, 44), None),
+    ("open hat", (46,), None),
+    ("ride", (51, 53, 59), None),
+    ("crash-like", (49, 52, 55, 57), None),
+    ("backbeat snare", (38, 40), (GHOST_VEL + 1, 127)),
+    ("ghost snare", (38, 40), (0, GHOST_VEL)),
+    ("rim", (37,), None),
+    ("low tom", (41, 43, 45), None),
+    ("high tom", (47, 48, 50), None),
+]
+
+
+def aux_labels(truth, n):
+    """Targets and weights of the AUX_KINDS per hop, as labels() makes the classes'."""
+    y = np.zeros((n, len(AUX_KINDS)), np.float32)
+    w = np.ones((n, len(AUX_KINDS)), np.float32)
+    for k, (_, notes, vel) in enumerate(AUX_KINDS):
+        for hit in truth.get("hits", []):
+            v = hit.get("velocity", 127)
+            if hit["note"] not in notes or (vel and not vel[0] <= v <= vel[1]):
+                continue
+            i = int(round(hit["time_s"] / HOP_S))
+            for d in (-1, 1):
+                if 0 <= i + d < n and y[i + d, k] == 0:
+                    w[i + d, k] = 0.0
+            if 0 <= i < n:
+                y[i, k] = 1.0
+                w[i, k] = 1.0
+    return y, w
+
 
 def songs(data):
     out = []
@@ -418,9 +453,11 @@ def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=N
                     mh = m[li][k] / (1 - 0.9 ** t)
                     vh = v[li][k] / (1 - 0.999 ** t)
                     ps[li][k] -= (lr * mh / (np.sqrt(vh) + 1e-8)).astype(np.float32)
-        pv = sigmoid(forward(ps, (with_flux(Xv) - mean) / std)[-1])
-        ww = Wv * (1 + (pw - 1) * Yv)
-        vl = float(-(ww * (Yv * np.log(pv + 1e-7) + (1 - Yv) * np.log(1 - pv + 1e-7))).sum() / len(Xv))
+        # Early stopping on the four classes alone (--aux outputs are training's only).
+        pv = sigmoid(forward(ps, (with_flux(Xv) - mean) / std)[-1])[:, :4]
+        yv, wv = Yv[:, :4], Wv[:, :4]
+        ww = wv * (1 + (pw[:4] - 1) * yv) if pw.ndim else wv * (1 + (pw - 1) * yv)
+        vl = float(-(ww * (yv * np.log(pv + 1e-7) + (1 - yv) * np.log(1 - pv + 1e-7))).sum() / len(Xv))
         print(f"epoch {ep + 1}: train {tot / n:.4f} val {vl:.4f}", flush=True)
         if vl < best[0]:
             best = (vl, [[W_.copy(), b_.copy()] for W_, b_ in ps])
@@ -632,6 +669,9 @@ def main():
     ap.add_argument("--backing", action="store_true",
                     help="input: also the separator's backing (bass + vocals + other) beside "
                          "its drum stem, as a second view (silent for a supplied drum stem)")
+    ap.add_argument("--aux", type=float, default=0.0,
+                    help="weight of the finer kinds of hit (AUX_KINDS) learnt by extra outputs "
+                         "that the written model drops (0: none, the committed recipe)")
     a = ap.parse_args()
     BACK = a.backing
     SUPER_DB = tuple(float(v) for v in a.superpose_db.split(","))
@@ -661,6 +701,9 @@ def main():
                     continue
                 X.append(prep(mel))
                 y, w = labels(truth, mel.shape[0], hard_neg, ghost)
+                if a.aux > 0:
+                    ya, wa = aux_labels(truth, mel.shape[0])
+                    y, w = np.concatenate([y, ya], 1), np.concatenate([w, wa * np.float32(a.aux)], 1)
                 Y.append(y)
                 W.append(w)
             return np.concatenate(X), np.concatenate(Y), np.concatenate(W)
@@ -678,11 +721,14 @@ def main():
             mean = X.mean(0)
             std = X.std(0) + 1e-3
         print(f"frames: train {len(X)}, validation {len(Xv)}; positives per class {Y.sum(0)}", flush=True)
-        sizes = [with_flux(X[:1]).shape[1]] + [int(h) for h in a.hidden.split(",")] + [4]
+        n_out = Y.shape[1]
+        sizes = [with_flux(X[:1]).shape[1]] + [int(h) for h in a.hidden.split(",")] + [n_out]
         ps = init(sizes, rng)
+        pos_weight = pos_weight + [pos_weight[1]] * (n_out - 4)
         ps = train(ps, X, Y, W, Xv, Yv, Wv, a.epochs, rng, pos_weight=pos_weight, mean=mean, std=std,
                    aug=not a.no_augment, neg_keep=a.neg_keep, in_drop=a.in_drop, decay=a.decay,
                    sup=a.superpose)
+        ps[-1] = [ps[-1][0][:4].copy(), ps[-1][1][:4].copy()]  # the four classes' outputs
         # Tune thresholds on validation, over every condition pooled.
         acts = [sigmoid(forward(ps, (with_flux(prep(m)) - mean) / std)[-1]) for (_, _, _, m, _) in D_va]
         thr = tune(acts, [t for (*_, t) in D_va])
