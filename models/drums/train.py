@@ -99,7 +99,11 @@ CEIL = 6.0  # the backing view's ceiling over the drum window's maximum, nepers
 def prep(mel):
     """Network inputs before standardisation: whitening (if any), then the context. With
     BACK, mel holds the drum view's BANDS columns and then the backing's; the backing's
-    context is normalised by the drum window's maximum and clipped to [FLOOR, CEIL]."""
+    context is normalised by the drum window's maximum and clipped to [FLOOR, CEIL]. With
+    SHORT, the second BANDS columns are the short view (the 1024-point frames), whose
+    context is normalised by its own window's maximum, as drums.rs does (feature set 3)."""
+    if SHORT:
+        return np.concatenate([context(mel[:, :BANDS]), context(mel[:, BANDS:])], axis=1)
     if not BACK:
         return context(whiten(mel))
     d, b = mel[:, :BANDS], mel[:, BANDS:]
@@ -230,6 +234,10 @@ def load(items, data, conds):
     def one(job):
         (fam, s, sd), c = job
         mel = features(sd, c, os.path.join(data, ".features", fam, f"{s}.{c}.f32"))
+        if SHORT:
+            sh = features(sd, f"{c}-short", os.path.join(data, ".features", fam, f"{s}.{c}-short.f32"))
+            n = min(len(mel), len(sh))
+            mel = np.concatenate([mel[:n], sh[:n]], axis=1)
         if BACK:
             if c == "sep":
                 back = features(sd, "back", os.path.join(data, ".features", fam, f"{s}.back.f32"))
@@ -273,6 +281,7 @@ SHIFT = 2  # mel bands, --shift
 WARP = 1.0  # --warp: largest retuning ratio (1: none)
 STRETCH = 1.0  # --stretch: largest time-scale ratio of the context (1: none)
 FLUX = False  # --flux: append the positive first difference of the normalised frames
+SHORT = False  # --short: a second view, the 1024-point frames (input feature set 3)
 F_LO, F_HI = 20.0, 16_000.0  # MelConfig::drums
 
 
@@ -306,12 +315,16 @@ def retune(z, rng):
     the value at frequency centre_b / ratio (a shift of a fraction of a band at the low
     end, where mel is nearly linear, a few bands at the top), and its context stretched in
     time around the current frame by [1/STRETCH, STRETCH] (shorter or longer decays)."""
-    b, win, _ = z.shape
+    b, win, width = z.shape
     if WARP > 1.0:
         m = np.linspace(_mel(F_LO), _mel(F_HI), BANDS + 2)[1:-1]
         r = np.exp(rng.uniform(-np.log(WARP), np.log(WARP), (b, 1)))
         src = np.interp(_mel(_hz(m)[None, :] / r), m, np.arange(BANDS, dtype=np.float64))
-        z = _gather(z, src, 2)
+        if width == BANDS:
+            z = _gather(z, src, 2)
+        else:  # views side by side (SHORT): the same retuning of each
+            z = np.concatenate([_gather(z[:, :, v:v + BANDS], src, 2)
+                                for v in range(0, width, BANDS)], axis=2)
     if STRETCH > 1.0:
         s = np.exp(rng.uniform(-np.log(STRETCH), np.log(STRETCH), (b, 1)))
         t = np.arange(win, dtype=np.float64)[None, :]
@@ -322,8 +335,23 @@ def retune(z, rng):
 def augment(x, rng):
     """Kit-to-kit variation in feature space: a random spectral tilt and smooth EQ
     (+-6 dB), a shift of +-SHIFT mel bands (drums tuned differently), then the window
-    normalisation of drums.rs again."""
+    normalisation of drums.rs again. With SHORT, both views get the same retuning,
+    stretch and EQ (one draw per example), each normalised by its own maximum."""
     b = x.shape[0]
+    if SHORT:
+        half = x.shape[1] // 2
+        win = half // BANDS
+        z = np.concatenate([x[:, :half].reshape(b, win, BANDS), x[:, half:].reshape(b, win, BANDS)], axis=2)
+        z = retune(z, rng)  # both views, one draw per example
+        pos = np.linspace(-1, 1, BANDS, dtype=np.float32)
+        tilt = rng.uniform(-1.4, 1.4, (b, 1, 1)).astype(np.float32) * pos
+        bumps = sum(rng.uniform(-0.7, 0.7, (b, 1, 1)).astype(np.float32)
+                    * np.cos(np.pi * k * (pos + 1) / 2) for k in (2, 3, 4))
+        out = []
+        for v in range(2):
+            zz = (z[:, :, v * BANDS:(v + 1) * BANDS] + tilt + bumps).reshape(b, -1)
+            out.append(np.maximum(zz - zz.max(axis=1, keepdims=True), np.float32(FLOOR)))
+        return np.concatenate(out, axis=1)
     xb = None
     if BACK:
         half = x.shape[1] // 2
@@ -549,6 +577,10 @@ def write_model(path, ps, mean, std, thr):
             f.write(struct.pack("<f", FLOOR))
             f.write(struct.pack("<I", 1 if FLUX else 0))
             f.write(struct.pack("<f", WHITEN))
+        elif SHORT:  # version 2 with feature set 3: mel + the short view's mel
+            f.write(struct.pack("<6I", 2, BANDS, PAST, FUTURE, 4, len(layers)))
+            f.write(struct.pack("<f", FLOOR))
+            f.write(struct.pack("<I", 3))
         elif BACK:  # version 2 with feature set 2: mel + the backing's mel, then CEIL
             f.write(struct.pack("<6I", 2, BANDS, PAST, FUTURE, 4, len(layers)))
             f.write(struct.pack("<f", FLOOR))
@@ -576,13 +608,14 @@ def read_model(path):
     ver, bands, past, fut, ncls, nl = struct.unpack_from("<6I", buf, 8)
     (floor,) = struct.unpack_from("<f", buf, 32)
     off = 36
-    global FLUX, WHITEN, PAST, FUTURE, BACK, CEIL
-    FLUX, WHITEN, PAST, FUTURE, BACK = False, 0.0, past, fut, False
+    global FLUX, WHITEN, PAST, FUTURE, BACK, CEIL, SHORT
+    FLUX, WHITEN, PAST, FUTURE, BACK, SHORT = False, 0.0, past, fut, False, False
     if ver >= 2:
         (feat,) = struct.unpack_from("<I", buf, off)
         off += 4
         FLUX = feat == 1
         BACK = feat == 2
+        SHORT = feat == 3
         if BACK:
             (CEIL,) = struct.unpack_from("<f", buf, off)
             off += 4
@@ -623,7 +656,7 @@ def report(ps, thr, sets):
 
 
 def main():
-    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX, WHITEN, BACK, SUPER_DB
+    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX, WHITEN, BACK, SUPER_DB, SHORT
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
     ap.add_argument("--epochs", type=int, default=20)
@@ -672,8 +705,14 @@ def main():
     ap.add_argument("--aux", type=float, default=0.0,
                     help="weight of the finer kinds of hit (AUX_KINDS) learnt by extra outputs "
                          "that the written model drops (0: none, the committed recipe)")
+    ap.add_argument("--short", action="store_true",
+                    help="input: also the short view, the same signal's mel frames of a frame "
+                         "half as long (1024 points), normalised by their own window's maximum")
     a = ap.parse_args()
     BACK = a.backing
+    SHORT = a.short
+    if SHORT and (BACK or a.flux or a.whiten or a.superpose):
+        sys.exit("--short goes with none of --backing, --flux, --whiten, --superpose")
     SUPER_DB = tuple(float(v) for v in a.superpose_db.split(","))
     if not os.path.exists(dumper_path()):
         sys.exit("build the feature dumper first: cargo build --release -p tactus-engine --example drum_features")

@@ -102,6 +102,10 @@ pub struct DrumModel {
     /// `Some(ceil)`: the input also carries a second view, the backing beside the drum stem
     /// (step 3), normalised by the drum window's maximum and clipped to `[floor, ceil]`.
     pub backing: Option<f32>,
+    /// Whether the input also carries the short view (file version 2, feature set 3): the
+    /// same signal's mel frames from a frame half as long ([`MelConfig::drums_short`]), same
+    /// context, normalised by their own window's maximum and clipped at `floor` (step 3).
+    pub short: bool,
     /// Convolutional front layers (file version 4), run before the dense ones; `None` for a
     /// perceptron.
     pub conv: Option<ConvNet>,
@@ -258,10 +262,11 @@ impl DrumModel {
         let classes = read_u32(b, WHAT)? as usize;
         let n_layers = read_u32(b, WHAT)? as usize;
         let floor = read_f32s(b, 1, WHAT)?[0];
-        let (flux, backing) = if version == 2 {
+        let (flux, backing, short) = if version == 2 {
             match read_u32(b, WHAT)? {
-                0 => (false, None),
-                1 => (true, None),
+                0 => (false, None, false),
+                1 => (true, None, false),
+                3 => (false, None, true),
                 2 => {
                     let ceil = read_f32s(b, 1, WHAT)?[0];
                     if !(ceil.is_finite() && ceil > floor) {
@@ -270,19 +275,19 @@ impl DrumModel {
                             "the backing's ceiling must be finite and above the floor",
                         ));
                     }
-                    (false, Some(ceil))
+                    (false, Some(ceil), false)
                 }
                 f => {
                     return Err(ConfigError::invalid(
                         "drum model",
                         format!(
-                            "input feature set {f} is not supported (0: mel, 1: mel + flux, 2: mel + backing)"
+                            "input feature set {f} is not supported (0: mel, 1: mel + flux, 2: mel + backing, 3: mel + short view)"
                         ),
                     ))
                 }
             }
         } else {
-            (false, None)
+            (false, None, false)
         };
         if classes != CLASSES {
             return Err(ConfigError::invalid("drum model", "must have 4 classes"));
@@ -293,7 +298,11 @@ impl DrumModel {
         let frames = past + 1 + future;
         let mut n_in0 = bands * frames
             + if flux { bands * (past + future) } else { 0 }
-            + if backing.is_some() { bands * frames } else { 0 };
+            + if backing.is_some() || short {
+                bands * frames
+            } else {
+                0
+            };
         let conv = if version == 4 {
             let (net, flat) = read_conv(b, frames, bands)?;
             n_in0 = flat;
@@ -320,6 +329,7 @@ impl DrumModel {
             floor,
             flux,
             backing,
+            short,
             conv,
             layers,
             thresholds: [t[0], t[1], t[2], t[3]],
@@ -361,13 +371,14 @@ impl DrumModel {
         }
         let mut first = models.remove(0);
         let same = |m: &DrumModel| {
-            (m.bands, m.past, m.future, m.flux, m.backing)
+            (m.bands, m.past, m.future, m.flux, m.backing, m.short)
                 == (
                     first.bands,
                     first.past,
                     first.future,
                     first.flux,
                     first.backing,
+                    first.short,
                 )
                 && m.floor == first.floor
         };
@@ -413,19 +424,25 @@ impl DrumModel {
     }
 
     /// Values in one network input: the window, plus `bands · (past + future)` flux values
-    /// if [`DrumModel::flux`], plus the backing's window if [`DrumModel::backing`].
+    /// if [`DrumModel::flux`], plus the second view's window if [`DrumModel::backing`] or
+    /// [`DrumModel::short`].
     pub fn input_len(&self) -> usize {
         let flux = if self.flux {
             self.bands * (self.past + self.future)
         } else {
             0
         };
-        let backing = if self.backing.is_some() {
+        let second = if self.has_second_view() {
             self.window_len()
         } else {
             0
         };
-        self.window_len() + flux + backing
+        self.window_len() + flux + second
+    }
+
+    /// Whether the input carries a second view of mel frames: the backing or the short view.
+    pub fn has_second_view(&self) -> bool {
+        self.backing.is_some() || self.short
     }
 
     /// Step 3 of the module docs: `window` holds `past + 1 + future` mel frames
@@ -456,12 +473,22 @@ impl DrumModel {
     /// backing's mel frames of the same hops as `window`; its normalised values (the drum
     /// window's maximum subtracted, clipped to `[floor, ceil]`) follow the drum view's. For
     /// any other model `backing` is ignored.
+    ///
+    /// For a model with the short view, `backing` holds the short view's frames instead;
+    /// they are normalised by their own window's maximum and clipped at `floor`.
     pub fn assemble_with_backing(&self, window: &[f32], backing: &[f32], input: &mut [f32]) {
         let m = self.assemble_window(window, input);
+        let n = window.len();
+        if self.short {
+            let ms = backing.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            for (o, &v) in input[n..2 * n].iter_mut().zip(backing) {
+                *o = (v - ms).max(self.floor);
+            }
+            return;
+        }
         let Some(ceil) = self.backing else {
             return;
         };
-        let n = window.len();
         for (o, &v) in input[n..2 * n].iter_mut().zip(backing) {
             *o = (v - m).clamp(self.floor, ceil);
         }
@@ -643,9 +670,11 @@ impl Picker {
 /// Streaming per-instrument drum transcriber. See the module docs.
 pub struct DrumTranscriber {
     mel: MelBank,
-    /// The backing's front end, for a model with the backing view.
+    /// The second view's front end: the backing's (same configuration) for a model with
+    /// the backing view, the short frame's ([`MelConfig::drums_short`], fed the drum
+    /// signal itself) for a model with the short view.
     back_mel: Option<MelBank>,
-    /// Backing frames computed ahead of the drum stem's (at most one sub-block's worth).
+    /// Second-view frames computed ahead of the drum signal's (at most one sub-block's worth).
     back_queue: Vec<f32>,
     core: Core,
 }
@@ -685,7 +714,7 @@ impl Core {
         self.window.copy_within(n.., 0);
         let len = self.window.len();
         self.window[len - n..].copy_from_slice(bands);
-        if self.model.backing.is_some() {
+        if self.model.has_second_view() {
             self.back_window.copy_within(n.., 0);
             let tail = &mut self.back_window[len - n..];
             match back {
@@ -742,14 +771,17 @@ impl DrumTranscriber {
             ));
         }
         let (hop, cfg_bands) = (cfg.hop, cfg.bands);
-        let back_mel = match model.backing {
-            Some(_) => Some(MelBank::new(cfg.clone())?),
-            None => None,
+        let back_mel = if model.short {
+            Some(MelBank::new(MelConfig::drums_short(sample_rate))?)
+        } else if model.backing.is_some() {
+            Some(MelBank::new(cfg.clone())?)
+        } else {
+            None
         };
         let mel = MelBank::new(cfg)?;
         let widest = model.scratch_len();
         let min_gap = ((0.05 * sample_rate as f64) / hop as f64).ceil() as usize;
-        let back_len = if model.backing.is_some() {
+        let back_len = if model.has_second_view() {
             model.window_len()
         } else {
             0
@@ -789,12 +821,15 @@ impl DrumTranscriber {
     /// Whether the model reads a backing beside the drum signal
     /// ([`DrumTranscriber::process_with_backing`]).
     pub fn wants_backing(&self) -> bool {
-        self.back_mel.is_some()
+        self.core.model.backing.is_some()
     }
 
     /// Feeds a block; calls `emit(hop, frame)` for every decided hop, in order. A model with
     /// the backing view sees silence as the backing (a supplied, clean drum stem).
     pub fn process_frames(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
+        if self.core.model.short {
+            return self.feed_both(input, input, emit);
+        }
         let core = &mut self.core;
         self.mel
             .process_bands(input, &mut |_, bands| core.push_frame(bands, None, emit));
@@ -809,10 +844,20 @@ impl DrumTranscriber {
         backing: &[f32],
         emit: &mut dyn FnMut(usize, DrumFrame),
     ) {
-        let Some(back_mel) = self.back_mel.as_mut() else {
+        if self.core.model.backing.is_none() {
             return self.process_frames(input, emit);
-        };
+        }
         debug_assert_eq!(input.len(), backing.len());
+        self.feed_both(input, backing, emit);
+    }
+
+    /// Feeds the drum signal to the main front end and `second` (the backing, or the drum
+    /// signal itself for the short view) to the second view's, in steps of `BACKING_STEP`.
+    fn feed_both(&mut self, input: &[f32], second: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
+        let Some(back_mel) = self.back_mel.as_mut() else {
+            return;
+        };
+        let backing = second;
         let n = self.core.model.bands;
         let (queue, core) = (&mut self.back_queue, &mut self.core);
         for (x, b) in input.chunks(BACKING_STEP).zip(backing.chunks(BACKING_STEP)) {
@@ -849,7 +894,7 @@ impl DrumTranscriber {
         let mut last = [0f32; 512];
         last[..n].copy_from_slice(&core.window[len - n..]);
         let mut last_back = [0f32; 512];
-        let has_back = core.model.backing.is_some();
+        let has_back = core.model.has_second_view();
         if has_back {
             last_back[..n].copy_from_slice(&core.back_window[len - n..]);
         }
@@ -991,8 +1036,14 @@ mod tests {
         // The layer must match the feature set's input length.
         let e = DrumModel::from_bytes(&v2(1, 6)).unwrap_err().to_string();
         assert!(e.contains("do not chain"), "{e}");
-        let e = DrumModel::from_bytes(&v2(3, 10)).unwrap_err().to_string();
-        assert!(e.contains("input feature set 3"), "{e}");
+        let e = DrumModel::from_bytes(&v2(4, 10)).unwrap_err().to_string();
+        assert!(e.contains("input feature set 4"), "{e}");
+        // Feature set 3, the short view: 6 window + 6 short-view values, nothing else.
+        let m = DrumModel::from_bytes(&v2(3, 12)).unwrap();
+        assert!(m.short && !m.flux && m.backing.is_none());
+        assert_eq!((m.window_len(), m.input_len()), (6, 12));
+        let e = DrumModel::from_bytes(&v2(3, 6)).unwrap_err().to_string();
+        assert!(e.contains("do not chain"), "{e}");
         // Feature set 2, the backing: its ceiling follows, then 6 window + 6 backing values.
         let backing = |ceil: f32, n_in: u32| {
             let mut v = v2(2, n_in);

@@ -10,6 +10,9 @@
 //! * `mix`: INPUT is a mix, downmixed to mono (the transcriber on the mix itself).
 //! * `back`: INPUT is a mix; the separator's other stems (bass + vocals + other), the
 //!   backing beside its drum stem.
+//! * `iso-short`, `sep-short`, `mix-short`: the same signals through the short view's front
+//!   end (`MelConfig::drums_short`: a 1024-point frame ending where the 2048-point one does),
+//!   the second view of a model with input feature set 3.
 //!
 //! Every input then goes through the engine's drum denoiser (30 Hz high-pass + 3-sample
 //! median). OUT is little-endian f32, one row of `bands` values per 10 ms hop; with MODEL (a
@@ -32,6 +35,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Err("usage: drum_features INPUT OUT.f32 [iso|sep|mix]".into());
     }
     let mode = args.get(3).map(String::as_str).unwrap_or("iso");
+    let (mode, short) = match mode.strip_suffix("-short") {
+        Some(m) => (m, true),
+        None => (mode, false),
+    };
     let d = decode_all(Path::new(&args[1]))?;
     let sr = d.info.sample_rate;
     if sr != 44_100 {
@@ -77,7 +84,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         t.finish(&mut |_, f| rows.extend_from_slice(&f.activation));
     } else {
-        let mut mel = MelBank::new(MelConfig::drums(sr))?;
+        let cfg = if short {
+            MelConfig::drums_short(sr)
+        } else {
+            MelConfig::drums(sr)
+        };
+        let mut mel = MelBank::new(cfg)?;
         for c in x.chunks(88_200) {
             mel.process_bands(c, &mut |_, b| rows.extend_from_slice(b));
         }
