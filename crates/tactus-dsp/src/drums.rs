@@ -22,6 +22,10 @@
 //!    clipped to
 //!    `[floor, ceil]`, so that a note change of the backing can be told from a hit. Where
 //!    there is no backing (a supplied drum stem) the view is silence, as in training.
+//!    Models with the *short* view (file version 2, feature set 3) append the same
+//!    signal's mel frames from a frame half as long ([`MelConfig::drums_short`]: 1024
+//!    points ending at the same sample, so no added latency), same context, normalised by
+//!    their own window's maximum and clipped at `floor`: a hit is sharper in time there.
 //! 4. **Network**: a multilayer perceptron, ReLU hidden layers, one sigmoid per class.
 //!    The input standardisation (training mean and standard deviation) is folded into the
 //!    first layer's weights. The weights are trained by `models/drums/train.py` on kits
@@ -50,8 +54,9 @@
 //!
 //! # Cost
 //! One 2048-point real FFT and one network pass (about 82 k multiply-adds with the
-//! embedded model; a flux model with the same hidden layers, 1,104 inputs, about 150 k) per
-//! 10 ms. No allocation after [`DrumTranscriber::new`].
+//! embedded model; a flux model with the same hidden layers, 1,104 inputs, about 150 k; a
+//! short-view model, 1,152 inputs, about 156 k and one more 1024-point FFT) per 10 ms. No
+//! allocation after [`DrumTranscriber::new`].
 
 use crate::melbank::{MelBank, MelConfig, LOG_FLOOR};
 use crate::mlp::{read_f32s, read_u32, take};
