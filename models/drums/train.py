@@ -52,7 +52,7 @@ def dumper_path():
 
 
 def features(song_dir, cond, cache):
-    src = os.path.join(song_dir, "drums.wav" if cond == "iso" else "mix.wav")
+    src = os.path.join(song_dir, "drums.wav" if cond.split("-")[0] == "iso" else "mix.wav")
     os.makedirs(os.path.dirname(cache), exist_ok=True)
     if not os.path.exists(cache) or os.path.getmtime(cache) < os.path.getmtime(src):
         tmp = f"{cache}.{os.getpid()}.{threading.get_ident()}.tmp"

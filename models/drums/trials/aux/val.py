@@ -14,9 +14,14 @@ import train as T  # noqa: E402
 T.HELD_OUT[:] = ['fluid', 'musescore']
 items = [it for it in T.songs('/work/data/drums') if it[0] in ('timgm', 'csound', 'sonicpi', 'synth', 'remix')]
 tr, va, ho = T.split(items)
+# Short-view models (feature set 3, RULE_short.md) need the 1024-point view loaded beside
+# the 2048-point one; other models read the first T.BANDS columns.
+T.SHORT = any(T.read_model(p) and T.SHORT for p in sys.argv[1:])
 D = T.load(va, '/work/data/drums', ['iso', 'sep', 'mix'])
 for path in sys.argv[1:]:
     ps, thr = T.read_model(path)
+    if not T.SHORT:
+        D = [(f, s, c, m[:, :T.BANDS], t) for (f, s, c, m, t) in D]
     allf, snare, rows = [], [], []
     for cond in ('iso', 'sep', 'mix'):
         sel = [(m, t) for (_, _, c, m, t) in D if c == cond]
