@@ -360,6 +360,16 @@ fn naive_conv(m: &DrumModel, net: &ConvNet, input: &[f64]) -> Vec<f64> {
 #[allow(clippy::needless_range_loop)]
 fn naive_assemble_with(m: &DrumModel, window: &[f32], backing: &[f32]) -> Vec<f64> {
     let mut out = naive_assemble(m, window);
+    if m.short {
+        // The short view: its own window's maximum, clipped at the floor.
+        let top = backing
+            .iter()
+            .fold(f64::NEG_INFINITY, |a, &v| a.max(v as f64));
+        assert_eq!(backing.len(), window.len());
+        for &v in backing {
+            out.push((v as f64 - top).max(m.floor as f64));
+        }
+    }
     if let Some(ceil) = m.backing {
         let top = window
             .iter()
@@ -415,6 +425,7 @@ fn random_flux_model() -> DrumModel {
         floor: -16.0,
         flux: true,
         backing: None,
+        short: false,
         conv: None,
         layers,
         thresholds: [0.5; CLASSES],
@@ -451,6 +462,7 @@ fn random_backing_model() -> DrumModel {
         floor: -16.0,
         flux: false,
         backing: Some(6.0),
+        short: false,
         conv: None,
         layers,
         thresholds: [0.3, 0.4, 0.5, 0.6],
@@ -515,6 +527,7 @@ fn random_conv_model(kb2: usize, pool: (usize, usize)) -> DrumModel {
         floor: -16.0,
         flux: false,
         backing: None,
+        short: false,
         conv: Some(ConvNet {
             mean,
             std,
@@ -557,7 +570,7 @@ fn forward_matches_naive(m: DrumModel) {
             .map(|_| -30.0 + 40.0 * rng.next_f32())
             .collect();
         let mut input = vec![0f32; m.input_len()];
-        if m.backing.is_some() {
+        if m.has_second_view() {
             m.assemble_with_backing(&window, &backing, &mut input);
         } else {
             m.assemble(&window, &mut input);
@@ -761,19 +774,22 @@ fn no_allocation_while_processing() {
     let x = groove(&mut rng);
     for model in [
         DrumModel::embedded(),
+        DrumModel::embedded_live(), // the short view: a second front end
         random_flux_model(),
         random_backing_model(),
     ] {
-        let mut t = DrumTranscriber::with_model(SR, model).unwrap();
-        t.process(&x[..4096], &mut |_, _| {});
-        let before = allocs();
-        let mut n = 0;
-        for c in x[4096..].chunks(512) {
-            t.process(c, &mut |_, _| n += 1);
+        for block in [512, 16_384] {
+            let mut t = DrumTranscriber::with_model(SR, model.clone()).unwrap();
+            t.process(&x[..4096], &mut |_, _| {});
+            let before = allocs();
+            let mut n = 0;
+            for c in x[4096..].chunks(block) {
+                t.process(c, &mut |_, _| n += 1);
+            }
+            t.finish(&mut |_, _| n += 1);
+            assert_eq!(allocs() - before, 0, "allocations after construction");
+            assert!(n > 300);
         }
-        t.finish(&mut |_, _| n += 1);
-        assert_eq!(allocs() - before, 0, "allocations after construction");
-        assert!(n > 300);
     }
     // With a backing, in blocks up to 4 times the transcriber's internal step.
     let back: Vec<f32> = (0..x.len())
@@ -913,6 +929,108 @@ fn backing_view_matches_an_offline_oracle_for_any_chunking() {
     t.reset();
     let mut again = Vec::new();
     t.process_with_backing(&x, &back, &mut |_, f| again.push(f));
+    t.finish(&mut |_, f| again.push(f));
+    assert_eq!(again, whole);
+}
+
+#[test]
+fn short_view_config_ends_where_the_long_frame_ends() {
+    let (long, short) = (MelConfig::drums(SR), MelConfig::drums_short(SR));
+    assert_eq!((short.frame, short.hop, short.lookahead), (1024, 441, 512));
+    assert_eq!(
+        (short.hop, short.lookahead, short.bands),
+        (long.hop, long.lookahead, long.bands)
+    );
+    // Its look-ahead is half its frame, the largest MelBank allows: the oracle check of
+    // that edge on a small frame.
+    let cfg = MelConfig {
+        frame: 128,
+        hop: 100,
+        lookahead: 64,
+        bands: 16,
+        ..MelConfig::drums(SR)
+    };
+    let mut rng = Rng(23);
+    let mut x: Vec<f32> = (0..2000).map(|_| 0.3 * rng.next_f32()).collect();
+    add_at(&mut x, &kick(600), 900);
+    let want = mel_oracle(&x, &cfg);
+    let got = mel_fast(&x, &cfg, 333);
+    assert_eq!(got.len(), want.len());
+    let full = (x.len() - cfg.lookahead) / cfg.hop + 1;
+    for i in 0..full.min(got.len()) {
+        for b in 0..cfg.bands {
+            if want[i][b] > -20.0 {
+                assert!(
+                    (got[i][b] as f64 - want[i][b]).abs() < 1e-3,
+                    "frame {i} band {b}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+#[allow(clippy::needless_range_loop)]
+fn short_view_matches_an_offline_oracle_for_any_chunking() {
+    // The embedded live model has the short view (feature set 3, 2026-11-28): the
+    // transcriber against the obvious way, both front ends' frames computed whole, the
+    // windows cut out by hand (silence before the start, the last frame held after the
+    // end), the input assembled and the network run in f64.
+    let m = DrumModel::embedded_live();
+    assert!(m.short && m.backing.is_none());
+    let mut rng = Rng(29);
+    let x = groove(&mut rng);
+    let (dm, sm) = (
+        mel_fast(&x, &MelConfig::drums(SR), x.len()),
+        mel_fast(&x, &MelConfig::drums_short(SR), x.len()),
+    );
+    assert_eq!(dm.len(), sm.len());
+    let n = dm.len();
+    let frames = m.past + 1 + m.future;
+    let floor_frame = vec![LOG_FLOOR.ln(); m.bands];
+    let frame = |v: &Vec<Vec<f32>>, k: isize| -> Vec<f32> {
+        if k < 0 {
+            floor_frame.clone()
+        } else {
+            v[(k as usize).min(n - 1)].clone()
+        }
+    };
+    let whole = transcribe_with(&m, &x, x.len());
+    assert_eq!(whole.len(), n);
+    let mut fired = 0;
+    for (i, f) in whole.iter().enumerate() {
+        let (mut w, mut s) = (Vec::new(), Vec::new());
+        for k in 0..frames {
+            let j = i as isize - m.past as isize + k as isize;
+            w.extend(frame(&dm, j));
+            s.extend(frame(&sm, j));
+        }
+        let input: Vec<f32> = naive_assemble_with(&m, &w, &s)
+            .iter()
+            .map(|&v| v as f32)
+            .collect();
+        let want = naive_forward(&m, &input);
+        for c in 0..CLASSES {
+            assert!(
+                (f.activation[c] as f64 - want[c]).abs() < 1e-4,
+                "hop {i} class {c}: {} vs {}",
+                f.activation[c],
+                want[c]
+            );
+        }
+        fired += f.onset.iter().filter(|&&o| o).count();
+    }
+    assert!(fired >= 8, "the live model found {fired} onsets in 8 hits");
+    for chunk in [1usize, 441, 1000, 4096, 5000, 20_000] {
+        assert_eq!(transcribe_with(&m, &x, chunk), whole, "chunk {chunk}");
+    }
+    // Reset reproduces.
+    let mut t = DrumTranscriber::with_model(SR, m.clone()).unwrap();
+    assert!(!t.wants_backing());
+    let mut again = Vec::new();
+    t.process(&x[..7_000], &mut |_, _| {});
+    t.reset();
+    t.process(&x, &mut |_, f| again.push(f));
     t.finish(&mut |_, f| again.push(f));
     assert_eq!(again, whole);
 }
