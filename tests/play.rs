@@ -253,14 +253,33 @@ fn play_whole_sends_the_offline_render_s_frames() {
         .filter(|v| v["type"] == "pins")
         .map(|v| v["frame"].as_str().unwrap().to_string())
         .collect();
+    // Every frame sent is the offline render's, in its order, ending with its last. On a
+    // loaded machine the sink may replace a late frame by the next one before the link
+    // takes it (each frame carries the whole glove state; `play` counts them as dropped):
+    // a local CI run with both cores busy sent 636 of the 638 due. So allow 2 % missing,
+    // never a frame out of order or not in the render.
     let tail = &offline[3..];
+    let in_order = |render: &[String]| {
+        let mut k = 0;
+        got.iter()
+            .all(|g| match render[k..].iter().position(|o| o == g) {
+                Some(p) => {
+                    k += p + 1;
+                    true
+                }
+                None => false,
+            })
+    };
     assert!(
-        got.len() >= tail.len() && got[got.len() - tail.len()..] == *tail,
-        "play --whole sent {} frames, not the offline render's {}",
+        in_order(&offline) && got.last() == offline.last() && got.len() * 100 >= tail.len() * 98,
+        "play --whole sent {} frames, not the offline render's {} in order",
         got.len(),
         offline.len()
     );
-    assert_ne!(got[got.len() - tail.len()..], streaming[3..]);
+    assert!(
+        !in_order(&streaming),
+        "the frames sent are the streaming render's too"
+    );
 
     // A pattern is already whole.
     let pattern = d.path().join("demo-offline.json");
