@@ -845,6 +845,54 @@ fn chord_backing(len: usize) -> Vec<f32> {
         .collect()
 }
 
+/// The obvious way for a two-view model: the context windows of both views' whole-signal
+/// mel frames cut out by hand (silence before the start, the last frame held after the
+/// end), the input assembled by the f64 oracle and run through the f64 network; every
+/// hop's activations must match `got`'s. Returns the onsets `got` reports.
+#[allow(clippy::needless_range_loop)]
+fn check_two_views_against_oracle(
+    m: &DrumModel,
+    got: &[DrumFrame],
+    first: &[Vec<f32>],
+    second: &[Vec<f32>],
+) -> usize {
+    assert_eq!(first.len(), second.len());
+    assert_eq!(got.len(), first.len());
+    let n = first.len();
+    let floor_frame = vec![LOG_FLOOR.ln(); m.bands];
+    let frame = |v: &[Vec<f32>], k: isize| -> Vec<f32> {
+        if k < 0 {
+            floor_frame.clone()
+        } else {
+            v[(k as usize).min(n - 1)].clone()
+        }
+    };
+    let mut fired = 0;
+    for (i, f) in got.iter().enumerate() {
+        let (mut w, mut b) = (Vec::new(), Vec::new());
+        for k in 0..m.past + 1 + m.future {
+            let j = i as isize - m.past as isize + k as isize;
+            w.extend(frame(first, j));
+            b.extend(frame(second, j));
+        }
+        let input: Vec<f32> = naive_assemble_with(m, &w, &b)
+            .iter()
+            .map(|&v| v as f32)
+            .collect();
+        let want = naive_forward(m, &input);
+        for c in 0..CLASSES {
+            assert!(
+                (f.activation[c] as f64 - want[c]).abs() < 1e-4,
+                "hop {i} class {c}: {} vs {}",
+                f.activation[c],
+                want[c]
+            );
+        }
+        fired += f.onset.iter().filter(|&&o| o).count();
+    }
+    fired
+}
+
 #[test]
 fn backing_view_matches_an_offline_oracle_for_any_chunking() {
     // The transcriber with a backing against the obvious way: both signals' mel frames
@@ -857,47 +905,10 @@ fn backing_view_matches_an_offline_oracle_for_any_chunking() {
     let back = chord_backing(x.len());
     let cfg = MelConfig::drums(SR);
     let (dm, bm) = (mel_fast(&x, &cfg, x.len()), mel_fast(&back, &cfg, x.len()));
-    assert_eq!(dm.len(), bm.len());
-    let n = dm.len();
-    let frames = m.past + 1 + m.future;
-    let floor_frame = vec![LOG_FLOOR.ln(); m.bands];
-    let frame = |v: &Vec<Vec<f32>>, k: isize| -> Vec<f32> {
-        if k < 0 {
-            floor_frame.clone()
-        } else {
-            v[(k as usize).min(n - 1)].clone()
-        }
-    };
     let whole = transcribe_backing(&m, &x, &back, x.len());
     assert_eq!(whole.len(), x.len().div_ceil(441));
-    assert_eq!(whole.len(), n);
-    let mut fired = [0usize; CLASSES];
-    for (i, f) in whole.iter().enumerate() {
-        let (mut w, mut b) = (Vec::new(), Vec::new());
-        for k in 0..frames {
-            let j = i as isize - m.past as isize + k as isize;
-            w.extend(frame(&dm, j));
-            b.extend(frame(&bm, j));
-        }
-        let input: Vec<f32> = naive_assemble_with(&m, &w, &b)
-            .iter()
-            .map(|&v| v as f32)
-            .collect();
-        let want = naive_forward(&m, &input);
-        for c in 0..CLASSES {
-            assert!(
-                (f.activation[c] as f64 - want[c]).abs() < 1e-4,
-                "hop {i} class {c}: {} vs {}",
-                f.activation[c],
-                want[c]
-            );
-            fired[c] += f.onset[c] as usize;
-        }
-    }
-    assert!(
-        fired.iter().sum::<usize>() > 0,
-        "the random model never fired"
-    );
+    let fired = check_two_views_against_oracle(&m, &whole, &dm, &bm);
+    assert!(fired > 0, "the random model never fired");
     let spread = (0..CLASSES)
         .map(|c| {
             let (lo, hi) = whole.iter().fold((1f32, 0f32), |(lo, hi), f| {
@@ -970,7 +981,6 @@ fn short_view_config_ends_where_the_long_frame_ends() {
 }
 
 #[test]
-#[allow(clippy::needless_range_loop)]
 fn short_view_matches_an_offline_oracle_for_any_chunking() {
     // The embedded live model has the short view (feature set 3, 2026-11-28): the
     // transcriber against the obvious way, both front ends' frames computed whole, the
@@ -984,42 +994,8 @@ fn short_view_matches_an_offline_oracle_for_any_chunking() {
         mel_fast(&x, &MelConfig::drums(SR), x.len()),
         mel_fast(&x, &MelConfig::drums_short(SR), x.len()),
     );
-    assert_eq!(dm.len(), sm.len());
-    let n = dm.len();
-    let frames = m.past + 1 + m.future;
-    let floor_frame = vec![LOG_FLOOR.ln(); m.bands];
-    let frame = |v: &Vec<Vec<f32>>, k: isize| -> Vec<f32> {
-        if k < 0 {
-            floor_frame.clone()
-        } else {
-            v[(k as usize).min(n - 1)].clone()
-        }
-    };
     let whole = transcribe_with(&m, &x, x.len());
-    assert_eq!(whole.len(), n);
-    let mut fired = 0;
-    for (i, f) in whole.iter().enumerate() {
-        let (mut w, mut s) = (Vec::new(), Vec::new());
-        for k in 0..frames {
-            let j = i as isize - m.past as isize + k as isize;
-            w.extend(frame(&dm, j));
-            s.extend(frame(&sm, j));
-        }
-        let input: Vec<f32> = naive_assemble_with(&m, &w, &s)
-            .iter()
-            .map(|&v| v as f32)
-            .collect();
-        let want = naive_forward(&m, &input);
-        for c in 0..CLASSES {
-            assert!(
-                (f.activation[c] as f64 - want[c]).abs() < 1e-4,
-                "hop {i} class {c}: {} vs {}",
-                f.activation[c],
-                want[c]
-            );
-        }
-        fired += f.onset.iter().filter(|&&o| o).count();
-    }
+    let fired = check_two_views_against_oracle(&m, &whole, &dm, &sm);
     assert!(fired >= 8, "the live model found {fired} onsets in 8 hits");
     for chunk in [1usize, 441, 1000, 4096, 5000, 20_000] {
         assert_eq!(transcribe_with(&m, &x, chunk), whole, "chunk {chunk}");
