@@ -678,9 +678,9 @@ pub struct DrumTranscriber {
     /// The second view's front end: the backing's (same configuration) for a model with
     /// the backing view, the short frame's ([`MelConfig::drums_short`], fed the drum
     /// signal itself) for a model with the short view.
-    back_mel: Option<MelBank>,
+    second_mel: Option<MelBank>,
     /// Second-view frames computed ahead of the drum signal's (at most one sub-block's worth).
-    back_queue: Vec<f32>,
+    second_queue: Vec<f32>,
     core: Core,
 }
 
@@ -692,8 +692,9 @@ struct Core {
     model: DrumModel,
     /// The last `past + 1 + future` mel frames, oldest first (shifted by hand).
     window: Vec<f32>,
-    /// The backing's frames of the same hops (silence without a backing).
-    back_window: Vec<f32>,
+    /// The second view's frames of the same hops: the backing's (silence without a
+    /// backing) or the short view's.
+    second_window: Vec<f32>,
     input: Vec<f32>,
     a: Vec<f32>,
     b: Vec<f32>,
@@ -720,8 +721,8 @@ impl Core {
         let len = self.window.len();
         self.window[len - n..].copy_from_slice(bands);
         if self.model.has_second_view() {
-            self.back_window.copy_within(n.., 0);
-            let tail = &mut self.back_window[len - n..];
+            self.second_window.copy_within(n.., 0);
+            let tail = &mut self.second_window[len - n..];
             match back {
                 Some(b) => tail.copy_from_slice(b),
                 None => tail.fill(LOG_FLOOR.ln()),
@@ -734,7 +735,7 @@ impl Core {
             let i = self.frames - 1 - self.model.future;
             debug_assert_eq!(i, self.next);
             self.model
-                .assemble_with_backing(&self.window, &self.back_window, &mut self.input);
+                .assemble_with_backing(&self.window, &self.second_window, &mut self.input);
             let act = self
                 .model
                 .forward(&self.input, &mut self.a, &mut self.b, &mut self.c);
@@ -753,7 +754,7 @@ impl Core {
 
     fn reset(&mut self) {
         self.window.fill(LOG_FLOOR.ln());
-        self.back_window.fill(LOG_FLOOR.ln());
+        self.second_window.fill(LOG_FLOOR.ln());
         self.pickers = [Picker::NEW; CLASSES];
         self.frames = 0;
         self.next = 0;
@@ -776,7 +777,7 @@ impl DrumTranscriber {
             ));
         }
         let (hop, cfg_bands) = (cfg.hop, cfg.bands);
-        let back_mel = if model.short {
+        let second_mel = if model.short {
             Some(MelBank::new(MelConfig::drums_short(sample_rate))?)
         } else if model.backing.is_some() {
             Some(MelBank::new(cfg.clone())?)
@@ -786,14 +787,14 @@ impl DrumTranscriber {
         let mel = MelBank::new(cfg)?;
         let widest = model.scratch_len();
         let min_gap = ((0.05 * sample_rate as f64) / hop as f64).ceil() as usize;
-        let back_len = if model.has_second_view() {
+        let second_len = if model.has_second_view() {
             model.window_len()
         } else {
             0
         };
         let mut core = Core {
             window: vec![0.0; model.window_len()],
-            back_window: vec![0.0; back_len],
+            second_window: vec![0.0; second_len],
             input: vec![0.0; model.input_len()],
             a: vec![0.0; widest],
             b: vec![0.0; widest],
@@ -805,15 +806,15 @@ impl DrumTranscriber {
             next: 0,
         };
         core.reset();
-        let queue = if back_mel.is_some() {
+        let queue = if second_mel.is_some() {
             (BACKING_STEP / hop + 2) * cfg_bands
         } else {
             0
         };
         Ok(DrumTranscriber {
             mel,
-            back_mel,
-            back_queue: Vec::with_capacity(queue),
+            second_mel,
+            second_queue: Vec::with_capacity(queue),
             core,
         })
     }
@@ -859,14 +860,13 @@ impl DrumTranscriber {
     /// Feeds the drum signal to the main front end and `second` (the backing, or the drum
     /// signal itself for the short view) to the second view's, in steps of `BACKING_STEP`.
     fn feed_both(&mut self, input: &[f32], second: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
-        let Some(back_mel) = self.back_mel.as_mut() else {
+        let Some(second_mel) = self.second_mel.as_mut() else {
             return;
         };
-        let backing = second;
         let n = self.core.model.bands;
-        let (queue, core) = (&mut self.back_queue, &mut self.core);
-        for (x, b) in input.chunks(BACKING_STEP).zip(backing.chunks(BACKING_STEP)) {
-            back_mel.process_bands(b, &mut |_, bands| queue.extend_from_slice(bands));
+        let (queue, core) = (&mut self.second_queue, &mut self.core);
+        for (x, b) in input.chunks(BACKING_STEP).zip(second.chunks(BACKING_STEP)) {
+            second_mel.process_bands(b, &mut |_, bands| queue.extend_from_slice(bands));
             let mut k = 0;
             self.mel.process_bands(x, &mut |_, bands| {
                 let back = queue.get(k * n..(k + 1) * n);
@@ -881,9 +881,9 @@ impl DrumTranscriber {
     /// last mel frame for the look-ahead frames past the end.
     pub fn finish_frames(&mut self, emit: &mut dyn FnMut(usize, DrumFrame)) {
         let n = self.core.model.bands;
-        let (queue, core) = (&mut self.back_queue, &mut self.core);
-        if let Some(back_mel) = self.back_mel.as_mut() {
-            back_mel.finish_bands(&mut |_, bands| queue.extend_from_slice(bands));
+        let (queue, core) = (&mut self.second_queue, &mut self.core);
+        if let Some(second_mel) = self.second_mel.as_mut() {
+            second_mel.finish_bands(&mut |_, bands| queue.extend_from_slice(bands));
         }
         let mut k = 0;
         self.mel.finish_bands(&mut |_, bands| {
@@ -898,13 +898,13 @@ impl DrumTranscriber {
         let len = core.window.len();
         let mut last = [0f32; 512];
         last[..n].copy_from_slice(&core.window[len - n..]);
-        let mut last_back = [0f32; 512];
-        let has_back = core.model.has_second_view();
-        if has_back {
-            last_back[..n].copy_from_slice(&core.back_window[len - n..]);
+        let mut last_second = [0f32; 512];
+        let has_second = core.model.has_second_view();
+        if has_second {
+            last_second[..n].copy_from_slice(&core.second_window[len - n..]);
         }
         while core.next < total {
-            let back = has_back.then_some(&last_back[..n]);
+            let back = has_second.then_some(&last_second[..n]);
             core.push_frame(&last[..n], back, emit);
         }
     }
@@ -923,10 +923,10 @@ impl HopStage for DrumTranscriber {
 
     fn reset(&mut self) {
         self.mel.reset();
-        if let Some(m) = self.back_mel.as_mut() {
+        if let Some(m) = self.second_mel.as_mut() {
             m.reset();
         }
-        self.back_queue.clear();
+        self.second_queue.clear();
         self.core.reset();
     }
 
