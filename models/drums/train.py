@@ -332,6 +332,16 @@ def retune(z, rng):
     return z
 
 
+def eq_draw(rng, b):
+    """One random spectral tilt and smooth EQ per example (about +-6 dB over the bands):
+    (tilt, bumps), each (b, 1, BANDS), to be added to log mel frames."""
+    pos = np.linspace(-1, 1, BANDS, dtype=np.float32)
+    tilt = rng.uniform(-1.4, 1.4, (b, 1, 1)).astype(np.float32) * pos
+    bumps = sum(rng.uniform(-0.7, 0.7, (b, 1, 1)).astype(np.float32)
+                * np.cos(np.pi * k * (pos + 1) / 2) for k in (2, 3, 4))
+    return tilt, bumps
+
+
 def augment(x, rng):
     """Kit-to-kit variation in feature space: a random spectral tilt and smooth EQ
     (+-6 dB), a shift of +-SHIFT mel bands (drums tuned differently), then the window
@@ -343,10 +353,7 @@ def augment(x, rng):
         win = half // BANDS
         z = np.concatenate([x[:, :half].reshape(b, win, BANDS), x[:, half:].reshape(b, win, BANDS)], axis=2)
         z = retune(z, rng)  # both views, one draw per example
-        pos = np.linspace(-1, 1, BANDS, dtype=np.float32)
-        tilt = rng.uniform(-1.4, 1.4, (b, 1, 1)).astype(np.float32) * pos
-        bumps = sum(rng.uniform(-0.7, 0.7, (b, 1, 1)).astype(np.float32)
-                    * np.cos(np.pi * k * (pos + 1) / 2) for k in (2, 3, 4))
+        tilt, bumps = eq_draw(rng, b)
         out = []
         for v in range(2):
             zz = (z[:, :, v * BANDS:(v + 1) * BANDS] + tilt + bumps).reshape(b, -1)
@@ -364,10 +371,7 @@ def augment(x, rng):
         z[:, :, shift:] = z[:, :, :-shift].copy()
     elif shift < 0:
         z[:, :, :shift] = z[:, :, -shift:].copy()
-    pos = np.linspace(-1, 1, BANDS, dtype=np.float32)
-    tilt = rng.uniform(-1.4, 1.4, (b, 1, 1)).astype(np.float32) * pos
-    bumps = sum(rng.uniform(-0.7, 0.7, (b, 1, 1)).astype(np.float32)
-                * np.cos(np.pi * k * (pos + 1) / 2) for k in (2, 3, 4))
+    tilt, bumps = eq_draw(rng, b)
     z = z + tilt + bumps
     z = z.reshape(b, -1)
     m = z.max(axis=1, keepdims=True)
