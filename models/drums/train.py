@@ -488,7 +488,8 @@ def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=N
         # Early stopping on the four classes alone (--aux outputs are training's only).
         pv = sigmoid(forward(ps, (with_flux(Xv) - mean) / std)[-1])[:, :4]
         yv, wv = Yv[:, :4], Wv[:, :4]
-        ww = wv * (1 + (pw[:4] - 1) * yv) if pw.ndim else wv * (1 + (pw - 1) * yv)
+        pw4 = pw[:4] if pw.ndim else pw
+        ww = wv * (1 + (pw4 - 1) * yv)
         vl = float(-(ww * (yv * np.log(pv + 1e-7) + (1 - yv) * np.log(1 - pv + 1e-7))).sum() / len(Xv))
         print(f"epoch {ep + 1}: train {tot / n:.4f} val {vl:.4f}", flush=True)
         if vl < best[0]:
@@ -715,8 +716,9 @@ def main():
     a = ap.parse_args()
     BACK = a.backing
     SHORT = a.short
-    if SHORT and (BACK or a.flux or a.whiten or a.superpose):
-        sys.exit("--short goes with none of --backing, --flux, --whiten, --superpose")
+    if SHORT and (BACK or a.flux or a.whiten or a.superpose or a.shift):
+        sys.exit("--short goes with none of --backing, --flux, --whiten, --superpose, and "
+                 "needs --shift 0 (its augmentation retunes both views instead)")
     SUPER_DB = tuple(float(v) for v in a.superpose_db.split(","))
     if not os.path.exists(dumper_path()):
         sys.exit("build the feature dumper first: cargo build --release -p tactus-engine --example drum_features")
