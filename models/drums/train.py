@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
-"""Trains the embedded drum transcriber (crates/tactus-dsp/src/drums.rs) and writes
-crates/tactus-dsp/weights/drums.bin.
+"""Trains the embedded drum transcriber's network (crates/tactus-dsp/src/drums.rs) and writes
+it to --out. The embedded default (crates/tactus-dsp/weights/drums.bin) is this network
+wrapped with its test-time retunings by models/drums/tta.py (Rebuild command in
+models/drums/README.md); read_model reads both kinds of file.
 
 Data: songs rendered by corpus/drums.py (DIR/<family>/<song>/{drums,mix}.wav + truth.json).
 Features: the engine's own front end, dumped by
@@ -606,9 +608,28 @@ def write_model(path, ps, mean, std, thr):
     os.replace(path + ".tmp", path)
 
 
+RATIOS = [1.0]  # test-time retunings of the file read last ("TACTUSDT", tta.py); [1.0]: none
+
+
 def read_model(path):
+    """(network parameters, thresholds) of a model file; sets the feature globals (and
+    RATIOS for a retuned file, whose thresholds are the averaged activations')."""
+    global RATIOS
     with open(path, "rb") as f:
         buf = f.read()
+    RATIOS = [1.0]
+    if buf[:8] == b"TACTUSDT":
+        _, n = struct.unpack_from("<2I", buf, 8)
+        ratios = [float(r) for r in np.frombuffer(buf, "<f4", n, 16)]
+        (ln,) = struct.unpack_from("<I", buf, 16 + 4 * n)
+        start = 20 + 4 * n
+        ps, _ = read_model_bytes(buf[start:start + ln])
+        RATIOS = ratios
+        return ps, list(np.frombuffer(buf, "<f4", 4, start + ln))
+    return read_model_bytes(buf)
+
+
+def read_model_bytes(buf):
     assert buf[:8] == b"TACTUSDR"
     ver, bands, past, fut, ncls, nl = struct.unpack_from("<6I", buf, 8)
     (floor,) = struct.unpack_from("<f", buf, 32)
@@ -640,8 +661,32 @@ def read_model(path):
     return ps, thr
 
 
-def activations(ps, mel):
-    return sigmoid(forward(ps, with_flux(prep(mel)))[-1])
+def retuned(x, ratio):
+    """Normalised windows x (n, frames * BANDS) with the mel axis retuned by ratio (band b
+    takes the value at frequency centre_b / ratio, linear between bands), normalised again:
+    drums.rs `Retuning::apply`."""
+    if ratio == 1.0:
+        return x
+    n = x.shape[0]
+    m = np.linspace(_mel(F_LO), _mel(F_HI), BANDS + 2)[1:-1]
+    src = np.interp(_mel(_hz(m) / ratio), m, np.arange(BANDS, dtype=np.float64))
+    z = _gather(x.reshape(n, -1, BANDS), np.repeat(src[None, :], n, 0), 2).reshape(n, -1)
+    return np.maximum(z - z.max(axis=1, keepdims=True), np.float32(FLOOR))
+
+
+def activations(ps, mel, ratios=None):
+    """Per-hop activations; with test-time retunings (default: RATIOS, those of the file
+    read last) the mean over the retuned windows, as drums.rs computes them."""
+    ratios = RATIOS if ratios is None else ratios
+    if list(ratios) == [1.0]:
+        return sigmoid(forward(ps, with_flux(prep(mel)))[-1])
+    assert not (FLUX or BACK or SHORT or WHITEN), "only a perceptron on mel frames is retuned"
+    x = context(mel[:, :BANDS])
+    out = None
+    for r in ratios:
+        a = sigmoid(forward(ps, retuned(x, r))[-1])
+        out = a if out is None else out + a
+    return (out / np.float32(len(ratios))).astype(np.float32)
 
 
 def report(ps, thr, sets):

@@ -38,6 +38,12 @@
 //!    ([`DrumModel::members`]). The embedded models are perceptrons; the other kinds run
 //!    through `render --drum-model FILE` (a trial that was not adopted,
 //!    `benches/trials/RULE_cnn_ensemble.md`).
+//!    A *retuned* file (`"TACTUSDT"`, `models/drums/tta.py`) wraps a perceptron with a list
+//!    of test-time retunings ([`Retuning`]): the network also runs on its normalised window
+//!    with the mel axis retuned by each ratio (band `b` takes the value at frequency
+//!    `centre_b / ratio`, linear between bands, then normalised again as in step 3), and the
+//!    activations are averaged: the network is asked about each hit as if the kit were
+//!    tuned a little lower and higher (`models/drums/trials/RULE_tta.md`).
 //! 5. **Peak picking** per class, causal: hop `i` is an onset of class `c` when the
 //!    activation `a_c[i] >= threshold_c`, the detector is *armed*, and at least
 //!    `min_interval` (50 ms, docs/design.md) has passed since the last onset of that class. A
@@ -77,6 +83,81 @@ const MAGIC: &[u8; 8] = b"TACTUSDR";
 
 /// An ensemble file: networks whose activations are averaged.
 const MAGIC_ENSEMBLE: &[u8; 8] = b"TACTUSDE";
+
+/// A retuned file: one perceptron and its test-time retunings.
+const MAGIC_RETUNED: &[u8; 8] = b"TACTUSDT";
+
+/// The mel range the retunings are computed on: [`MelConfig::drums`]'s at 44.1 kHz, where the
+/// models are trained (`models/drums/train.py`'s `F_LO`, `F_HI`).
+const RETUNE_F_LO: f64 = 20.0;
+const RETUNE_F_HI: f64 = 16_000.0;
+
+/// One test-time retuning of the mel axis (see the module docs, step 4): band `b` of the
+/// retuned window interpolates the bands around the one whose centre is `centre_b / ratio`
+/// on the drum front end's mel scale (clamped to the first and last band).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Retuning {
+    /// The frequency ratio (1: the window as it is).
+    pub ratio: f32,
+    /// Per band: the lower source band.
+    lower: Vec<usize>,
+    /// Per band: the weight of the band above `lower`.
+    frac: Vec<f32>,
+}
+
+impl Retuning {
+    /// The retuning by `ratio` of `bands` mel bands between 20 Hz and 16 kHz.
+    pub fn new(ratio: f32, bands: usize) -> Retuning {
+        let mel = |f: f64| 2595.0 * (1.0 + f / 700.0).log10();
+        let hz = |m: f64| 700.0 * (10f64.powf(m / 2595.0) - 1.0);
+        let (lo, hi) = (mel(RETUNE_F_LO), mel(RETUNE_F_HI));
+        let step = (hi - lo) / (bands + 1) as f64;
+        let centres: Vec<f64> = (1..=bands).map(|j| lo + step * j as f64).collect();
+        let r = ratio as f64;
+        let last = bands.saturating_sub(1);
+        let (mut lower, mut frac) = (Vec::with_capacity(bands), Vec::with_capacity(bands));
+        for &c in &centres {
+            let x = mel(hz(c) / r);
+            // Fractional band index of x among the centres, clamped to the ends.
+            let pos = if bands < 2 || x <= centres[0] {
+                0.0
+            } else if x >= centres[last] {
+                last as f64
+            } else {
+                let j = centres.partition_point(|&m| m <= x) - 1;
+                j as f64 + (x - centres[j]) / (centres[j + 1] - centres[j])
+            };
+            let i0 = (pos.floor() as usize).min(last);
+            lower.push(i0);
+            frac.push((pos - i0 as f64) as f32);
+        }
+        Retuning { ratio, lower, frac }
+    }
+
+    /// Whether this retuning leaves the window as it is.
+    pub fn is_identity(&self) -> bool {
+        self.ratio == 1.0
+    }
+
+    /// Retunes a normalised window (`frames × bands`, band inside) into `out` and normalises
+    /// it again: its maximum subtracted, clipped at `floor`.
+    pub fn apply(&self, window: &[f32], floor: f32, out: &mut [f32]) {
+        let bands = self.lower.len();
+        let last = bands - 1;
+        let mut m = f32::NEG_INFINITY;
+        for (src, dst) in window.chunks_exact(bands).zip(out.chunks_exact_mut(bands)) {
+            for ((o, &i0), &f) in dst.iter_mut().zip(&self.lower).zip(&self.frac) {
+                let a = src[i0];
+                let b = src[(i0 + 1).min(last)];
+                *o = a + (b - a) * f;
+                m = m.max(*o);
+            }
+        }
+        for o in out[..window.len()].iter_mut() {
+            *o = (*o - m).max(floor);
+        }
+    }
+}
 
 /// One dense layer, `out = W · in + b`, `W` row-major `[n_out][n_in]`.
 #[derive(Clone, Debug, PartialEq)]
@@ -122,6 +203,9 @@ pub struct DrumModel {
     /// and feature set): the activations are the mean of this network's and theirs. Their
     /// own thresholds are unused; empty for a single network.
     pub members: Vec<DrumModel>,
+    /// Test-time retunings of a retuned file (`"TACTUSDT"`): the activations are the mean
+    /// of the network's on each retuned window. Empty: one pass on the window as it is.
+    pub retunings: Vec<Retuning>,
 }
 
 /// One convolution over (time × band) maps, "valid" in time and "same" (zero-padded by
@@ -247,6 +331,9 @@ impl DrumModel {
         if bytes.starts_with(MAGIC_ENSEMBLE) {
             return Self::ensemble_from_bytes(&bytes[8..]);
         }
+        if bytes.starts_with(MAGIC_RETUNED) {
+            return Self::retuned_from_bytes(&bytes[8..]);
+        }
         let b = &mut bytes;
         if take(b, 8, WHAT)? != MAGIC {
             return Err(ConfigError::invalid(
@@ -339,7 +426,61 @@ impl DrumModel {
             layers,
             thresholds: [t[0], t[1], t[2], t[3]],
             members: Vec::new(),
+            retunings: Vec::new(),
         })
+    }
+
+    /// `"TACTUSDT"`, u32 `version = 1, n (2..=8)`, f32 `ratios[n]` (each in [0.5, 2]), u32
+    /// byte length and a whole single-model file of a perceptron on mel frames alone
+    /// (feature set 0), then f32 `thresholds[4]` for the averaged activations.
+    fn retuned_from_bytes(mut bytes: &[u8]) -> Result<DrumModel, ConfigError> {
+        let b = &mut bytes;
+        let version = read_u32(b, WHAT)?;
+        if version != 1 {
+            return Err(ConfigError::invalid(
+                "drum model",
+                format!("retuned-file version {version} is not supported (1 is)"),
+            ));
+        }
+        let n = read_u32(b, WHAT)? as usize;
+        if !(2..=8).contains(&n) {
+            return Err(ConfigError::invalid(
+                "drum model",
+                "a retuned file has 2 to 8 retunings",
+            ));
+        }
+        let ratios = read_f32s(b, n, WHAT)?;
+        if !ratios.iter().all(|r| (0.5..=2.0).contains(r)) {
+            return Err(ConfigError::invalid(
+                "drum model",
+                "retuning ratios must lie in [0.5, 2]",
+            ));
+        }
+        let len = read_u32(b, WHAT)? as usize;
+        let one = take(b, len, WHAT)?;
+        if !one.starts_with(MAGIC) {
+            return Err(ConfigError::invalid(
+                "drum model",
+                "a retuned file must hold a single network",
+            ));
+        }
+        let mut model = Self::from_bytes(one)?;
+        if model.flux || model.has_second_view() || model.conv.is_some() || model.bands < 2 {
+            return Err(ConfigError::invalid(
+                "drum model",
+                "only a perceptron on mel frames alone can be retuned",
+            ));
+        }
+        let t = read_f32s(b, CLASSES, WHAT)?;
+        if !b.is_empty() {
+            return Err(ConfigError::invalid("drum model", "trailing bytes"));
+        }
+        model.retunings = ratios
+            .iter()
+            .map(|&r| Retuning::new(r, model.bands))
+            .collect();
+        model.thresholds = [t[0], t[1], t[2], t[3]];
+        Ok(model)
     }
 
     fn ensemble_from_bytes(mut bytes: &[u8]) -> Result<DrumModel, ConfigError> {
@@ -509,6 +650,25 @@ impl DrumModel {
         b: &mut [f32],
         c: &mut [f32],
     ) -> [f32; CLASSES] {
+        if !self.retunings.is_empty() {
+            // A perceptron on mel frames alone (checked at load): `c` is free for the
+            // retuned window.
+            let (w, rest) = c.split_at_mut(input.len());
+            let mut out = [0f32; CLASSES];
+            for r in &self.retunings {
+                let o = if r.is_identity() {
+                    self.forward_one(input, a, b, rest)
+                } else {
+                    r.apply(input, self.floor, w);
+                    self.forward_one(w, a, b, rest)
+                };
+                for (x, y) in out.iter_mut().zip(o) {
+                    *x += y;
+                }
+            }
+            let n = self.retunings.len() as f32;
+            return out.map(|x| x / n);
+        }
         let mut out = self.forward_one(input, a, b, c);
         if self.members.is_empty() {
             return out;
