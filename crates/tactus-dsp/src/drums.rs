@@ -1142,8 +1142,9 @@ mod tests {
 
     #[test]
     fn ensemble_files_average_their_members() {
-        let one = DrumModel::embedded();
-        let two = ensemble(&[EMBEDDED, EMBEDDED], [0.1, 0.2, 0.3, 0.4]);
+        let net = embedded_network();
+        let one = DrumModel::from_bytes(net).unwrap();
+        let two = ensemble(&[net, net], [0.1, 0.2, 0.3, 0.4]);
         let m = DrumModel::from_bytes(&two).unwrap();
         assert_eq!(m.members.len(), 1);
         assert_eq!(m.thresholds, [0.1, 0.2, 0.3, 0.4]);
@@ -1161,10 +1162,13 @@ mod tests {
             assert!((got[k] - want[k]).abs() < 1e-6, "{got:?} vs {want:?}");
         }
         // Members must read the same input; counts, nesting and lengths are checked.
-        let e = DrumModel::from_bytes(&ensemble(&[EMBEDDED, EMBEDDED_LIVE], [0.5; 4]));
+        let e = DrumModel::from_bytes(&ensemble(&[net, EMBEDDED_LIVE], [0.5; 4]));
         assert!(e.unwrap_err().to_string().contains("must share"));
-        assert!(DrumModel::from_bytes(&ensemble(&[EMBEDDED], [0.5; 4])).is_err());
-        assert!(DrumModel::from_bytes(&ensemble(&[&two, EMBEDDED], [0.5; 4])).is_err());
+        assert!(DrumModel::from_bytes(&ensemble(&[net], [0.5; 4])).is_err());
+        assert!(DrumModel::from_bytes(&ensemble(&[&two, net], [0.5; 4])).is_err());
+        // A retuned file is not a single network.
+        let e = DrumModel::from_bytes(&ensemble(&[EMBEDDED, net], [0.5; 4]));
+        assert!(e.unwrap_err().to_string().contains("not a single network"));
         for n in [8, 12, 16, 20, two.len() / 2, two.len() - 1] {
             assert!(DrumModel::from_bytes(&two[..n]).is_err(), "{n}");
         }
@@ -1231,5 +1235,72 @@ mod tests {
         v3[8] = 3;
         let e = DrumModel::from_bytes(&v3).unwrap_err().to_string();
         assert!(e.contains("version 3"), "{e}");
+    }
+
+    /// The single network inside the embedded default file (a retuned file).
+    fn embedded_network() -> &'static [u8] {
+        assert!(EMBEDDED.starts_with(MAGIC_RETUNED));
+        let u = |at: usize| u32::from_le_bytes(EMBEDDED[at..at + 4].try_into().unwrap()) as usize;
+        let at = 16 + 4 * u(12);
+        &EMBEDDED[at + 4..at + 4 + u(at)]
+    }
+
+    fn retuned_file(ratios: &[f32], net: &[u8], thresholds: [f32; 4]) -> Vec<u8> {
+        let mut v = MAGIC_RETUNED.to_vec();
+        v.extend(1u32.to_le_bytes());
+        v.extend((ratios.len() as u32).to_le_bytes());
+        for r in ratios {
+            v.extend(r.to_le_bytes());
+        }
+        v.extend((net.len() as u32).to_le_bytes());
+        v.extend_from_slice(net);
+        for t in thresholds {
+            v.extend(t.to_le_bytes());
+        }
+        v
+    }
+
+    #[test]
+    fn bad_retuned_files_are_errors() {
+        let net = embedded_network();
+        let err = |v: Vec<u8>| DrumModel::from_bytes(&v).unwrap_err().to_string();
+        assert!(err(retuned_file(&[1.0], net, [0.5; 4])).contains("2 to 8"));
+        assert!(err(retuned_file(&[1.0; 9], net, [0.5; 4])).contains("2 to 8"));
+        for bad in [3.0, 0.25] {
+            assert!(
+                err(retuned_file(&[1.0, bad], net, [0.5; 4])).contains("[0.5, 2]"),
+                "{bad}"
+            );
+        }
+        for bad in [f32::NAN, f32::INFINITY] {
+            assert!(
+                err(retuned_file(&[1.0, bad], net, [0.5; 4])).contains("non-finite"),
+                "{bad}"
+            );
+        }
+        // Only a perceptron on mel frames alone: not the short-view live model, not a
+        // flux model, not a retuned file inside a retuned file.
+        for inner in [EMBEDDED_LIVE, &v2(1, 10)[..]] {
+            assert!(err(retuned_file(&[1.0, 1.3], inner, [0.5; 4])).contains("perceptron"));
+        }
+        assert!(err(retuned_file(&[1.0, 1.3], EMBEDDED, [0.5; 4])).contains("single network"));
+        let mut v = retuned_file(&[1.0, 1.3], net, [0.5; 4]);
+        v[8] = 2;
+        assert!(err(v).contains("version 2"));
+        let good = retuned_file(&[1.0, 1.3], net, [0.5; 4]);
+        for n in [8, 12, 16, 20, 24, good.len() / 2, good.len() - 1] {
+            assert!(DrumModel::from_bytes(&good[..n]).is_err(), "{n}");
+        }
+        let mut extra = good.clone();
+        extra.push(0);
+        assert!(err(extra).contains("trailing"));
+    }
+
+    #[test]
+    fn embedded_default_is_retuned_by_one_and_1_3_either_way() {
+        let m = DrumModel::embedded();
+        let ratios: Vec<f32> = m.retunings.iter().map(|r| r.ratio).collect();
+        assert_eq!(ratios, [1.0, (1.0f64 / 1.3) as f32, 1.3]);
+        assert!(DrumModel::embedded_live().retunings.is_empty());
     }
 }

@@ -7,7 +7,9 @@
 //! implemented with `unsafe impl`. It forwards to `System` unchanged.
 #![deny(unsafe_code)]
 
-use tactus_dsp::drums::{Conv, ConvNet, DrumFrame, DrumModel, DrumTranscriber, Layer, CLASSES};
+use tactus_dsp::drums::{
+    Conv, ConvNet, DrumFrame, DrumModel, DrumTranscriber, Layer, Retuning, CLASSES,
+};
 use tactus_dsp::melbank::{filters, MelBank, MelConfig, LOG_FLOOR};
 use tactus_dsp::HopStage;
 
@@ -274,6 +276,18 @@ fn dc_to_the_end_is_not_a_step() {
 // The oracle is written the obvious way, with indices.
 #[allow(clippy::needless_range_loop)]
 fn naive_forward(m: &DrumModel, input: &[f32]) -> Vec<f64> {
+    // A retuned file: the plain mean of the network's activations on each retuned window.
+    if !m.retunings.is_empty() {
+        let mut sum = vec![0f64; CLASSES];
+        for r in &m.retunings {
+            let x = naive_retune(input, m.bands, r.ratio as f64, m.floor as f64);
+            let x: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+            for (s, v) in sum.iter_mut().zip(naive_one(m, &x)) {
+                *s += v;
+            }
+        }
+        return sum.iter().map(|s| s / m.retunings.len() as f64).collect();
+    }
     // An ensemble: the plain mean of every network's activations.
     let mut sum = naive_one(m, input);
     for member in &m.members {
@@ -434,6 +448,7 @@ fn random_flux_model() -> DrumModel {
         layers,
         thresholds: [0.5; CLASSES],
         members: Vec::new(),
+        retunings: Vec::new(),
     }
 }
 
@@ -471,6 +486,7 @@ fn random_backing_model() -> DrumModel {
         layers,
         thresholds: [0.3, 0.4, 0.5, 0.6],
         members: Vec::new(),
+        retunings: Vec::new(),
     }
 }
 
@@ -540,6 +556,7 @@ fn random_conv_model(kb2: usize, pool: (usize, usize)) -> DrumModel {
         layers,
         thresholds: [0.5; CLASSES],
         members: Vec::new(),
+        retunings: Vec::new(),
     }
 }
 
@@ -552,8 +569,113 @@ fn forward_matches_naive_f64() {
     forward_matches_naive(random_conv_model(3, (1, 2)));
     forward_matches_naive(random_conv_model(7, (2, 3)));
     let mut ens = DrumModel::embedded();
+    ens.retunings.clear(); // an ensemble of plain networks, as a file gives it
     ens.members = vec![random_conv_model(3, (1, 2)), random_conv_model(7, (2, 3))];
     forward_matches_naive(ens);
+}
+
+/// Slow oracle of `Retuning::apply`, in f64 and written differently: the band centres are
+/// equally spaced on the mel scale (20 Hz to 16 kHz), so the source of band `b` sits at the
+/// fractional index `(mel(centre_b / ratio) - mel_lo) / step - 1`, clamped to the bands;
+/// linear between bands, then the window's maximum subtracted and clipped at `floor`.
+fn naive_retune(window: &[f32], bands: usize, ratio: f64, floor: f64) -> Vec<f64> {
+    let mel = |f: f64| 2595.0 * (1.0 + f / 700.0).log10();
+    let hz = |m: f64| 700.0 * (10f64.powf(m / 2595.0) - 1.0);
+    let (lo, hi) = (mel(20.0), mel(16_000.0));
+    let step = (hi - lo) / (bands + 1) as f64;
+    let mut out: Vec<f64> = Vec::new();
+    for frame in window.chunks(bands) {
+        for b in 0..bands {
+            let centre = hz(lo + step * (b + 1) as f64);
+            let pos = ((mel(centre / ratio) - lo) / step - 1.0).clamp(0.0, (bands - 1) as f64);
+            let (i, f) = (pos.floor() as usize, pos - pos.floor());
+            let (x0, x1) = (frame[i] as f64, frame[(i + 1).min(bands - 1)] as f64);
+            out.push(x0 * (1.0 - f) + x1 * f);
+        }
+    }
+    let m = out.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    out.iter().map(|v| (v - m).max(floor)).collect()
+}
+
+#[test]
+fn retuning_matches_a_slow_oracle() {
+    let mut rng = Rng(11);
+    // A normalised window, as the model assembles it: maximum 0, nothing under the floor.
+    let raw: Vec<f32> = (0..12 * 48).map(|_| 20.0 * rng.next_f32()).collect();
+    let top = raw.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let w: Vec<f32> = raw.iter().map(|v| (v - top).max(-16.0)).collect();
+    for ratio in [1.3f32, (1.0f64 / 1.3) as f32, 0.5, 2.0, 1.07, 1.0] {
+        let r = Retuning::new(ratio, 48);
+        let mut got = vec![0f32; w.len()];
+        r.apply(&w, -16.0, &mut got);
+        let want = naive_retune(&w, 48, ratio as f64, -16.0);
+        for (k, (g, o)) in got.iter().zip(&want).enumerate() {
+            assert!(
+                (*g as f64 - o).abs() < 1e-4,
+                "ratio {ratio}, value {k}: {g} vs {o}"
+            );
+        }
+        if ratio == 1.0 {
+            // Up to rounding, the identity (the forward pass skips it altogether).
+            let most = got
+                .iter()
+                .zip(&w)
+                .map(|(g, x)| (g - x).abs())
+                .fold(0f32, f32::max);
+            assert!(most < 1e-5, "{most}");
+            assert!(r.is_identity());
+        }
+    }
+}
+
+#[test]
+fn retuning_by_1_3_moves_a_peak_up_by_1_3() {
+    // One band loud in every frame: after retuning by 1.3 the loudest band is the one whose
+    // centre is closest to 1.3 times the source band's centre.
+    let mel = |f: f64| 2595.0 * (1.0 + f / 700.0).log10();
+    let hz = |m: f64| 700.0 * (10f64.powf(m / 2595.0) - 1.0);
+    let step = (mel(16_000.0) - mel(20.0)) / 49.0;
+    let centre = |b: usize| hz(mel(20.0) + step * (b + 1) as f64);
+    for src in [10usize, 20, 30] {
+        let mut w = vec![-16f32; 12 * 48];
+        for t in 0..12 {
+            w[t * 48 + src] = 0.0;
+        }
+        let mut out = vec![0f32; w.len()];
+        Retuning::new(1.3, 48).apply(&w, -16.0, &mut out);
+        let peak = (0..48).max_by(|&a, &b| out[a].total_cmp(&out[b])).unwrap();
+        let d = |x: usize| (centre(x) - 1.3 * centre(src)).abs();
+        let want = (0..48).min_by(|&a, &b| d(a).total_cmp(&d(b))).unwrap();
+        assert_eq!(peak, want, "source band {src} ({:.0} Hz)", centre(src));
+        assert!(peak > src);
+    }
+}
+
+#[test]
+fn the_default_models_retunings_change_its_answer() {
+    // The embedded default averages three passes (forward_matches_naive_f64 checks the
+    // mean against the oracle); without them the same input gives another answer.
+    let m = DrumModel::embedded();
+    assert_eq!(m.retunings.len(), 3);
+    let mut plain = m.clone();
+    plain.retunings.clear();
+    let w = m.scratch_len();
+    let (mut a, mut b, mut c) = (vec![0f32; w], vec![0f32; w], vec![0f32; w]);
+    let mut rng = Rng(3);
+    let mut most = 0f32;
+    for _ in 0..20 {
+        let window: Vec<f32> = (0..m.window_len())
+            .map(|_| -20.0 * rng.next_f32())
+            .collect();
+        let mut input = vec![0f32; m.input_len()];
+        m.assemble(&window, &mut input);
+        let x = m.forward(&input, &mut a, &mut b, &mut c);
+        let y = plain.forward(&input, &mut a, &mut b, &mut c);
+        most = (0..CLASSES)
+            .map(|k| (x[k] - y[k]).abs())
+            .fold(most, f32::max);
+    }
+    assert!(most > 1e-3, "{most}");
 }
 
 fn forward_matches_naive(m: DrumModel) {
