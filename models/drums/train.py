@@ -680,11 +680,13 @@ def activations(ps, mel, ratios=None):
     ratios = RATIOS if ratios is None else ratios
     if list(ratios) == [1.0]:
         return sigmoid(forward(ps, with_flux(prep(mel)))[-1])
-    assert not (FLUX or BACK or SHORT or WHITEN), "only a perceptron on mel frames is retuned"
-    x = context(mel[:, :BANDS])
+    assert not (FLUX or BACK or WHITEN), "only a perceptron on mel frames (and its short view)"
+    views = [context(mel[:, :BANDS])] + ([context(mel[:, BANDS:2 * BANDS])] if SHORT else [])
     out = None
     for r in ratios:
-        a = sigmoid(forward(ps, retuned(x, r))[-1])
+        # Each view retuned by the same ratio and normalised by its own maximum.
+        x = np.concatenate([retuned(v, r) for v in views], axis=1)
+        a = sigmoid(forward(ps, x)[-1])
         out = a if out is None else out + a
     return (out / np.float32(len(ratios))).astype(np.float32)
 

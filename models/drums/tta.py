@@ -78,7 +78,7 @@ def main():
     a = ap.parse_args()
     ps, _ = T.read_model(a.model)
     assert T.RATIOS == [1.0], "already a retuned file"
-    assert not (T.FLUX or T.BACK or T.SHORT or T.WHITEN), "only a perceptron on mel frames"
+    assert not (T.FLUX or T.BACK or T.WHITEN), "only a perceptron on mel frames (and its short view)"
     D = validation(a.data)
     print(f"validation: {len(D)} song conditions", flush=True)
     if a.screen:
