@@ -43,7 +43,8 @@
 //!    with the mel axis retuned by each ratio (band `b` takes the value at frequency
 //!    `centre_b / ratio`, linear between bands, then normalised again as in step 3), and the
 //!    activations are averaged: the network is asked about each hit as if the kit were
-//!    tuned a little lower and higher (`models/drums/trials/RULE_tta.md`).
+//!    tuned a little lower and higher (`models/drums/trials/RULE_tta.md`). A short-view
+//!    model's two views are retuned alike, each normalised by its own maximum.
 //! 5. **Peak picking** per class, causal: hop `i` is an onset of class `c` when the
 //!    activation `a_c[i] >= threshold_c`, the detector is *armed*, and at least
 //!    `min_interval` (50 ms, docs/design.md) has passed since the last onset of that class. A
@@ -431,8 +432,10 @@ impl DrumModel {
     }
 
     /// `"TACTUSDT"`, u32 `version = 1, n (2..=8)`, f32 `ratios[n]` (each in [0.5, 2]), u32
-    /// byte length and a whole single-model file of a perceptron on mel frames alone
-    /// (feature set 0), then f32 `thresholds[4]` for the averaged activations.
+    /// byte length and a whole single-model file of a perceptron on mel frames (feature set
+    /// 0, or 3 with the short view: both views are retuned by the same ratio, each
+    /// normalised again by its own maximum), then f32 `thresholds[4]` for the averaged
+    /// activations.
     fn retuned_from_bytes(mut bytes: &[u8]) -> Result<DrumModel, ConfigError> {
         let b = &mut bytes;
         let version = read_u32(b, WHAT)?;
@@ -465,10 +468,10 @@ impl DrumModel {
             ));
         }
         let mut model = Self::from_bytes(one)?;
-        if model.flux || model.has_second_view() || model.conv.is_some() || model.bands < 2 {
+        if model.flux || model.backing.is_some() || model.conv.is_some() || model.bands < 2 {
             return Err(ConfigError::invalid(
                 "drum model",
-                "only a perceptron on mel frames alone can be retuned",
+                "only a perceptron on mel frames (and its short view) can be retuned",
             ));
         }
         let t = read_f32s(b, CLASSES, WHAT)?;
@@ -651,15 +654,18 @@ impl DrumModel {
         c: &mut [f32],
     ) -> [f32; CLASSES] {
         if !self.retunings.is_empty() {
-            // A perceptron on mel frames alone (checked at load): `c` is free for the
-            // retuned window.
+            // A perceptron on mel frames and perhaps the short view (checked at load): `c`
+            // is free for the retuned input, each view retuned and normalised on its own.
             let (w, rest) = c.split_at_mut(input.len());
+            let view = self.window_len();
             let mut out = [0f32; CLASSES];
             for r in &self.retunings {
                 let o = if r.is_identity() {
                     self.forward_one(input, a, b, rest)
                 } else {
-                    r.apply(input, self.floor, w);
+                    for (src, dst) in input.chunks_exact(view).zip(w.chunks_exact_mut(view)) {
+                        r.apply(src, self.floor, dst);
+                    }
                     self.forward_one(w, a, b, rest)
                 };
                 for (x, y) in out.iter_mut().zip(o) {
@@ -1162,7 +1168,7 @@ mod tests {
             assert!((got[k] - want[k]).abs() < 1e-6, "{got:?} vs {want:?}");
         }
         // Members must read the same input; counts, nesting and lengths are checked.
-        let e = DrumModel::from_bytes(&ensemble(&[net, EMBEDDED_LIVE], [0.5; 4]));
+        let e = DrumModel::from_bytes(&ensemble(&[net, network_of(EMBEDDED_LIVE)], [0.5; 4]));
         assert!(e.unwrap_err().to_string().contains("must share"));
         assert!(DrumModel::from_bytes(&ensemble(&[net], [0.5; 4])).is_err());
         assert!(DrumModel::from_bytes(&ensemble(&[&two, net], [0.5; 4])).is_err());
@@ -1237,12 +1243,16 @@ mod tests {
         assert!(e.contains("version 3"), "{e}");
     }
 
-    /// The single network inside the embedded default file (a retuned file).
-    fn embedded_network() -> &'static [u8] {
-        assert!(EMBEDDED.starts_with(MAGIC_RETUNED));
-        let u = |at: usize| u32::from_le_bytes(EMBEDDED[at..at + 4].try_into().unwrap()) as usize;
+    /// The single network inside an embedded file (a retuned file).
+    fn network_of(file: &'static [u8]) -> &'static [u8] {
+        assert!(file.starts_with(MAGIC_RETUNED));
+        let u = |at: usize| u32::from_le_bytes(file[at..at + 4].try_into().unwrap()) as usize;
         let at = 16 + 4 * u(12);
-        &EMBEDDED[at + 4..at + 4 + u(at)]
+        &file[at + 4..at + 4 + u(at)]
+    }
+
+    fn embedded_network() -> &'static [u8] {
+        network_of(EMBEDDED)
     }
 
     fn retuned_file(ratios: &[f32], net: &[u8], thresholds: [f32; 4]) -> Vec<u8> {
@@ -1278,11 +1288,16 @@ mod tests {
                 "{bad}"
             );
         }
-        // Only a perceptron on mel frames alone: not the short-view live model, not a
-        // flux model, not a retuned file inside a retuned file.
-        for inner in [EMBEDDED_LIVE, &v2(1, 10)[..]] {
+        // Only a perceptron on mel frames (and its short view): not a flux or backing
+        // model, not a retuned file inside a retuned file.
+        let mut backing = v2(2, 12);
+        let at = 8 + 6 * 4 + 4 + 4;
+        backing.splice(at..at, 6f32.to_le_bytes());
+        for inner in [&v2(1, 10)[..], &backing[..]] {
             assert!(err(retuned_file(&[1.0, 1.3], inner, [0.5; 4])).contains("perceptron"));
         }
+        let short = DrumModel::from_bytes(&retuned_file(&[1.0, 1.3], &v2(3, 12), [0.5; 4]));
+        assert_eq!(short.unwrap().retunings.len(), 2);
         assert!(err(retuned_file(&[1.0, 1.3], EMBEDDED, [0.5; 4])).contains("single network"));
         let mut v = retuned_file(&[1.0, 1.3], net, [0.5; 4]);
         v[8] = 2;
@@ -1297,10 +1312,11 @@ mod tests {
     }
 
     #[test]
-    fn embedded_default_is_retuned_by_one_and_1_3_either_way() {
-        let m = DrumModel::embedded();
-        let ratios: Vec<f32> = m.retunings.iter().map(|r| r.ratio).collect();
-        assert_eq!(ratios, [1.0, (1.0f64 / 1.3) as f32, 1.3]);
-        assert!(DrumModel::embedded_live().retunings.is_empty());
+    fn embedded_models_are_retuned_by_one_and_1_3_either_way() {
+        for m in [DrumModel::embedded(), DrumModel::embedded_live()] {
+            let ratios: Vec<f32> = m.retunings.iter().map(|r| r.ratio).collect();
+            assert_eq!(ratios, [1.0, (1.0f64 / 1.3) as f32, 1.3]);
+        }
+        assert!(DrumModel::embedded_live().short);
     }
 }

@@ -280,8 +280,12 @@ fn naive_forward(m: &DrumModel, input: &[f32]) -> Vec<f64> {
     if !m.retunings.is_empty() {
         let mut sum = vec![0f64; CLASSES];
         for r in &m.retunings {
-            let x = naive_retune(input, m.bands, r.ratio as f64, m.floor as f64);
-            let x: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+            // Each view (the mel window, then the short view's if any) on its own.
+            let x: Vec<f32> = input
+                .chunks(m.window_len())
+                .flat_map(|v| naive_retune(v, m.bands, r.ratio as f64, m.floor as f64))
+                .map(|v| v as f32)
+                .collect();
             for (s, v) in sum.iter_mut().zip(naive_one(m, &x)) {
                 *s += v;
             }
@@ -564,6 +568,12 @@ fn random_conv_model(kb2: usize, pool: (usize, usize)) -> DrumModel {
 fn forward_matches_naive_f64() {
     forward_matches_naive(DrumModel::embedded());
     forward_matches_naive(DrumModel::embedded_live());
+    // A short-view model retuned: both views retuned alike, each normalised on its own.
+    let mut live = DrumModel::embedded_live();
+    live.retunings = [1.0, 1.3, 0.7]
+        .map(|r| Retuning::new(r, live.bands))
+        .to_vec();
+    forward_matches_naive(live);
     forward_matches_naive(random_flux_model());
     forward_matches_naive(random_backing_model());
     forward_matches_naive(random_conv_model(3, (1, 2)));

@@ -1,4 +1,4 @@
-"""RULE_tta.md's engine check: the engine's activations for a retuned file
+"""RULE_tta.md's and RULE_tta_live.md's engine check: the engine's activations for a retuned file
 (`drum_features SONG OUT iso|sep MODEL`, the transcriber as the engine runs it) against
 `models/drums/tta.py`'s (numpy, from the dumped features). Run from the repository root:
 
@@ -22,6 +22,10 @@ for sd in sys.argv[2:]:
     for cond in ('iso', 'sep'):
         with tempfile.TemporaryDirectory() as tmp:
             mel = T.features(sd, cond, os.path.join(tmp, 'm.f32'))
+            if T.SHORT:  # a short-view model: the 1024-point view beside (RULE_tta_live.md)
+                short = T.features(sd, f'{cond}-short', os.path.join(tmp, 's.f32'))
+                n = min(len(mel), len(short))
+                mel = np.concatenate([mel[:n], short[:n]], axis=1)
             py = T.activations(ps, mel)
             out = os.path.join(tmp, 'a.f32')
             src = os.path.join(sd, 'drums.wav' if cond == 'iso' else 'mix.wav')
