@@ -1,36 +1,19 @@
 """RULE_short.md's engine check: the engine's activations for a short-view model
 (`drum_features SONG OUT iso|sep MODEL`, the transcriber as the engine runs it) against
-train.py's (numpy, from the dumped 2048- and 1024-point features). Run from the repository root:
+train.py's (numpy, from the dumped 2048- and 1024-point features; `engine_check.py`). Run
+from the repository root:
 
     corpus/.venv/bin/python models/drums/trials/short_check.py MODEL SONG_DIR...
 """
 import os
-import subprocess
 import sys
-import tempfile
 
-import numpy as np
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from engine_check import compare  # noqa: E402
 
-sys.path.insert(0, 'models/drums')
-import train as T  # noqa: E402
 
-model = sys.argv[1]
-ps, thr = T.read_model(model)
-assert T.SHORT, "not a short-view model"
-worst = 0.0
-for sd in sys.argv[2:]:
-    for cond in ('iso', 'sep'):
-        with tempfile.TemporaryDirectory() as tmp:
-            long_ = T.features(sd, cond, os.path.join(tmp, 'l.f32'))
-            short = T.features(sd, f'{cond}-short', os.path.join(tmp, 's.f32'))
-            n = min(len(long_), len(short))
-            py = T.activations(ps, np.concatenate([long_[:n], short[:n]], axis=1))
-            out = os.path.join(tmp, 'a.f32')
-            src = os.path.join(sd, 'drums.wav' if cond == 'iso' else 'mix.wav')
-            subprocess.run([T.dumper_path(), src, out, cond, model], check=True)
-            rs = np.fromfile(out, '<f4').reshape(-1, 4)
-        m = min(len(py), len(rs))
-        d = float(np.abs(py[:m] - rs[:m]).max())
-        worst = max(worst, d)
-        print(f'{sd} {cond}: hops {len(py)} / {len(rs)}, max |engine - train.py| {d:.2e}')
-print(f'worst {worst:.2e}')
+def short(T):
+    assert T.SHORT, "not a short-view model"
+
+
+compare(sys.argv[1], sys.argv[2:], short)
