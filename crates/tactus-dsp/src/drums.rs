@@ -62,8 +62,10 @@
 //! # Cost
 //! One 2048-point real FFT and one network pass (about 82 k multiply-adds with the
 //! embedded model; a flux model with the same hidden layers, 1,104 inputs, about 150 k; a
-//! short-view model, 1,152 inputs, about 156 k and one more 1024-point FFT) per 10 ms. No
-//! allocation after [`DrumTranscriber::new`].
+//! short-view model, 1,152 inputs, about 156 k and one more 1024-point FFT) per 10 ms; a
+//! retuned file runs its network once per retuning (the embedded models: three times, so
+//! about 250 k for the default and 470 k for the live model, plus the retunings' linear
+//! interpolation of each view). No allocation after [`DrumTranscriber::new`].
 
 use crate::melbank::{MelBank, MelConfig, LOG_FLOOR};
 use crate::mlp::{read_f32s, read_u32, take};
@@ -144,7 +146,9 @@ impl Retuning {
     /// it again: its maximum subtracted, clipped at `floor`.
     pub fn apply(&self, window: &[f32], floor: f32, out: &mut [f32]) {
         let bands = self.lower.len();
-        let last = bands - 1;
+        let Some(last) = bands.checked_sub(1) else {
+            return;
+        };
         let mut m = f32::NEG_INFINITY;
         for (src, dst) in window.chunks_exact(bands).zip(out.chunks_exact_mut(bands)) {
             for ((o, &i0), &f) in dst.iter_mut().zip(&self.lower).zip(&self.frac) {

@@ -278,7 +278,7 @@ fn dc_to_the_end_is_not_a_step() {
 fn naive_forward(m: &DrumModel, input: &[f32]) -> Vec<f64> {
     // A retuned file: the plain mean of the network's activations on each retuned window.
     if !m.retunings.is_empty() {
-        let mut sum = vec![0f64; CLASSES];
+        let mut sum = [0f64; CLASSES];
         for r in &m.retunings {
             // Each view (the mel window, then the short view's if any) on its own.
             let x: Vec<f32> = input
