@@ -90,10 +90,10 @@ const MAGIC_ENSEMBLE: &[u8; 8] = b"TACTUSDE";
 /// A retuned file: one perceptron and its test-time retunings.
 const MAGIC_RETUNED: &[u8; 8] = b"TACTUSDT";
 
-/// The mel range the retunings are computed on: [`MelConfig::drums`]'s at 44.1 kHz, where the
-/// models are trained (`models/drums/train.py`'s `F_LO`, `F_HI`).
-const RETUNE_F_LO: f64 = 20.0;
-const RETUNE_F_HI: f64 = 16_000.0;
+/// The sample rate whose drum front end ([`MelConfig::drums`]: 20 Hz to 16 kHz) the
+/// retunings are computed for: the models are trained at it (`models/drums/train.py`'s
+/// `F_LO`, `F_HI`).
+const RETUNE_RATE: u32 = 44_100;
 
 /// One test-time retuning of the mel axis (see the module docs, step 4): band `b` of the
 /// retuned window interpolates the bands around the one whose centre is `centre_b / ratio`
@@ -111,9 +111,10 @@ pub struct Retuning {
 impl Retuning {
     /// The retuning by `ratio` of `bands` mel bands between 20 Hz and 16 kHz.
     pub fn new(ratio: f32, bands: usize) -> Retuning {
-        let mel = |f: f64| 2595.0 * (1.0 + f / 700.0).log10();
-        let hz = |m: f64| 700.0 * (10f64.powf(m / 2595.0) - 1.0);
-        let (lo, hi) = (mel(RETUNE_F_LO), mel(RETUNE_F_HI));
+        let (mel, hz) = (crate::melbank::hz_to_mel, crate::melbank::mel_to_hz);
+        let cfg = MelConfig::drums(RETUNE_RATE);
+        let f_hi = cfg.f_hi.min(0.45 * RETUNE_RATE as f32);
+        let (lo, hi) = (mel(cfg.f_lo as f64), mel(f_hi as f64));
         let step = (hi - lo) / (bands + 1) as f64;
         let centres: Vec<f64> = (1..=bands).map(|j| lo + step * j as f64).collect();
         let r = ratio as f64;
@@ -442,20 +443,12 @@ impl DrumModel {
     /// activations.
     fn retuned_from_bytes(mut bytes: &[u8]) -> Result<DrumModel, ConfigError> {
         let b = &mut bytes;
-        let version = read_u32(b, WHAT)?;
-        if version != 1 {
-            return Err(ConfigError::invalid(
-                "drum model",
-                format!("retuned-file version {version} is not supported (1 is)"),
-            ));
-        }
-        let n = read_u32(b, WHAT)? as usize;
-        if !(2..=8).contains(&n) {
-            return Err(ConfigError::invalid(
-                "drum model",
-                "a retuned file has 2 to 8 retunings",
-            ));
-        }
+        let n = read_wrapper_head(
+            b,
+            "retuned-file",
+            2..=8,
+            "a retuned file has 2 to 8 retunings",
+        )?;
         let ratios = read_f32s(b, n, WHAT)?;
         if !ratios.iter().all(|r| (0.5..=2.0).contains(r)) {
             return Err(ConfigError::invalid(
@@ -463,15 +456,7 @@ impl DrumModel {
                 "retuning ratios must lie in [0.5, 2]",
             ));
         }
-        let len = read_u32(b, WHAT)? as usize;
-        let one = take(b, len, WHAT)?;
-        if !one.starts_with(MAGIC) {
-            return Err(ConfigError::invalid(
-                "drum model",
-                "a retuned file must hold a single network",
-            ));
-        }
-        let mut model = Self::from_bytes(one)?;
+        let mut model = read_single(b, "a retuned file must hold a single network")?;
         if model.flux || model.backing.is_some() || model.conv.is_some() || model.bands < 2 {
             return Err(ConfigError::invalid(
                 "drum model",
@@ -492,31 +477,13 @@ impl DrumModel {
 
     fn ensemble_from_bytes(mut bytes: &[u8]) -> Result<DrumModel, ConfigError> {
         let b = &mut bytes;
-        let version = read_u32(b, WHAT)?;
-        if version != 1 {
-            return Err(ConfigError::invalid(
-                "drum model",
-                format!("ensemble version {version} is not supported (1 is)"),
-            ));
-        }
-        let n = read_u32(b, WHAT)? as usize;
-        if !(2..=4).contains(&n) {
-            return Err(ConfigError::invalid(
-                "drum model",
-                "an ensemble has 2 to 4 members",
-            ));
-        }
+        let n = read_wrapper_head(b, "ensemble", 2..=4, "an ensemble has 2 to 4 members")?;
         let mut models = Vec::with_capacity(n);
         for _ in 0..n {
-            let len = read_u32(b, WHAT)? as usize;
-            let one = take(b, len, WHAT)?;
-            if !one.starts_with(MAGIC) {
-                return Err(ConfigError::invalid(
-                    "drum model",
-                    "an ensemble member is not a single network",
-                ));
-            }
-            models.push(Self::from_bytes(one)?);
+            models.push(read_single(
+                b,
+                "an ensemble member is not a single network",
+            )?);
         }
         let t = read_f32s(b, CLASSES, WHAT)?;
         if !b.is_empty() {
@@ -729,6 +696,38 @@ impl DrumModel {
         }
         out
     }
+}
+
+/// The head of a wrapper file (ensemble, retuned) after its magic: u32 `version = 1`, then u32
+/// `n` in `counts`; returns `n`.
+fn read_wrapper_head(
+    b: &mut &[u8],
+    kind: &str,
+    counts: std::ops::RangeInclusive<usize>,
+    bad_count: &'static str,
+) -> Result<usize, ConfigError> {
+    let version = read_u32(b, WHAT)?;
+    if version != 1 {
+        return Err(ConfigError::invalid(
+            "drum model",
+            format!("{kind} version {version} is not supported (1 is)"),
+        ));
+    }
+    let n = read_u32(b, WHAT)? as usize;
+    if !counts.contains(&n) {
+        return Err(ConfigError::invalid("drum model", bad_count));
+    }
+    Ok(n)
+}
+
+/// A wrapped single-network file: u32 byte length, then the file (`"TACTUSDR"`).
+fn read_single(b: &mut &[u8], not_single: &'static str) -> Result<DrumModel, ConfigError> {
+    let len = read_u32(b, WHAT)? as usize;
+    let one = take(b, len, WHAT)?;
+    if !one.starts_with(MAGIC) {
+        return Err(ConfigError::invalid("drum model", not_single));
+    }
+    DrumModel::from_bytes(one)
 }
 
 /// Reads the convolutional part of a version-4 file (after the floor): u32 layer count,

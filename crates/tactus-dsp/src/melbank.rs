@@ -123,11 +123,11 @@ impl MelConfig {
 }
 
 /// HTK mel scale.
-fn hz_to_mel(f: f64) -> f64 {
+pub(crate) fn hz_to_mel(f: f64) -> f64 {
     2595.0 * (1.0 + f / 700.0).log10()
 }
 
-fn mel_to_hz(m: f64) -> f64 {
+pub(crate) fn mel_to_hz(m: f64) -> f64 {
     700.0 * (10f64.powf(m / 2595.0) - 1.0)
 }
 
