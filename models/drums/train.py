@@ -265,12 +265,17 @@ def init(sizes, rng):
     return ps
 
 
-def forward(ps, x):
+def forward(ps, x, drop=0.0, rng=None):
+    """Every layer's output (the input first). drop > 0 (training only): inverted dropout
+    on the hidden layers' outputs, each unit kept with probability 1 - drop and scaled by
+    1 / (1 - drop)."""
     acts = [x]
     h = x
     for li, (W, b) in enumerate(ps):
         z = h @ W.T + b
         h = z if li == len(ps) - 1 else np.maximum(z, 0)
+        if drop > 0 and li < len(ps) - 1:
+            h = h * ((rng.random(h.shape, np.float32) >= drop) / np.float32(1 - drop))
         acts.append(h)
     return acts
 
@@ -344,6 +349,25 @@ def eq_draw(rng, b):
     return tilt, bumps
 
 
+FMASK = 0  # --freq-mask: the widest band range silenced in an example (0: none)
+FMASK_P = 0.5  # the fraction of examples masked
+
+
+def freq_mask(z, rng):
+    """Frequency masking (SpecAugment): in a fraction FMASK_P of the examples (b, frames,
+    BANDS) a range of 1..FMASK adjacent mel bands, the same in every frame, is silenced
+    (set 40 nepers below the example's maximum, under the floor once normalised), as if
+    the kit had nothing there: the network may not lean on any one band range alone."""
+    b = z.shape[0]
+    width = rng.integers(1, FMASK + 1, b)
+    lo = rng.integers(0, BANDS - width + 1)
+    on = rng.random(b) < FMASK_P
+    k = np.arange(BANDS)[None, :]
+    mask = on[:, None] & (k >= lo[:, None]) & (k < (lo + width)[:, None])
+    low = z.max(axis=(1, 2)) - 40.0
+    return np.where(mask[:, None, :], low[:, None, None].astype(np.float32), z)
+
+
 def augment(x, rng):
     """Kit-to-kit variation in feature space: a random spectral tilt and smooth EQ
     (+-6 dB), a shift of +-SHIFT mel bands (drums tuned differently), then the window
@@ -375,6 +399,8 @@ def augment(x, rng):
         z[:, :, :shift] = z[:, :, -shift:].copy()
     tilt, bumps = eq_draw(rng, b)
     z = z + tilt + bumps
+    if FMASK > 0:
+        z = freq_mask(z, rng)
     z = z.reshape(b, -1)
     m = z.max(axis=1, keepdims=True)
     z = np.maximum(z - m, np.float32(FLOOR))
@@ -437,7 +463,8 @@ SUPER_DB = (-20.0, 5.0)  # --superpose: the added window's peak relative to the 
 
 
 def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=None,
-          mean=None, std=None, aug=True, decay=1e-5, neg_keep=1.0, in_drop=0.0, sup=0.0):
+          mean=None, std=None, aug=True, decay=1e-5, neg_keep=1.0, in_drop=0.0, sup=0.0,
+          drop=0.0):
     """Adam on weighted binary cross-entropy. neg_keep < 1: each epoch uses every frame
     near an onset (+-3 hops) and a fresh random fraction neg_keep of the others, weighted
     1 / neg_keep (the same expected loss, fewer frames per epoch). sup > 0: the
@@ -469,7 +496,7 @@ def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=N
             x = (with_flux(x) - mean) / std
             if in_drop > 0:  # input dropout: a standardised input set to its mean
                 x = x * ((rng.random(x.shape, np.float32) >= in_drop) / np.float32(1 - in_drop))
-            acts = forward(ps, x)
+            acts = forward(ps, x, drop, rng)
             p = sigmoid(acts[-1])
             ww = w * (1 + (pw - 1) * y)
             g = (p - y) * ww / len(idx)
@@ -481,6 +508,8 @@ def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=N
                 gb = g.sum(0)
                 if li > 0:
                     g = (g @ Wl) * (acts[li] > 0)
+                    if drop > 0:  # the kept units' 1 / (1 - drop)
+                        g = g / np.float32(1 - drop)
                 for k, gr in enumerate((gW, gb)):
                     m[li][k] = 0.9 * m[li][k] + 0.1 * gr
                     v[li][k] = 0.999 * v[li][k] + 0.001 * gr * gr
@@ -708,7 +737,7 @@ def report(ps, thr, sets):
 
 
 def main():
-    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX, WHITEN, BACK, SUPER_DB, SHORT
+    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX, WHITEN, BACK, SUPER_DB, SHORT, FMASK
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
     ap.add_argument("--epochs", type=int, default=20)
@@ -738,6 +767,8 @@ def main():
     ap.add_argument("--ghost-weight", type=float, default=1.0,
                     help="weight of a ghost snare's positive (velocity <= 45) in the loss")
     ap.add_argument("--in-drop", type=float, default=0.0, help="input dropout rate (0: none)")
+    ap.add_argument("--drop", type=float, default=0.0,
+                    help="dropout rate of the hidden layers in training (0: none, the committed recipe)")
     ap.add_argument("--decay", type=float, default=1e-5, help="L2 weight decay")
     ap.add_argument("--flux", action="store_true",
                     help="input: also the positive first difference of the context's frames")
@@ -757,11 +788,15 @@ def main():
     ap.add_argument("--aux", type=float, default=0.0,
                     help="weight of the finer kinds of hit (AUX_KINDS) learnt by extra outputs "
                          "that the written model drops (0: none, the committed recipe)")
+    ap.add_argument("--freq-mask", type=int, default=0,
+                    help="augmentation: silence up to this many adjacent mel bands in half "
+                         "the examples (0: none, the committed recipe)")
     ap.add_argument("--short", action="store_true",
                     help="input: also the short view, the same signal's mel frames of a frame "
                          "half as long (1024 points), normalised by their own window's maximum")
     a = ap.parse_args()
     BACK = a.backing
+    FMASK = a.freq_mask
     SHORT = a.short
     if SHORT and (BACK or a.flux or a.whiten or a.superpose or a.shift):
         sys.exit("--short goes with none of --backing, --flux, --whiten, --superpose, and "
@@ -818,7 +853,7 @@ def main():
         ps = init(sizes, rng)
         pos_weight = pos_weight + [pos_weight[1]] * (n_out - 4)
         ps = train(ps, X, Y, W, Xv, Yv, Wv, a.epochs, rng, pos_weight=pos_weight, mean=mean, std=std,
-                   aug=not a.no_augment, neg_keep=a.neg_keep, in_drop=a.in_drop, decay=a.decay,
+                   aug=not a.no_augment, neg_keep=a.neg_keep, in_drop=a.in_drop, decay=a.decay, drop=a.drop,
                    sup=a.superpose)
         ps[-1] = [ps[-1][0][:4].copy(), ps[-1][1][:4].copy()]  # the four classes' outputs
         # Tune thresholds on validation, over every condition pooled.

@@ -1,0 +1,183 @@
+"""A second stage for the drum transcriber's onsets, learnt out of family (issue 10 trial).
+
+The network's activations are biased differently on every kit it has not heard; thresholds
+tuned on its own training kits do not know how. This stage is trained on *out-of-family*
+activations (oof.py: each training family scored by the fold model that never saw it), so it
+learns how the network's outputs behave on an unheard kit.
+
+Per class c: candidates are the peak picker's onsets at a low threshold LOW. Each candidate
+waits K hops; its features are the logits of the four classes' largest activation over the
+hops i..i+K, a bias, and the same four logits minus the running mean of the song's earlier
+candidates of class c, times m / (m + SHRINK) (m: how many), plus that factor. A logistic
+regression scores it; it is an onset where the score reaches the class's cut. Causal: the
+decision is made at hop i + K (K hops of added latency); only earlier candidates inform it.
+
+  stage2.py lofo  K LOW PICKLES...          leave-one-family-out F against each fold's own thresholds
+  stage2.py save  K LOW OUT.json PICKLES... weights fitted on every family (the candidate)
+  stage2.py replay MODEL STAGE2.json DATA [iso,sep]   held-out replay: committed vs stage 2
+"""
+import json
+import os
+import pickle
+import sys
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path[:0] = [os.path.join(HERE, '..', '..'), HERE]
+import fastpick as fast  # noqa: E402
+import train as T  # noqa: E402
+
+SHRINK = 8.0
+L2 = 1e-2
+CUTS = np.arange(-3, 3.01, 0.25)
+
+
+def lg(p):
+    p = np.clip(p, 1e-4, 1 - 1e-4)
+    return np.log(p / (1 - p))
+
+
+def cands(acts, c, ref, k, low):
+    """Candidate hops of class c, their features (n, 10) and labels (greedy match, 50 ms)."""
+    a = acts[:, c].astype(np.float64)
+    hops = fast.pick(a, low)
+    n = len(acts)
+    L = (lg(np.stack([acts[i:min(i + k + 1, n)].max(0) for i in hops]))
+         if len(hops) else np.zeros((0, 4)))
+    X = np.zeros((len(hops), 10))
+    s = np.zeros(4)
+    for j in range(len(hops)):
+        mean = s / j if j else np.zeros(4)
+        sh = j / (j + SHRINK)
+        X[j] = [*L[j], 1.0, *(sh * (L[j] - mean)), sh]
+        s += L[j]
+    y = np.zeros(len(hops))
+    ref = np.sort(np.asarray(ref, np.float64))
+    used = np.zeros(len(ref), bool)
+    for j, i in enumerate(hops):
+        hit = np.flatnonzero((np.abs(ref - i * T.HOP_S) <= T.WINDOW_S) & ~used)
+        if len(hit):
+            used[hit[0]] = True
+            y[j] = 1
+    return hops, X, y
+
+
+def fit(X, y):
+    """L2-regularised logistic regression by Newton's method."""
+    w = np.zeros(X.shape[1])
+    for _ in range(50):
+        p = 1 / (1 + np.exp(-X @ w))
+        g = X.T @ (p - y) + L2 * w
+        H = (X * (p * (1 - p))[:, None]).T @ X + L2 * np.eye(len(w))
+        step = np.linalg.solve(H, g)
+        w -= step
+        if np.abs(step).max() < 1e-10:
+            break
+    return w
+
+
+def counts(rows, w, cut):
+    C = np.zeros(3)
+    for r in rows:
+        keep = r['hops'][(r['X'] @ w) >= cut] if len(r['hops']) else r['hops']
+        C += fast.match(keep * T.HOP_S, np.sort(np.asarray(r['ref'], np.float64)))
+    return C
+
+
+def train_class(rows):
+    X = np.concatenate([r['X'] for r in rows])
+    y = np.concatenate([r['y'] for r in rows])
+    w = fit(X, y)
+    cut = max(CUTS, key=lambda t: T.prf(*counts(rows, w, t))[2])
+    return w, float(cut)
+
+
+def load_rows(pickles, k, low):
+    D = {}
+    for f in pickles:
+        D.update(pickle.load(open(f, 'rb')))
+    rows = []
+    for (fam, s, cond), (acts, truth, thr) in sorted(D.items()):
+        for c in range(4):
+            ref = [h['time_s'] for h in truth['onsets'].get(T.CLASSES[c], [])]
+            hops, X, y = cands(acts, c, ref, k, low)
+            rows.append(dict(fam=fam, cond=cond, c=c, a=acts[:, c], ref=ref, g=thr[c],
+                             hops=hops, X=X, y=y))
+    return rows
+
+
+def lofo(k, low, pickles):
+    rows = load_rows(pickles, k, low)
+    fams = sorted({r['fam'] for r in rows})
+    out = []
+    for c in range(4):
+        G, A = {}, {}
+        for F in fams:
+            w, cut = train_class([r for r in rows if r['c'] == c and r['fam'] != F])
+            for r in rows:
+                if r['c'] == c and r['fam'] == F:
+                    for key in (F, 'all'):
+                        G[key] = G.get(key, 0) + fast.counts(r['a'], r['ref'], r['g'])
+                        A[key] = A.get(key, 0) + counts([r], w, cut)
+        out.append('%s %.3f->%.3f [%s]' % (T.CLASSES[c], T.prf(*G['all'])[2], T.prf(*A['all'])[2],
+                   ' '.join('%s %+.3f' % (F[:5], T.prf(*A[F])[2] - T.prf(*G[F])[2]) for F in fams)))
+    print('K', k, 'LOW', low, '\n  ' + '\n  '.join(out), flush=True)
+
+
+def save(k, low, path, pickles):
+    rows = load_rows(pickles, k, low)
+    res = {'k': k, 'low': low, 'shrink': SHRINK, 'classes': {}}
+    for c in range(4):
+        w, cut = train_class([r for r in rows if r['c'] == c])
+        res['classes'][T.CLASSES[c]] = {'w': [float(v) for v in w], 'cut': cut}
+    with open(path, 'w') as f:
+        json.dump(res, f, indent=1)
+    print('wrote', path)
+
+
+def replay(model, stage, data, conds):
+    """Held-out replay: the model's own thresholds against stage 2, train.py's scorer."""
+    ps, thr = T.read_model(model)
+    st = json.load(open(stage))
+    k, low = st['k'], st['low']
+    items = [it for it in T.songs(data) if it[0] in ('fluid', 'musescore')]
+    rows = T.load(items, data, conds)
+    res = {}
+    for (fam, s, cond, m, truth) in rows:
+        acts = T.activations(ps, m)
+        for c, name in enumerate(T.CLASSES):
+            ref = [h['time_s'] for h in truth['onsets'].get(name, [])]
+            cw = st['classes'].get(name)
+            base = fast.counts(acts[:, c], ref, thr[c])
+            if cw is None:
+                new = base
+            else:
+                hops, X, _ = cands(acts, c, ref, k, low)
+                new = counts([{'hops': hops, 'X': X, 'ref': ref}], np.asarray(cw['w']), cw['cut'])
+            for key in ((cond, c), (cond, c, fam)):
+                b, n = res.get(key, (0, 0))
+                res[key] = (b + base, n + new)
+    fs = []
+    for cond in conds:
+        line = []
+        for c, name in enumerate(T.CLASSES):
+            b, n = res[(cond, c)]
+            fb, fn_ = T.prf(*b)[2], T.prf(*n)[2]
+            fs.append((fb, fn_))
+            pb, pn = T.prf(*b)[0], T.prf(*n)[0]
+            line.append('%s %.3f -> %.3f (P %.3f -> %.3f)' % (name, fb, fn_, pb, pn))
+        print(cond, ' | '.join(line))
+    print('mean of %d: %.4f -> %.4f' % (len(fs), np.mean([a for a, _ in fs]), np.mean([b for _, b in fs])))
+
+
+if __name__ == '__main__':
+    cmd = sys.argv[1]
+    if cmd == 'lofo':
+        lofo(int(sys.argv[2]), float(sys.argv[3]), sys.argv[4:])
+    elif cmd == 'save':
+        save(int(sys.argv[2]), float(sys.argv[3]), sys.argv[4], sys.argv[5:])
+    elif cmd == 'replay':
+        replay(sys.argv[2], sys.argv[3], sys.argv[4], (sys.argv[5] if len(sys.argv) > 5 else 'iso,sep').split(','))
+    else:
+        sys.exit(__doc__)
