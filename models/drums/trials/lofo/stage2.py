@@ -14,7 +14,8 @@ decision is made at hop i + K (K hops of added latency); only earlier candidates
 
   stage2.py lofo  K LOW PICKLES...          leave-one-family-out F against each fold's own thresholds
   stage2.py save  K LOW OUT.json PICKLES... weights fitted on every family (the candidate)
-  stage2.py replay MODEL STAGE2.json DATA [iso,sep]   held-out replay: committed vs stage 2
+  stage2.py replay MODEL STAGE2.json DATA [iso,sep] [snare]   held-out replay: committed vs
+      stage 2 on the named classes (the others keep the model's picker)
 """
 import json
 import os
@@ -136,7 +137,7 @@ def save(k, low, path, pickles):
     print('wrote', path)
 
 
-def replay(model, stage, data, conds):
+def replay(model, stage, data, conds, classes):
     """Held-out replay: the model's own thresholds against stage 2, train.py's scorer."""
     ps, thr = T.read_model(model)
     st = json.load(open(stage))
@@ -148,7 +149,7 @@ def replay(model, stage, data, conds):
         acts = T.activations(ps, m)
         for c, name in enumerate(T.CLASSES):
             ref = [h['time_s'] for h in truth['onsets'].get(name, [])]
-            cw = st['classes'].get(name)
+            cw = st['classes'].get(name) if name in classes else None
             base = fast.counts(acts[:, c], ref, thr[c])
             if cw is None:
                 new = base
@@ -178,6 +179,7 @@ if __name__ == '__main__':
     elif cmd == 'save':
         save(int(sys.argv[2]), float(sys.argv[3]), sys.argv[4], sys.argv[5:])
     elif cmd == 'replay':
-        replay(sys.argv[2], sys.argv[3], sys.argv[4], (sys.argv[5] if len(sys.argv) > 5 else 'iso,sep').split(','))
+        replay(sys.argv[2], sys.argv[3], sys.argv[4], (sys.argv[5] if len(sys.argv) > 5 else 'iso,sep').split(','),
+               (sys.argv[6] if len(sys.argv) > 6 else 'snare').split(','))
     else:
         sys.exit(__doc__)
