@@ -647,6 +647,11 @@ def read_model(path):
     with open(path, "rb") as f:
         buf = f.read()
     RATIOS = [1.0]
+    if buf[:8] == b"TACTUSD2":  # a second stage around a model file (trials/lofo/stage2.py)
+        _, _, _, _, mask = struct.unpack_from("<2I2fI", buf, 8)
+        off = 28 + 44 * bin(mask).count("1")
+        (ln,) = struct.unpack_from("<I", buf, off)
+        buf = buf[off + 4:off + 4 + ln]
     if buf[:8] == b"TACTUSDT":
         _, n = struct.unpack_from("<2I", buf, 8)
         ratios = [float(r) for r in np.frombuffer(buf, "<f4", n, 16)]

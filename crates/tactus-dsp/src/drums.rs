@@ -90,6 +90,48 @@ const MAGIC_ENSEMBLE: &[u8; 8] = b"TACTUSDE";
 /// A retuned file: one perceptron and its test-time retunings.
 const MAGIC_RETUNED: &[u8; 8] = b"TACTUSDT";
 
+/// A file with a second stage for some classes' onsets ([`SecondStage`]) around a model file.
+const MAGIC_STAGED: &[u8; 8] = b"TACTUSD2";
+
+/// Features of a [`Judge`]: the four classes' logits, a bias, the four logits minus the
+/// song's running mean (shrunk), and the shrink factor.
+const JUDGE_INPUTS: usize = 2 * CLASSES + 2;
+
+/// The second stage's decision for one class (see [`SecondStage`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Judge {
+    /// Logistic-regression weights over the [`JUDGE_INPUTS`] features, in their order.
+    pub w: [f32; JUDGE_INPUTS],
+    /// A candidate is an onset where the score `w · x` reaches this.
+    pub cut: f32,
+}
+
+/// A second stage for some classes' onsets, learnt on *out-of-family* activations (each
+/// training kit family scored by a network that never heard it, `models/drums/trials/lofo/
+/// stage2.py`; rule `models/drums/trials/RULE_stage2.md`): on an unheard kit the network's
+/// activations are biased in a way its own training kits do not show, and this stage has
+/// seen how.
+///
+/// For a judged class `c`: the candidates are the onsets of a [`Picker`] at threshold
+/// `low`; candidate hop `i` waits `wait` hops, then its features are the logits `l` of the
+/// four classes' largest activation over hops `i ..= i + wait`, a bias 1, the same `l` minus
+/// the mean of `l` over the song's earlier candidates of class `c`, times `m / (m + shrink)`
+/// (`m`: how many there were; the mean is 0 when `m = 0`), and that factor. Logits are
+/// taken of the activation clamped to [1e-4, 0.9999]. The candidate is an onset where
+/// `w · x >= cut`. Causal; every class's output is delayed by `wait` hops, so the transcriber's
+/// latency grows by `wait` hops. Classes without a judge keep the model's own picker.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SecondStage {
+    /// Hops a candidate waits before it is judged.
+    pub wait: usize,
+    /// The candidates' picker threshold.
+    pub low: f32,
+    /// The running mean's shrink count.
+    pub shrink: f32,
+    /// Per class: its judge, or `None` for the model's own picker.
+    pub judges: [Option<Judge>; CLASSES],
+}
+
 /// The sample rate whose drum front end ([`MelConfig::drums`]: 20 Hz to 16 kHz) the
 /// retunings are computed for: the models are trained at it (`models/drums/train.py`'s
 /// `F_LO`, `F_HI`).
@@ -212,6 +254,9 @@ pub struct DrumModel {
     /// Test-time retunings of a retuned file (`"TACTUSDT"`): the activations are the mean
     /// of the network's on each retuned window. Empty: one pass on the window as it is.
     pub retunings: Vec<Retuning>,
+    /// The second stage of a staged file (`"TACTUSD2"`); `None`: every class is picked by
+    /// its threshold alone.
+    pub stage: Option<SecondStage>,
 }
 
 /// One convolution over (time × band) maps, "valid" in time and "same" (zero-padded by
@@ -340,6 +385,9 @@ impl DrumModel {
         if bytes.starts_with(MAGIC_RETUNED) {
             return Self::retuned_from_bytes(&bytes[8..]);
         }
+        if bytes.starts_with(MAGIC_STAGED) {
+            return Self::staged_from_bytes(&bytes[8..]);
+        }
         let b = &mut bytes;
         if take(b, 8, WHAT)? != MAGIC {
             return Err(ConfigError::invalid(
@@ -433,6 +481,7 @@ impl DrumModel {
             thresholds: [t[0], t[1], t[2], t[3]],
             members: Vec::new(),
             retunings: Vec::new(),
+            stage: None,
         })
     }
 
@@ -472,6 +521,59 @@ impl DrumModel {
             .map(|&r| Retuning::new(r, model.bands))
             .collect();
         model.thresholds = [t[0], t[1], t[2], t[3]];
+        Ok(model)
+    }
+
+    /// `"TACTUSD2"`, u32 `version = 1, wait (0..=8)`, f32 `low` (in (0, 1)), f32 `shrink`
+    /// (> 0), u32 `classes` (a bit mask, bit `c` for class `c`, 1..=15), per class of the
+    /// mask in class order f32 `w[10], cut`, then u32 byte length and a whole model file of
+    /// any other kind ([`SecondStage`]).
+    fn staged_from_bytes(mut bytes: &[u8]) -> Result<DrumModel, ConfigError> {
+        let b = &mut bytes;
+        let wait = read_wrapper_head(b, "staged-file", 0..=8, "a second stage waits 0 to 8 hops")?;
+        let head = read_f32s(b, 2, WHAT)?;
+        let (low, shrink) = (head[0], head[1]);
+        if !(low > 0.0 && low < 1.0) || !(shrink > 0.0 && shrink.is_finite()) {
+            return Err(ConfigError::invalid(
+                "drum model",
+                "a second stage needs a threshold in (0, 1) and a positive shrink count",
+            ));
+        }
+        let mask = read_u32(b, WHAT)?;
+        if !(1..16).contains(&mask) {
+            return Err(ConfigError::invalid(
+                "drum model",
+                "a second stage judges 1 to 4 classes (mask 1..=15)",
+            ));
+        }
+        let mut judges = [None; CLASSES];
+        for (c, judge) in judges.iter_mut().enumerate() {
+            if mask & (1 << c) == 0 {
+                continue;
+            }
+            let v = read_f32s(b, JUDGE_INPUTS + 1, WHAT)?;
+            let mut w = [0f32; JUDGE_INPUTS];
+            w.copy_from_slice(&v[..JUDGE_INPUTS]);
+            *judge = Some(Judge { w, cut: v[JUDGE_INPUTS] });
+        }
+        let len = read_u32(b, WHAT)? as usize;
+        let inner = take(b, len, WHAT)?;
+        if !b.is_empty() {
+            return Err(ConfigError::invalid("drum model", "trailing bytes"));
+        }
+        if inner.starts_with(MAGIC_STAGED) {
+            return Err(ConfigError::invalid(
+                "drum model",
+                "a staged file cannot hold another staged file",
+            ));
+        }
+        let mut model = DrumModel::from_bytes(inner)?;
+        model.stage = Some(SecondStage {
+            wait,
+            low,
+            shrink,
+            judges,
+        });
         Ok(model)
     }
 
@@ -872,8 +974,92 @@ struct Core {
     min_gap: usize,
     /// Mel frames received.
     frames: usize,
-    /// Hops emitted.
+    /// Hops whose activations are computed.
     next: usize,
+    /// The second stage's state, for a staged model.
+    staged: Option<Staged>,
+}
+
+/// The running state of a [`SecondStage`].
+struct Staged {
+    /// The activations of the last `wait + 1` hops, hop `i` at `i % (wait + 1)`.
+    ring: Vec<[f32; CLASSES]>,
+    /// The candidates' pickers (threshold `low`).
+    low: [Picker; CLASSES],
+    /// Per judged class: the sum of its earlier candidates' logits, and how many there were.
+    sums: [[f64; CLASSES]; CLASSES],
+    seen: [usize; CLASSES],
+    /// Hops emitted.
+    emitted: usize,
+}
+
+/// The logit of an activation clamped to [1e-4, 0.9999] (`stage2.py`'s `lg`, in f32 as
+/// numpy computes it on f32 activations).
+fn logit(a: f32) -> f32 {
+    let p = a.clamp(1e-4, 0.9999);
+    (p / (1.0 - p)).ln()
+}
+
+impl Staged {
+    fn new(stage: &SecondStage) -> Staged {
+        Staged {
+            ring: vec![[0.0; CLASSES]; stage.wait + 1],
+            low: [Picker::NEW; CLASSES],
+            sums: [[0.0; CLASSES]; CLASSES],
+            seen: [0; CLASSES],
+            emitted: 0,
+        }
+    }
+
+    /// Decides hop `j`, whose activations and those of the hops after it up to `end`
+    /// (exclusive, at most `wait` more) are in the ring; emits it.
+    #[allow(clippy::too_many_arguments)]
+    fn decide(
+        &mut self,
+        stage: &SecondStage,
+        pickers: &mut [Picker; CLASSES],
+        thresholds: &[f32; CLASSES],
+        min_gap: usize,
+        j: usize,
+        end: usize,
+        emit: &mut dyn FnMut(usize, DrumFrame),
+    ) {
+        let k = self.ring.len();
+        let act = self.ring[j % k];
+        let mut f = DrumFrame {
+            activation: act,
+            onset: [false; CLASSES],
+        };
+        for c in 0..CLASSES {
+            let Some(judge) = &stage.judges[c] else {
+                f.onset[c] = pickers[c].step(j, act[c], thresholds[c], min_gap);
+                continue;
+            };
+            if !self.low[c].step(j, act[c], stage.low, min_gap) {
+                continue;
+            }
+            let mut peak = act;
+            for h in j + 1..end {
+                for (p, &x) in peak.iter_mut().zip(&self.ring[h % k]) {
+                    *p = p.max(x);
+                }
+            }
+            let l = peak.map(|x| logit(x) as f64);
+            let m = self.seen[c] as f64;
+            let sh = m / (m + stage.shrink as f64);
+            let w = judge.w.map(|x| x as f64);
+            let mut z = w[CLASSES] + w[2 * CLASSES + 1] * sh;
+            for (i, &li) in l.iter().enumerate() {
+                let mean = if self.seen[c] > 0 { self.sums[c][i] / m } else { 0.0 };
+                z += w[i] * li + w[CLASSES + 1 + i] * sh * (li - mean);
+                self.sums[c][i] += li;
+            }
+            self.seen[c] += 1;
+            f.onset[c] = z >= judge.cut as f64;
+        }
+        self.emitted = j + 1;
+        emit(j, f);
+    }
 }
 
 impl Core {
@@ -913,11 +1099,32 @@ impl Core {
                 onset: [false; CLASSES],
             };
             let thresholds = self.model.thresholds;
+            self.next += 1;
+            if let (Some(st), Some(stage)) = (self.staged.as_mut(), self.model.stage.as_ref()) {
+                let k = st.ring.len();
+                st.ring[i % k] = act;
+                if i + 1 >= k {
+                    let j = i + 1 - k;
+                    st.decide(stage, &mut self.pickers, &thresholds, self.min_gap, j, i + 1, emit);
+                }
+                return;
+            }
             for (c, (onset, picker)) in f.onset.iter_mut().zip(&mut self.pickers).enumerate() {
                 *onset = picker.step(i, act[c], thresholds[c], self.min_gap);
             }
-            self.next += 1;
             emit(i, f);
+        }
+    }
+
+    /// Ends a staged stream: decides the hops still waiting for later ones, each on the
+    /// hops that exist.
+    fn drain(&mut self, emit: &mut dyn FnMut(usize, DrumFrame)) {
+        if let (Some(st), Some(stage)) = (self.staged.as_mut(), self.model.stage.as_ref()) {
+            let thresholds = self.model.thresholds;
+            while st.emitted < self.next {
+                let j = st.emitted;
+                st.decide(stage, &mut self.pickers, &thresholds, self.min_gap, j, self.next, emit);
+            }
         }
     }
 
@@ -927,6 +1134,7 @@ impl Core {
         self.pickers = [Picker::NEW; CLASSES];
         self.frames = 0;
         self.next = 0;
+        self.staged = self.model.stage.as_ref().map(Staged::new);
     }
 }
 
@@ -973,6 +1181,7 @@ impl DrumTranscriber {
             min_gap: min_gap.max(1),
             frames: 0,
             next: 0,
+            staged: None,
         };
         core.reset();
         let queue = if second_mel.is_some() {
@@ -1076,6 +1285,7 @@ impl DrumTranscriber {
             let back = has_second.then_some(&last_second[..n]);
             core.push_frame(&last[..n], back, emit);
         }
+        core.drain(emit);
     }
 }
 
@@ -1100,7 +1310,8 @@ impl HopStage for DrumTranscriber {
     }
 
     fn latency_samples(&self) -> usize {
-        self.mel.latency_samples() + self.core.model.future * self.mel.hop()
+        let wait = self.core.model.stage.as_ref().map_or(0, |s| s.wait);
+        self.mel.latency_samples() + (self.core.model.future + wait) * self.mel.hop()
     }
 
     fn hop(&self) -> usize {
@@ -1246,12 +1457,77 @@ mod tests {
         assert!(e.contains("version 3"), "{e}");
     }
 
-    /// The single network inside an embedded file (a retuned file).
+    /// The retuned file inside an embedded file (bare, or inside a staged file).
+    fn retuned_of(file: &'static [u8]) -> &'static [u8] {
+        if !file.starts_with(MAGIC_STAGED) {
+            return file;
+        }
+        let u = |at: usize| u32::from_le_bytes(file[at..at + 4].try_into().unwrap()) as usize;
+        let at = 28 + 44 * u(24).count_ones() as usize;
+        &file[at + 4..at + 4 + u(at)]
+    }
+
+    /// The single network inside an embedded file (a retuned file, maybe staged).
     fn network_of(file: &'static [u8]) -> &'static [u8] {
+        let file = retuned_of(file);
         assert!(file.starts_with(MAGIC_RETUNED));
         let u = |at: usize| u32::from_le_bytes(file[at..at + 4].try_into().unwrap()) as usize;
         let at = 16 + 4 * u(12);
         &file[at + 4..at + 4 + u(at)]
+    }
+
+    fn staged_file(wait: u32, low: f32, shrink: f32, mask: u32, inner: &[u8]) -> Vec<u8> {
+        let mut v = MAGIC_STAGED.to_vec();
+        for x in [1u32, wait] {
+            v.extend(x.to_le_bytes());
+        }
+        v.extend(low.to_le_bytes());
+        v.extend(shrink.to_le_bytes());
+        v.extend(mask.to_le_bytes());
+        for c in 0..CLASSES {
+            if mask & (1 << c) != 0 {
+                for k in 0..=JUDGE_INPUTS {
+                    v.extend((k as f32 * 0.1 - c as f32).to_le_bytes());
+                }
+            }
+        }
+        v.extend((inner.len() as u32).to_le_bytes());
+        v.extend_from_slice(inner);
+        v
+    }
+
+    #[test]
+    fn staged_files_parse_and_bad_ones_are_errors() {
+        let inner = retuned_of(EMBEDDED);
+        let m = DrumModel::from_bytes(&staged_file(2, 0.3, 8.0, 0b1010, inner)).unwrap();
+        let st = m.stage.as_ref().unwrap();
+        assert_eq!((st.wait, st.low, st.shrink), (2, 0.3, 8.0));
+        assert!(st.judges[0].is_none() && st.judges[2].is_none());
+        assert_eq!(st.judges[1].unwrap().w[3], 0.3f32 - 1.0);
+        assert_eq!(st.judges[3].unwrap().cut, JUDGE_INPUTS as f32 * 0.1 - 3.0);
+        assert_eq!(m.retunings.len(), 3, "the inner file's retunings are kept");
+        let err = |v: Vec<u8>| DrumModel::from_bytes(&v).unwrap_err().to_string();
+        assert!(err(staged_file(9, 0.3, 8.0, 2, inner)).contains("0 to 8 hops"));
+        for (low, shrink) in [(0.0, 8.0), (1.0, 8.0), (0.3, 0.0), (0.3, -1.0)] {
+            assert!(err(staged_file(1, low, shrink, 2, inner)).contains("threshold in (0, 1)"));
+        }
+        assert!(err(staged_file(1, f32::NAN, 8.0, 2, inner)).contains("non-finite"));
+        for mask in [0, 16] {
+            assert!(err(staged_file(1, 0.3, 8.0, mask, inner)).contains("mask"), "{mask}");
+        }
+        let nested = staged_file(1, 0.3, 8.0, 2, inner);
+        assert!(err(staged_file(1, 0.3, 8.0, 2, &nested)).contains("another staged"));
+        assert!(err(staged_file(1, 0.3, 8.0, 2, b"TACTUSXX")).contains("not a Tactus"));
+        let mut v = staged_file(1, 0.3, 8.0, 2, inner);
+        v[8] = 2;
+        assert!(err(v).contains("version 2"));
+        let good = staged_file(1, 0.3, 8.0, 2, inner);
+        for n in [8, 12, 20, 28, 40, good.len() / 2, good.len() - 1] {
+            assert!(DrumModel::from_bytes(&good[..n]).is_err(), "{n}");
+        }
+        let mut extra = good.clone();
+        extra.push(0);
+        assert!(err(extra).contains("trailing"));
     }
 
     fn embedded_network() -> &'static [u8] {

@@ -8,7 +8,8 @@
 #![deny(unsafe_code)]
 
 use tactus_dsp::drums::{
-    Conv, ConvNet, DrumFrame, DrumModel, DrumTranscriber, Layer, Retuning, CLASSES,
+    Conv, ConvNet, DrumFrame, DrumModel, DrumTranscriber, Judge, Layer, Retuning, SecondStage,
+    CLASSES,
 };
 use tactus_dsp::melbank::{filters, MelBank, MelConfig, LOG_FLOOR};
 use tactus_dsp::HopStage;
@@ -453,6 +454,7 @@ fn random_flux_model() -> DrumModel {
         thresholds: [0.5; CLASSES],
         members: Vec::new(),
         retunings: Vec::new(),
+        stage: None,
     }
 }
 
@@ -491,6 +493,7 @@ fn random_backing_model() -> DrumModel {
         thresholds: [0.3, 0.4, 0.5, 0.6],
         members: Vec::new(),
         retunings: Vec::new(),
+        stage: None,
     }
 }
 
@@ -561,6 +564,7 @@ fn random_conv_model(kb2: usize, pool: (usize, usize)) -> DrumModel {
         thresholds: [0.5; CLASSES],
         members: Vec::new(),
         retunings: Vec::new(),
+        stage: None,
     }
 }
 
@@ -807,7 +811,145 @@ fn gain_does_not_change_the_activations_much() {
 
 #[test]
 fn onset_comes_out_within_the_stated_latency() {
-    onset_within_latency(DrumModel::embedded(), 512 + 4 * 441);
+    // 11.6 ms frame look-ahead, four context hops, and the snare's second stage waits one
+    // more hop (every class is delayed alike): 61.6 ms.
+    onset_within_latency(DrumModel::embedded(), 512 + (4 + 1) * 441);
+    let mut plain = DrumModel::embedded();
+    plain.stage = None;
+    onset_within_latency(plain, 512 + 4 * 441);
+}
+
+/// A plain peak picker over a whole activation array (drums.rs' `Picker`, spelled out).
+fn naive_pick(a: &[f32], thr: f32, min_gap: usize) -> Vec<usize> {
+    let (mut out, mut armed, mut peak) = (Vec::new(), true, 0f32);
+    for (i, &x) in a.iter().enumerate() {
+        if !armed {
+            peak = peak.max(x);
+            armed = x < thr || x < 0.5 * peak;
+        }
+        let gap_ok = out.last().is_none_or(|&l: &usize| i - l >= min_gap);
+        if armed && x >= thr && gap_ok {
+            armed = false;
+            peak = x;
+            out.push(i);
+        }
+    }
+    out
+}
+
+/// The second stage offline, from the whole song's activations (`models/drums/trials/lofo/
+/// stage2.py`'s `cands` and score, in f64): per judged class the candidates of a picker at
+/// `low`, each scored on the logits of the largest activations over its hop and the `wait`
+/// after it (fewer at the end) and on those logits minus the mean over the earlier
+/// candidates, shrunk. Returns the onsets per hop and (accepted, rejected) candidates.
+fn naive_stage(acts: &[[f32; CLASSES]], m: &DrumModel) -> (Vec<[bool; CLASSES]>, usize, usize) {
+    let st = m.stage.as_ref().unwrap();
+    let n = acts.len();
+    let mut out = vec![[false; CLASSES]; n];
+    let (mut yes, mut no) = (0, 0);
+    for c in 0..CLASSES {
+        let column: Vec<f32> = acts.iter().map(|a| a[c]).collect();
+        let Some(judge) = &st.judges[c] else {
+            for i in naive_pick(&column, m.thresholds[c], 5) {
+                out[i][c] = true;
+            }
+            continue;
+        };
+        let mut earlier: Vec<[f64; CLASSES]> = Vec::new();
+        for i in naive_pick(&column, st.low, 5) {
+            let end = (i + st.wait + 1).min(n);
+            let l: [f64; CLASSES] = std::array::from_fn(|k| {
+                let top = acts[i..end].iter().map(|a| a[k]).fold(f32::MIN, f32::max);
+                let p = top.clamp(1e-4, 0.9999);
+                (p / (1.0 - p)).ln() as f64
+            });
+            let count = earlier.len() as f64;
+            let sh = count / (count + st.shrink as f64);
+            let mut x: Vec<f64> = l.to_vec();
+            x.push(1.0);
+            for k in 0..CLASSES {
+                let mean = if earlier.is_empty() {
+                    0.0
+                } else {
+                    earlier.iter().map(|e| e[k]).sum::<f64>() / count
+                };
+                x.push(sh * (l[k] - mean));
+            }
+            x.push(sh);
+            let z: f64 = x.iter().zip(judge.w).map(|(a, w)| a * w as f64).sum();
+            out[i][c] = z >= judge.cut as f64;
+            if out[i][c] {
+                yes += 1;
+            } else {
+                no += 1;
+            }
+            earlier.push(l);
+        }
+    }
+    (out, yes, no)
+}
+
+/// A groove with hi-hat-like noise bursts between the beats: candidates for every class.
+fn busy_groove(rng: &mut Rng) -> Vec<f32> {
+    let mut x = groove(rng);
+    for k in 0..15 {
+        let at = 13_000 + k * 11_025;
+        for (j, v) in x[at..(at + 3_000).min(4 * SR as usize)].iter_mut().enumerate() {
+            *v += 0.3 * rng.next_f32() * (-(j as f32) / 400.0).exp();
+        }
+    }
+    x
+}
+
+fn check_stage_against_oracle(staged: &DrumModel, x: &[f32]) -> (usize, usize) {
+    let mut plain = staged.clone();
+    plain.stage = None;
+    let acts: Vec<[f32; CLASSES]> = transcribe_with(&plain, x, 4096)
+        .iter()
+        .map(|f| f.activation)
+        .collect();
+    let (want, yes, no) = naive_stage(&acts, staged);
+    for chunk in [1usize, 441, 1000, 4096, x.len()] {
+        let got = transcribe_with(staged, x, chunk);
+        assert_eq!(got.len(), acts.len(), "chunk {chunk}: every hop, once");
+        for (i, f) in got.iter().enumerate() {
+            assert_eq!(f.activation, acts[i], "chunk {chunk} hop {i}: the same network");
+            assert_eq!(f.onset, want[i], "chunk {chunk} hop {i}");
+        }
+    }
+    (yes, no)
+}
+
+#[test]
+fn second_stage_matches_an_offline_oracle_for_any_chunking() {
+    let mut rng = Rng(21);
+    let x = busy_groove(&mut rng);
+    // The embedded default: a judge for the snare alone, one hop of wait.
+    let m = DrumModel::embedded();
+    let st = m.stage.as_ref().expect("the default model is staged");
+    assert_eq!(st.wait, 1);
+    assert!(st.judges[1].is_some() && st.judges.iter().filter(|j| j.is_some()).count() == 1);
+    let (yes, no) = check_stage_against_oracle(&m, &x);
+    assert!(yes + no > 0, "the snare's judge saw no candidate");
+    // Every class judged, a longer wait, judges that accept some candidates and reject
+    // others: the oracle and the stream still agree.
+    let mut all = DrumModel::embedded();
+    // (The shrink factor's own weight is large, so that the shrink count matters.)
+    let judge = |c: usize| Judge {
+        w: std::array::from_fn(|k| match k {
+            9 => 2.0 - 4.0 * (c % 2) as f32,
+            _ => ((k * 7 + c * 3) % 11) as f32 / 5.0 - 1.0,
+        }),
+        cut: 0.0,
+    };
+    all.stage = Some(SecondStage {
+        wait: 3,
+        low: 0.2,
+        shrink: 4.0,
+        judges: std::array::from_fn(|c| Some(judge(c))),
+    });
+    let (yes, no) = check_stage_against_oracle(&all, &x);
+    assert!(yes > 0 && no > 0, "accepted {yes}, rejected {no}");
 }
 
 #[test]

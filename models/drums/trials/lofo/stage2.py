@@ -14,6 +14,8 @@ decision is made at hop i + K (K hops of added latency); only earlier candidates
 
   stage2.py lofo  K LOW PICKLES...          leave-one-family-out F against each fold's own thresholds
   stage2.py save  K LOW OUT.json PICKLES... weights fitted on every family (the candidate)
+  stage2.py write STAGE2.json INNER.bin OUT.bin [snare]   the staged model file
+      ("TACTUSD2", read by tactus_dsp::drums) around INNER with the named classes' judges
   stage2.py replay MODEL STAGE2.json DATA [iso,sep] [snare]   held-out replay: committed vs
       stage 2 on the named classes (the others keep the model's picker)
 """
@@ -137,6 +139,27 @@ def save(k, low, path, pickles):
     print('wrote', path)
 
 
+def write(stage, inner, out, classes):
+    """The staged file: "TACTUSD2", u32 version 1, wait; f32 low, shrink; u32 class mask;
+    per judged class (class order) f32 w[10], cut; u32 length and the inner file."""
+    import struct
+    st = json.load(open(stage))
+    mask = sum(1 << T.CLASSES.index(c) for c in classes)
+    buf = bytearray(b"TACTUSD2")
+    buf += struct.pack("<2I2fI", 1, st['k'], st['low'], st['shrink'], mask)
+    for name in T.CLASSES:
+        if name in classes:
+            cw = st['classes'][name]
+            buf += struct.pack("<11f", *cw['w'], cw['cut'])
+    body = open(inner, 'rb').read()
+    buf += struct.pack("<I", len(body)) + body
+    tmp = out + '.tmp'
+    with open(tmp, 'wb') as f:
+        f.write(buf)
+    os.replace(tmp, out)
+    print('wrote', out, len(buf), 'bytes')
+
+
 def replay(model, stage, data, conds, classes):
     """Held-out replay: the model's own thresholds against stage 2, train.py's scorer."""
     ps, thr = T.read_model(model)
@@ -178,6 +201,8 @@ if __name__ == '__main__':
         lofo(int(sys.argv[2]), float(sys.argv[3]), sys.argv[4:])
     elif cmd == 'save':
         save(int(sys.argv[2]), float(sys.argv[3]), sys.argv[4], sys.argv[5:])
+    elif cmd == 'write':
+        write(sys.argv[2], sys.argv[3], sys.argv[4], (sys.argv[5] if len(sys.argv) > 5 else 'snare').split(','))
     elif cmd == 'replay':
         replay(sys.argv[2], sys.argv[3], sys.argv[4], (sys.argv[5] if len(sys.argv) > 5 else 'iso,sep').split(','),
                (sys.argv[6] if len(sys.argv) > 6 else 'snare').split(','))
