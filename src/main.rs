@@ -47,7 +47,7 @@ enum ModeArg {
 enum DrumsArg {
     /// Per-instrument transcriber embedded in Tactus (default).
     Classes,
-    /// The same with its low-latency model (21.6 ms instead of 51.6 ms), for live input.
+    /// The same with its low-latency model (21.6 ms instead of 61.6 ms), for live input.
     ClassesLive,
     /// The paper's four Butterworth bands with spectral-flux onsets.
     Bands,

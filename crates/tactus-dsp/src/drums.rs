@@ -51,11 +51,18 @@
 //!    class is disarmed by an onset and re-armed when its activation falls below the
 //!    threshold or below half the peak it reached since the onset (so two hits whose
 //!    activations overlap are both found). The onset's strength is `a_c[i]`.
+//!    A *staged* file (`"TACTUSD2"`) replaces some classes' threshold with a
+//!    [`SecondStage`]: candidates picked at a low threshold, judged a few hops later by a
+//!    logistic regression learnt on activations of kits the network never heard, with the
+//!    song's earlier candidates as context. The embedded default judges its snare so
+//!    (`models/drums/trials/RULE_stage2.md`).
 //!
 //! # Latency
 //! Hop `i` is decided once mel frame `i + future` exists:
-//! `latency_samples() = lookahead + future · hop` = 512 + 4 · 441 = 2,276 samples =
-//! **51.6 ms** at 44.1 kHz with the embedded model; the embedded live model
+//! `latency_samples() = lookahead + (future + wait) · hop`, `wait` being a staged file's
+//! [`SecondStage::wait`] (0 without one) = 512 + (4 + 1) · 441 = 2,717 samples =
+//! **61.6 ms** at 44.1 kHz with the embedded model (its snare's second stage waits one hop);
+//! the embedded live model
 //! ([`DrumModel::embedded_live`], `future = 1`) gives 512 + 441 = 953 samples = **21.6 ms**
 //! (`models/drums/README.md`). Peak picking adds nothing.
 //!

@@ -6,7 +6,7 @@
 //! * [`Profile::Full`] (default for `render` and `play`): the stages as documented in their
 //!   modules: the spectral separator's 2048-point frames and 2 frames of look-ahead
 //!   (92.9 ms), pYIN / harmonic-sum pitch with a 100 ms Viterbi lag, the per-instrument drum
-//!   transcriber on the separated drum stem (51.6 ms), 100 ms (render) or 25 ms (play) bins.
+//!   transcriber on the separated drum stem (61.6 ms), 100 ms (render) or 25 ms (play) bins.
 //! * [`Profile::Live`] (chosen by `tactus live`): every stage trades quality for
 //!   milliseconds, each latency stated in samples below (44.1 kHz) and checked against an
 //!   impulse or a step in `tests/profile.rs`:
@@ -18,7 +18,7 @@
 //! | denoise | Butterworth high-pass + 3-sample median | 1 |
 //! | drum onsets (`--drums classes-live`, `tactus live`'s default) | the per-instrument transcriber on the mix (its embedded 1-hop model) | 953 (21.6 ms) |
 //! | drum onsets (`--drums bands`) | Butterworth bands, spectral flux with 1024-point frames every 5 ms, causal rising-edge picking, the gate's level over two hops | 220 (5.0 ms) |
-//! | drum onsets (`--drums classes`) | the per-instrument transcriber on the mix (its embedded 4-hop model) | 2,276 (51.6 ms) |
+//! | drum onsets (`--drums classes`) | the per-instrument transcriber on the mix (its embedded 4-hop model and the snare's one-hop second stage) | 2,717 (61.6 ms) |
 //! | separator (melodic stems) | spectral, [`separator`]: 512-point frames, hop 128, harmonic median over 5 frames, no look-ahead | 511 (11.6 ms) |
 //! | pitch | YIN (`--pitch auto`) on two frames ([`tactus_dsp::twoframe`]): two periods of [`TWO_FRAME_SPLIT`]` · fmin` ([`pitch_frame`]) answer for every note but those below that split, which come from a frame of two periods of `fmin`, one hop later; bass from 41 Hz (E1); `--pitch pyin` gets one frame of two periods of `fmin` and a Viterbi lag of [`PITCH_LAG_HOPS`] hops | bass 819 (18.6 ms; below 54.7 Hz 1,260), vocals 477, other 666 |
 //! | bins | [`BIN_MS`] = 10 ms | 441 |
