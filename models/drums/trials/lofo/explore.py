@@ -1,14 +1,8 @@
-import os, sys, pickle, numpy as np
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path[:0] = [os.path.join(HERE, '..', '..'), HERE]
-DIR = os.environ.get('LOFO_DIR', '/tmp/lofo')  # fold models and caches (lofo.sh writes them)
-import train as T, fastpick as fast
-D = {}
-for f in sys.argv[1:]:
-    D.update(pickle.load(open(f, 'rb')))
-GRID = np.arange(0.1, 0.951, 0.025)
-def lg(p):
-    p = np.clip(p, 1e-4, 1 - 1e-4); return np.log(p / (1 - p))
+import sys
+import numpy as np
+from oofdata import GRID, lg, load  # noqa: F401 (sets the path)
+import train as T, fastpick as fast  # noqa: E402
+D = load(sys.argv[1:])
 c = 1
 Y, F = [], []
 names = None

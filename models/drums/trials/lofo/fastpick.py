@@ -26,22 +26,6 @@ def pick(a, thr, min_gap=5):
     return out[:n]
 
 @njit
-def pick_var(a, thr, min_gap=5):
-    """thr per hop"""
-    out = np.empty(len(a), np.int64); n = 0
-    armed = True; peak = 0.0; last = -1
-    for i in range(len(a)):
-        x = a[i]; t = thr[i]
-        if not armed:
-            peak = max(peak, x)
-            if x < t or x < 0.5 * peak:
-                armed = True
-        if armed and x >= t and (last < 0 or i - last >= min_gap):
-            armed = False; peak = x; last = i
-            out[n] = i; n += 1
-    return out[:n]
-
-@njit
 def match(est, ref, tol=0.05):
     used = np.zeros(len(ref), np.bool_)
     tp = 0; j0 = 0
@@ -57,10 +41,6 @@ def match(est, ref, tol=0.05):
 
 def counts(a, ref, th):
     est = pick(a.astype(np.float64), float(th)) * HOP
-    return match(est, np.sort(np.asarray(ref, np.float64)))
-
-def counts_var(a, ref, th):
-    est = pick_var(a.astype(np.float64), th.astype(np.float64)) * HOP
     return match(est, np.sort(np.asarray(ref, np.float64)))
 
 
