@@ -540,7 +540,7 @@ impl DrumModel {
         let wait = read_wrapper_head(b, "staged-file", 0..=8, "a second stage waits 0 to 8 hops")?;
         let head = read_f32s(b, 2, WHAT)?;
         let (low, shrink) = (head[0], head[1]);
-        if !(low > 0.0 && low < 1.0) || !(shrink > 0.0 && shrink.is_finite()) {
+        if !(low > 0.0 && low < 1.0 && shrink > 0.0 && shrink.is_finite()) {
             return Err(ConfigError::invalid(
                 "drum model",
                 "a second stage needs a threshold in (0, 1) and a positive shrink count",
@@ -561,7 +561,10 @@ impl DrumModel {
             let v = read_f32s(b, JUDGE_INPUTS + 1, WHAT)?;
             let mut w = [0f32; JUDGE_INPUTS];
             w.copy_from_slice(&v[..JUDGE_INPUTS]);
-            *judge = Some(Judge { w, cut: v[JUDGE_INPUTS] });
+            *judge = Some(Judge {
+                w,
+                cut: v[JUDGE_INPUTS],
+            });
         }
         let len = read_u32(b, WHAT)? as usize;
         let inner = take(b, len, WHAT)?;
@@ -1057,7 +1060,11 @@ impl Staged {
             let w = judge.w.map(|x| x as f64);
             let mut z = w[CLASSES] + w[2 * CLASSES + 1] * sh;
             for (i, &li) in l.iter().enumerate() {
-                let mean = if self.seen[c] > 0 { self.sums[c][i] / m } else { 0.0 };
+                let mean = if self.seen[c] > 0 {
+                    self.sums[c][i] / m
+                } else {
+                    0.0
+                };
                 z += w[i] * li + w[CLASSES + 1 + i] * sh * (li - mean);
                 self.sums[c][i] += li;
             }
@@ -1112,7 +1119,15 @@ impl Core {
                 st.ring[i % k] = act;
                 if i + 1 >= k {
                     let j = i + 1 - k;
-                    st.decide(stage, &mut self.pickers, &thresholds, self.min_gap, j, i + 1, emit);
+                    st.decide(
+                        stage,
+                        &mut self.pickers,
+                        &thresholds,
+                        self.min_gap,
+                        j,
+                        i + 1,
+                        emit,
+                    );
                 }
                 return;
             }
@@ -1130,7 +1145,15 @@ impl Core {
             let thresholds = self.model.thresholds;
             while st.emitted < self.next {
                 let j = st.emitted;
-                st.decide(stage, &mut self.pickers, &thresholds, self.min_gap, j, self.next, emit);
+                st.decide(
+                    stage,
+                    &mut self.pickers,
+                    &thresholds,
+                    self.min_gap,
+                    j,
+                    self.next,
+                    emit,
+                );
             }
         }
     }
@@ -1520,7 +1543,10 @@ mod tests {
         }
         assert!(err(staged_file(1, f32::NAN, 8.0, 2, inner)).contains("non-finite"));
         for mask in [0, 16] {
-            assert!(err(staged_file(1, 0.3, 8.0, mask, inner)).contains("mask"), "{mask}");
+            assert!(
+                err(staged_file(1, 0.3, 8.0, mask, inner)).contains("mask"),
+                "{mask}"
+            );
         }
         let nested = staged_file(1, 0.3, 8.0, 2, inner);
         assert!(err(staged_file(1, 0.3, 8.0, 2, &nested)).contains("another staged"));

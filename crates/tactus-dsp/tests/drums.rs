@@ -894,7 +894,10 @@ fn busy_groove(rng: &mut Rng) -> Vec<f32> {
     let mut x = groove(rng);
     for k in 0..15 {
         let at = 13_000 + k * 11_025;
-        for (j, v) in x[at..(at + 3_000).min(4 * SR as usize)].iter_mut().enumerate() {
+        for (j, v) in x[at..(at + 3_000).min(4 * SR as usize)]
+            .iter_mut()
+            .enumerate()
+        {
             *v += 0.3 * rng.next_f32() * (-(j as f32) / 400.0).exp();
         }
     }
@@ -913,7 +916,10 @@ fn check_stage_against_oracle(staged: &DrumModel, x: &[f32]) -> (usize, usize) {
         let got = transcribe_with(staged, x, chunk);
         assert_eq!(got.len(), acts.len(), "chunk {chunk}: every hop, once");
         for (i, f) in got.iter().enumerate() {
-            assert_eq!(f.activation, acts[i], "chunk {chunk} hop {i}: the same network");
+            assert_eq!(
+                f.activation, acts[i],
+                "chunk {chunk} hop {i}: the same network"
+            );
             assert_eq!(f.onset, want[i], "chunk {chunk} hop {i}");
         }
     }
