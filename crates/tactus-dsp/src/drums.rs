@@ -1108,10 +1108,6 @@ impl Core {
             let act = self
                 .model
                 .forward(&self.input, &mut self.a, &mut self.b, &mut self.c);
-            let mut f = DrumFrame {
-                activation: act,
-                onset: [false; CLASSES],
-            };
             let thresholds = self.model.thresholds;
             self.next += 1;
             if let (Some(st), Some(stage)) = (self.staged.as_mut(), self.model.stage.as_ref()) {
@@ -1131,6 +1127,10 @@ impl Core {
                 }
                 return;
             }
+            let mut f = DrumFrame {
+                activation: act,
+                onset: [false; CLASSES],
+            };
             for (c, (onset, picker)) in f.onset.iter_mut().zip(&mut self.pickers).enumerate() {
                 *onset = picker.step(i, act[c], thresholds[c], self.min_gap);
             }
