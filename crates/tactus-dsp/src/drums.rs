@@ -1021,6 +1021,15 @@ impl Staged {
         }
     }
 
+    /// Back to the start of a stream, keeping the ring's memory.
+    fn clear(&mut self) {
+        self.ring.fill([0.0; CLASSES]);
+        self.low = [Picker::NEW; CLASSES];
+        self.sums = [[0.0; CLASSES]; CLASSES];
+        self.seen = [0; CLASSES];
+        self.emitted = 0;
+    }
+
     /// Decides hop `j`, whose activations and those of the hops after it up to `end`
     /// (exclusive, at most `wait` more) are in the ring; emits it.
     #[allow(clippy::too_many_arguments)]
@@ -1164,7 +1173,11 @@ impl Core {
         self.pickers = [Picker::NEW; CLASSES];
         self.frames = 0;
         self.next = 0;
-        self.staged = self.model.stage.as_ref().map(Staged::new);
+        match (self.staged.as_mut(), self.model.stage.as_ref()) {
+            // Back to the start in place: a reset allocates nothing.
+            (Some(st), Some(_)) => st.clear(),
+            (_, stage) => self.staged = stage.map(Staged::new),
+        }
     }
 }
 
