@@ -41,8 +41,54 @@ def lg(p):
     return np.log(p / (1 - p))
 
 
-def cands(acts, c, ref, k, low):
-    """Candidate hops of class c, their features (n, 10) and labels (greedy match, 50 ms)."""
+# Screen (2026-11-29): song-adaptive templates. TEMPL = '' (the committed stage), 'rise' or
+# 'shape': each candidate's spectrum is compared with the running means of the song's earlier
+# confident snares and confident cymbals (cosine), two more features.
+TEMPL = os.environ.get('STAGE2_TEMPL', '')
+CLASSES_ONLY = [c for c in os.environ.get('STAGE2_CLASSES', '').split(',') if c]  # screen: these classes only
+CONF = 0.85  # a confident detection: picked at this threshold
+
+
+def descriptor(mel, i):
+    """The candidate's spectrum: 'rise', the largest log-mel level of hops i..i+2 above the mean
+    of hops i-3..i-1 (clipped at 0); 'shape', hop i+1's log-mel frame less its band mean."""
+    n = len(mel)
+    if TEMPL == 'rise':
+        now = mel[i:min(i + 3, n), :T.BANDS].max(0)
+        before = mel[max(i - 3, 0):i, :T.BANDS].mean(0) if i > 0 else np.full(T.BANDS, T.LOG_FLOOR)
+        d = np.maximum(now - before, 0.0)
+    else:
+        f = mel[min(i + 1, n - 1), :T.BANDS].astype(np.float64)
+        d = f - f.mean()
+    nrm = np.linalg.norm(d)
+    return d / nrm if nrm > 0 else d
+
+
+def template_feats(acts, mel, hops, c):
+    """(n, 2): shrunk cosines of each candidate with the song's earlier confident snares (snare
+    picked at CONF, cymbals below 0.5) and confident cymbals (snare below 0.15)."""
+    sn = [h for h in fast.pick(acts[:, 1].astype(np.float64), CONF) if acts[h, 3] < 0.5]
+    cy = [h for h in fast.pick(acts[:, 3].astype(np.float64), CONF) if acts[h:h + 2, 1].max() < 0.15]
+    out = np.zeros((len(hops), 2))
+    for col, conf in enumerate((sn, cy)):
+        s = np.zeros(T.BANDS)
+        m = 0
+        q = 0
+        for j, i in enumerate(hops):
+            while q < len(conf) and conf[q] < i:
+                s += descriptor(mel, conf[q])
+                m += 1
+                q += 1
+            if m:
+                nrm = np.linalg.norm(s)
+                cos = float(descriptor(mel, i) @ s / nrm) if nrm > 0 else 0.0
+                out[j, col] = m / (m + SHRINK) * cos
+    return out
+
+
+def cands(acts, c, ref, k, low, mel=None):
+    """Candidate hops of class c, their features (n, 10, or 12 with templates) and labels
+    (greedy match, 50 ms)."""
     a = acts[:, c].astype(np.float64)
     hops = fast.pick(a, low)
     n = len(acts)
@@ -55,6 +101,18 @@ def cands(acts, c, ref, k, low):
         sh = j / (j + SHRINK)
         X[j] = [*L[j], 1.0, *(sh * (L[j] - mean)), sh]
         s += L[j]
+    if TEMPL == 'quad':  # screen: pairwise products of the logits and of their offsets
+        iu = np.triu_indices(4)
+        Q = np.stack([np.outer(x[:4], x[:4])[iu] for x in X]) if len(X) else np.zeros((0, 10))
+        O = np.stack([np.outer(x[5:9], x[5:9])[iu] for x in X]) if len(X) else np.zeros((0, 10))
+        X = np.concatenate([X, Q / 10, O / 10], axis=1)
+    elif TEMPL == 'ctx':  # screen: the logits of hops i-2 and i+1 apart from the peak
+        n = len(acts)
+        A = np.stack([np.concatenate([lg(acts[max(i - 2, 0)]), lg(acts[min(i + 1, n - 1)])]) for i in hops]) \
+            if len(hops) else np.zeros((0, 8))
+        X = np.concatenate([X, A], axis=1)
+    elif TEMPL and mel is not None:
+        X = np.concatenate([X, template_feats(acts, mel, hops, c)], axis=1)
     y = np.zeros(len(hops))
     ref = np.sort(np.asarray(ref, np.float64))
     used = np.zeros(len(ref), bool)
@@ -101,10 +159,18 @@ def load_rows(pickles, k, low):
     for f in pickles:
         D.update(pickle.load(open(f, 'rb')))
     rows = []
+    M = {}
+    if TEMPL in ('rise', 'shape'):  # the log-mel frames the fold models read (train.py's feature cache)
+        data = os.environ.get('LOFO_DATA', '/work/data/drums')
+        for (fam, s, cond) in D:
+            M[(fam, s, cond)] = T.features(os.path.join(data, fam, s), cond,
+                                           os.path.join(data, ".features", fam, f"{s}.{cond}.f32"))
     for (fam, s, cond), (acts, truth, thr) in sorted(D.items()):
         for c in range(4):
+            if CLASSES_ONLY and T.CLASSES[c] not in CLASSES_ONLY:
+                continue
             ref = [h['time_s'] for h in truth['onsets'].get(T.CLASSES[c], [])]
-            hops, X, y = cands(acts, c, ref, k, low)
+            hops, X, y = cands(acts, c, ref, k, low, M.get((fam, s, cond)))
             rows.append(dict(fam=fam, cond=cond, c=c, a=acts[:, c], ref=ref, g=thr[c],
                              hops=hops, X=X, y=y))
     return rows
@@ -114,7 +180,7 @@ def lofo(k, low, pickles):
     rows = load_rows(pickles, k, low)
     fams = sorted({r['fam'] for r in rows})
     out = []
-    for c in range(4):
+    for c in sorted({r['c'] for r in rows}):
         G, A = {}, {}
         for F in fams:
             w, cut = train_class([r for r in rows if r['c'] == c and r['fam'] != F])
