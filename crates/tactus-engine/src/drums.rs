@@ -545,7 +545,11 @@ mod tests {
                 let want = x[j..(j + reach + 1).min(x.len())]
                     .iter()
                     .fold(f32::NEG_INFINITY, |a, &b| a.max(b));
-                assert_eq!(ClassTrack::gate_level(&x, j, reach), want, "j {j} reach {reach}");
+                assert_eq!(
+                    ClassTrack::gate_level(&x, j, reach),
+                    want,
+                    "j {j} reach {reach}"
+                );
             }
         }
     }
@@ -559,7 +563,10 @@ mod tests {
         // room for one hop beyond the RMS frame's 441).
         assert_eq!(t.latency_samples(), t.det.latency_samples());
         let live = ClassTrack::live(geo(Mode::Streaming)).unwrap();
-        assert_eq!((live.reach, live.latency_samples()), (1, live.det.latency_samples()));
+        assert_eq!(
+            (live.reach, live.latency_samples()),
+            (1, live.det.latency_samples())
+        );
         for c in x.chunks(1_000) {
             t.process(c, None);
         }
@@ -582,7 +589,10 @@ mod tests {
         let decided = (0..n)
             .filter(|&i| t.raw[i].iter().any(|&r| r) && open[i] != centred[i])
             .count();
-        assert!(decided > 0, "no raw onset at the gate's edge; the test cannot fail");
+        assert!(
+            decided > 0,
+            "no raw onset at the gate's edge; the test cannot fail"
+        );
         assert!(got.len() > 10, "only {} onsets", got.len());
     }
 }
