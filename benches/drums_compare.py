@@ -102,8 +102,11 @@ def exact(cellmap, n_songs, level):
     for idx in itertools.product(range(n_songs), repeat=n_songs):
         for k, (fa, fb) in stats(cellmap, idx).items():
             deltas[k].append(fb - fa)
-    return {k: (sorted(v)[0], sorted(v)[-1], quantile(sorted(v), (1 - level) / 2),
-                quantile(sorted(v), (1 + level) / 2)) for k, v in deltas.items()}
+    out = {}
+    for k, v in deltas.items():
+        v.sort()
+        out[k] = (v[0], v[-1], quantile(v, (1 - level) / 2), quantile(v, (1 + level) / 2))
+    return out
 
 
 def self_check():

@@ -205,8 +205,6 @@ pub struct ClassTrack {
     raw_rms: Vec<f32>,
     /// RMS hops after an onset hop that its gate reads (at most [`GATE_REACH_HOPS`]).
     reach: usize,
-    /// Whether the stream has ended (the last hops' gate reads the RMS hops that exist).
-    finished: bool,
     next: usize,
     gate: StreamingGate,
     binners: [BeatBinner; CLASSES],
@@ -298,7 +296,6 @@ impl ClassTrack {
         let room = det.latency_samples().saturating_sub(rms.latency_samples()) / hop;
         Ok(ClassTrack {
             reach: GATE_REACH_HOPS.min(room),
-            finished: false,
             rms,
             det,
             hop,
@@ -356,7 +353,7 @@ impl ClassTrack {
         });
         let raw_rms = &mut self.raw_rms;
         self.rms.process(block, &mut |_, r| raw_rms.push(r));
-        self.post_streaming();
+        self.post_streaming(false);
     }
 
     /// Ends the stream (offline: gates against the whole track's reference).
@@ -368,8 +365,7 @@ impl ClassTrack {
         });
         let raw_rms = &mut self.raw_rms;
         self.rms.finish(&mut |_, r| raw_rms.push(r));
-        self.finished = true;
-        self.post_streaming();
+        self.post_streaming(true);
         for (c, b) in self.binners.iter_mut().enumerate() {
             let bins = &mut self.bins[c];
             b.finish(&mut |_, x| bins.push(x));
@@ -397,11 +393,13 @@ impl ClassTrack {
         }
     }
 
-    fn post_streaming(&mut self) {
+    /// Streaming: gates the hops whose levels are known (at the end of the stream, `end`,
+    /// the last hops' gate reads the RMS hops that exist).
+    fn post_streaming(&mut self, end: bool) {
         if self.geo.mode != Mode::Streaming {
             return;
         }
-        let levels = if self.finished {
+        let levels = if end {
             self.raw_rms.len()
         } else {
             self.raw_rms.len().saturating_sub(self.reach)
@@ -470,7 +468,6 @@ impl ClassTrack {
         self.raw.clear();
         self.raw_strength.clear();
         self.raw_rms.clear();
-        self.finished = false;
         self.next = 0;
         self.gate.reset();
         for b in &mut self.binners {

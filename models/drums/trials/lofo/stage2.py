@@ -30,15 +30,11 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path[:0] = [os.path.join(HERE, '..', '..'), HERE]
 import fastpick as fast  # noqa: E402
 import train as T  # noqa: E402
+from oofdata import lg  # noqa: E402
 
 SHRINK = 8.0
 L2 = 1e-2
 CUTS = np.arange(-3, 3.01, 0.25)
-
-
-def lg(p):
-    p = np.clip(p, 1e-4, 1 - 1e-4)
-    return np.log(p / (1 - p))
 
 
 # Screen (2026-11-29): song-adaptive templates. TEMPL = '' (the committed stage), 'rise' or
