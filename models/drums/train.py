@@ -648,8 +648,14 @@ def read_model(path):
         buf = f.read()
     RATIOS = [1.0]
     if buf[:8] == b"TACTUSD2":  # a second stage around a model file (trials/lofo/stage2.py)
-        _, _, _, _, mask = struct.unpack_from("<2I2fI", buf, 8)
-        off = 28 + 44 * bin(mask).count("1")
+        ver, _, _, _, mask = struct.unpack_from("<2I2fI", buf, 8)
+        off = 28
+        for _ in range(bin(mask).count("1")):  # skip the judges
+            if ver == 1:
+                off += 44
+                continue
+            (h,) = struct.unpack_from("<I", buf, off)
+            off += 4 + (44 if h == 0 else 4 * (12 * h + 2))
         (ln,) = struct.unpack_from("<I", buf, off)
         buf = buf[off + 4:off + 4 + ln]
     if buf[:8] == b"TACTUSDT":

@@ -35,6 +35,11 @@ from oofdata import lg  # noqa: E402
 SHRINK = 8.0
 L2 = 1e-2
 CUTS = np.arange(-3, 3.01, 0.25)
+# The judge: HIDDEN = 0, the logistic regression (the stage of 2026-11-28 21:00); HIDDEN > 0,
+# a perceptron with that many ReLU units on the same features (trained by Adam, MLP_* below;
+# screened 2026-11-29, rule trials/RULE_stage2_mlp.md).
+HIDDEN = int(os.environ.get('STAGE2_HIDDEN', '0'))
+MLP_EPOCHS, MLP_BATCH, MLP_LR, MLP_L2, MLP_SEED = 30, 256, 1e-3, 1e-4, 0
 
 
 # Screen (2026-11-29): song-adaptive templates. TEMPL = '' (the committed stage), 'rise' or
@@ -134,10 +139,60 @@ def fit(X, y):
     return w
 
 
-def counts(rows, w, cut):
+def fit_mlp(X, y, hidden):
+    """A perceptron X -> hidden ReLU units -> one logit, cross-entropy, Adam; the inputs'
+    standardisation is folded into the first layer (constant columns are left as they are).
+    Returns the judge {'hidden': (hidden, d + 1) rows of weights then bias, 'out': (hidden,),
+    'out_bias'}, rounded to f32 as the staged file stores it."""
+    rng = np.random.default_rng(MLP_SEED)
+    sd = X.std(0)
+    const = sd < 1e-3
+    mu = np.where(const, 0.0, X.mean(0))
+    sd = np.where(const, 1.0, sd)
+    Xs = (X - mu) / sd
+    d = X.shape[1]
+    ps = [rng.normal(0, np.sqrt(2 / d), (d, hidden)), np.zeros(hidden),
+          rng.normal(0, np.sqrt(1 / hidden), hidden), np.zeros(1)]
+    m1 = [np.zeros_like(p) for p in ps]
+    m2 = [np.zeros_like(p) for p in ps]
+    t = 0
+    for _ in range(MLP_EPOCHS):
+        perm = rng.permutation(len(Xs))
+        for k in range(0, len(perm), MLP_BATCH):
+            b = perm[k:k + MLP_BATCH]
+            x = Xs[b]
+            h = np.maximum(x @ ps[0] + ps[1], 0)
+            p = 1 / (1 + np.exp(-(h @ ps[2] + ps[3][0])))
+            g = (p - y[b]) / len(b)
+            gh = np.outer(g, ps[2]) * (h > 0)
+            grads = [x.T @ gh + MLP_L2 * ps[0], gh.sum(0), h.T @ g + MLP_L2 * ps[2], np.array([g.sum()])]
+            t += 1
+            for j in range(4):
+                m1[j] = 0.9 * m1[j] + 0.1 * grads[j]
+                m2[j] = 0.999 * m2[j] + 0.001 * grads[j] ** 2
+                ps[j] -= MLP_LR * (m1[j] / (1 - 0.9 ** t)) / (np.sqrt(m2[j] / (1 - 0.999 ** t)) + 1e-8)
+    W1 = ps[0] / sd[:, None]
+    b1 = ps[1] - (mu / sd) @ ps[0]
+    f32 = lambda a: np.asarray(a, np.float32).astype(np.float64)  # noqa: E731
+    return {'hidden': f32(np.concatenate([W1.T, b1[:, None]], axis=1)), 'out': f32(ps[2]),
+            'out_bias': float(f32(ps[3][0]))}
+
+
+def score(judge, X):
+    """The judge's score of each candidate (rows of X): w . x, or the perceptron's logit."""
+    if len(X) == 0:
+        return np.zeros(0)
+    if 'hidden' not in judge:
+        return X @ np.asarray(judge['w'])
+    H = np.asarray(judge['hidden'])
+    h = np.maximum(X @ H[:, :-1].T + H[:, -1], 0)
+    return h @ np.asarray(judge['out']) + judge['out_bias']
+
+
+def counts(rows, judge, cut):
     C = np.zeros(3)
     for r in rows:
-        keep = r['hops'][(r['X'] @ w) >= cut] if len(r['hops']) else r['hops']
+        keep = r['hops'][score(judge, r['X']) >= cut] if len(r['hops']) else r['hops']
         C += fast.match(keep * T.HOP_S, np.sort(np.asarray(r['ref'], np.float64)))
     return C
 
@@ -145,9 +200,9 @@ def counts(rows, w, cut):
 def train_class(rows):
     X = np.concatenate([r['X'] for r in rows])
     y = np.concatenate([r['y'] for r in rows])
-    w = fit(X, y)
-    cut = max(CUTS, key=lambda t: T.prf(*counts(rows, w, t))[2])
-    return w, float(cut)
+    judge = fit_mlp(X, y, HIDDEN) if HIDDEN else {'w': fit(X, y)}
+    cut = max(CUTS, key=lambda t: T.prf(*counts(rows, judge, t))[2])
+    return judge, float(cut)
 
 
 def load_rows(pickles, k, low):
@@ -179,12 +234,12 @@ def lofo(k, low, pickles):
     for c in sorted({r['c'] for r in rows}):
         G, A = {}, {}
         for F in fams:
-            w, cut = train_class([r for r in rows if r['c'] == c and r['fam'] != F])
+            judge, cut = train_class([r for r in rows if r['c'] == c and r['fam'] != F])
             for r in rows:
                 if r['c'] == c and r['fam'] == F:
                     for key in (F, 'all'):
                         G[key] = G.get(key, 0) + fast.counts(r['a'], r['ref'], r['g'])
-                        A[key] = A.get(key, 0) + counts([r], w, cut)
+                        A[key] = A.get(key, 0) + counts([r], judge, cut)
         out.append('%s %.3f->%.3f [%s]' % (T.CLASSES[c], T.prf(*G['all'])[2], T.prf(*A['all'])[2],
                    ' '.join('%s %+.3f' % (F[:5], T.prf(*A[F])[2] - T.prf(*G[F])[2]) for F in fams)))
     print('K', k, 'LOW', low, '\n  ' + '\n  '.join(out), flush=True)
@@ -193,26 +248,36 @@ def lofo(k, low, pickles):
 def save(k, low, path, pickles):
     rows = load_rows(pickles, k, low)
     res = {'k': k, 'low': low, 'shrink': SHRINK, 'classes': {}}
-    for c in range(4):
-        w, cut = train_class([r for r in rows if r['c'] == c])
-        res['classes'][T.CLASSES[c]] = {'w': [float(v) for v in w], 'cut': cut}
+    for c in sorted({r['c'] for r in rows}):
+        judge, cut = train_class([r for r in rows if r['c'] == c])
+        res['classes'][T.CLASSES[c]] = {**{key: np.asarray(v).tolist() for key, v in judge.items()}, 'cut': cut}
     with open(path, 'w') as f:
         json.dump(res, f, indent=1)
     print('wrote', path)
 
 
 def write(stage, inner, out, classes):
-    """The staged file: "TACTUSD2", u32 version 1, wait; f32 low, shrink; u32 class mask;
-    per judged class (class order) f32 w[10], cut; u32 length and the inner file."""
+    """The staged file: "TACTUSD2", u32 version, wait; f32 low, shrink; u32 class mask; per
+    judged class (class order) its judge; u32 length and the inner file. Version 1 (every
+    judge linear): f32 w[10], cut. Version 2: u32 hidden units H, then for H = 0 f32 w[10],
+    cut, else f32 per unit w[10] and bias (H x 11), f32 out[H], out_bias, cut."""
     import struct
     st = json.load(open(stage))
     mask = sum(1 << T.CLASSES.index(c) for c in classes)
+    judged = [st['classes'][name] for name in T.CLASSES if name in classes]
+    version = 2 if any('hidden' in cw for cw in judged) else 1
     buf = bytearray(b"TACTUSD2")
-    buf += struct.pack("<2I2fI", 1, st['k'], st['low'], st['shrink'], mask)
-    for name in T.CLASSES:
-        if name in classes:
-            cw = st['classes'][name]
+    buf += struct.pack("<2I2fI", version, st['k'], st['low'], st['shrink'], mask)
+    for cw in judged:
+        if version == 1:
             buf += struct.pack("<11f", *cw['w'], cw['cut'])
+        elif 'hidden' not in cw:
+            buf += struct.pack("<I11f", 0, *cw['w'], cw['cut'])
+        else:
+            H = np.asarray(cw['hidden'], np.float32)
+            assert H.shape[1] == 11
+            buf += struct.pack("<I", len(H)) + H.astype("<f4").tobytes()
+            buf += np.asarray(cw['out'], "<f4").tobytes() + struct.pack("<2f", cw['out_bias'], cw['cut'])
     body = open(inner, 'rb').read()
     buf += struct.pack("<I", len(body)) + body
     tmp = out + '.tmp'
@@ -240,7 +305,7 @@ def replay(model, stage, data, conds, classes):
                 new = base
             else:
                 hops, X, _ = cands(acts, c, ref, k, low)
-                new = counts([{'hops': hops, 'X': X, 'ref': ref}], np.asarray(cw['w']), cw['cut'])
+                new = counts([{'hops': hops, 'X': X, 'ref': ref}], cw, cw['cut'])
             for key in ((cond, c), (cond, c, fam)):
                 b, n = res.get(key, (0, 0))
                 res[key] = (b + base, n + new)
