@@ -102,15 +102,52 @@ const MAGIC_STAGED: &[u8; 8] = b"TACTUSD2";
 
 /// Features of a [`Judge`]: the four classes' logits, a bias, the four logits minus the
 /// song's running mean (shrunk), and the shrink factor.
-const JUDGE_INPUTS: usize = 2 * CLASSES + 2;
+pub const JUDGE_INPUTS: usize = 2 * CLASSES + 2;
 
-/// The second stage's decision for one class (see [`SecondStage`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// The largest number of hidden units a [`Judge`] may have.
+const JUDGE_MAX_HIDDEN: usize = 256;
+
+/// The second stage's decision for one class (see [`SecondStage`]): a linear score of the
+/// [`JUDGE_INPUTS`] features (a logistic regression), or a perceptron with one hidden layer
+/// of ReLU units on them.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Judge {
-    /// Logistic-regression weights over the [`JUDGE_INPUTS`] features, in their order.
-    pub w: [f32; JUDGE_INPUTS],
-    /// A candidate is an onset where the score `w · x` reaches this.
+    /// The hidden units, each its weights over the features and then its bias; empty for a
+    /// linear judge.
+    pub hidden: Vec<[f32; JUDGE_INPUTS + 1]>,
+    /// The output's weights: over the features for a linear judge, else one per hidden unit.
+    pub w: Vec<f32>,
+    /// The output's bias (a linear judge's features hold their own bias: 0 there).
+    pub bias: f32,
+    /// A candidate is an onset where the score reaches this.
     pub cut: f32,
+}
+
+impl Judge {
+    /// A linear judge: the score is `w · x`.
+    pub fn linear(w: [f32; JUDGE_INPUTS], cut: f32) -> Judge {
+        Judge {
+            hidden: Vec::new(),
+            w: w.to_vec(),
+            bias: 0.0,
+            cut,
+        }
+    }
+
+    /// The score of the features `x`, in f64: `w · x` for a linear judge, else
+    /// `bias + Σ_h w_h · max(0, hidden_h · x + hidden bias_h)`.
+    pub fn score(&self, x: &[f64; JUDGE_INPUTS]) -> f64 {
+        let dot = |w: &[f32]| -> f64 { w.iter().zip(x).map(|(&w, &x)| w as f64 * x).sum() };
+        if self.hidden.is_empty() {
+            return dot(&self.w);
+        }
+        let mut z = self.bias as f64;
+        for (unit, &w) in self.hidden.iter().zip(&self.w) {
+            let h = dot(&unit[..JUDGE_INPUTS]) + unit[JUDGE_INPUTS] as f64;
+            z += w as f64 * h.max(0.0);
+        }
+        z
+    }
 }
 
 /// A second stage for some classes' onsets, learnt on *out-of-family* activations (each
@@ -125,7 +162,7 @@ pub struct Judge {
 /// the mean of `l` over the song's earlier candidates of class `c`, times `m / (m + shrink)`
 /// (`m`: how many there were; the mean is 0 when `m = 0`), and that factor. Logits are
 /// taken of the activation clamped to [1e-4, 0.9999]. The candidate is an onset where
-/// `w · x >= cut`. Causal; every class's output is delayed by `wait` hops, so the transcriber's
+/// the [`Judge`]'s score reaches its `cut`. Causal; every class's output is delayed by `wait` hops, so the transcriber's
 /// latency grows by `wait` hops. Classes without a judge keep the model's own picker.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SecondStage {
@@ -531,13 +568,21 @@ impl DrumModel {
         Ok(model)
     }
 
-    /// `"TACTUSD2"`, u32 `version = 1, wait (0..=8)`, f32 `low` (in (0, 1)), f32 `shrink`
-    /// (> 0), u32 `classes` (a bit mask, bit `c` for class `c`, 1..=15), per class of the
-    /// mask in class order f32 `w[10], cut`, then u32 byte length and a whole model file of
-    /// any other kind ([`SecondStage`]).
+    /// `"TACTUSD2"`, u32 `version (1 or 2), wait (0..=8)`, f32 `low` (in (0, 1)), f32
+    /// `shrink` (> 0), u32 `classes` (a bit mask, bit `c` for class `c`, 1..=15), per class
+    /// of the mask in class order its [`Judge`], then u32 byte length and a whole model file
+    /// of any other kind ([`SecondStage`]). A version-1 judge is linear: f32 `w[10], cut`. A
+    /// version-2 judge is u32 `hidden` (0..=256), then for 0 f32 `w[10], cut`, else f32
+    /// `hidden × (w[10], bias)`, f32 `out[hidden], out_bias, cut`.
     fn staged_from_bytes(mut bytes: &[u8]) -> Result<DrumModel, ConfigError> {
         let b = &mut bytes;
-        let wait = read_wrapper_head(b, "staged-file", 0..=8, "a second stage waits 0 to 8 hops")?;
+        let (version, wait) = read_versioned_head(
+            b,
+            "staged-file",
+            2,
+            0..=8,
+            "a second stage waits 0 to 8 hops",
+        )?;
         let head = read_f32s(b, 2, WHAT)?;
         let (low, shrink) = (head[0], head[1]);
         if !(low > 0.0 && low < 1.0 && shrink > 0.0 && shrink.is_finite()) {
@@ -553,18 +598,11 @@ impl DrumModel {
                 "a second stage judges 1 to 4 classes (mask 1..=15)",
             ));
         }
-        let mut judges = [None; CLASSES];
+        let mut judges: [Option<Judge>; CLASSES] = Default::default();
         for (c, judge) in judges.iter_mut().enumerate() {
-            if mask & (1 << c) == 0 {
-                continue;
+            if mask & (1 << c) != 0 {
+                *judge = Some(read_judge(b, version)?);
             }
-            let v = read_f32s(b, JUDGE_INPUTS + 1, WHAT)?;
-            let mut w = [0f32; JUDGE_INPUTS];
-            w.copy_from_slice(&v[..JUDGE_INPUTS]);
-            *judge = Some(Judge {
-                w,
-                cut: v[JUDGE_INPUTS],
-            });
         }
         let len = read_u32(b, WHAT)? as usize;
         let inner = take(b, len, WHAT)?;
@@ -818,18 +856,66 @@ fn read_wrapper_head(
     counts: std::ops::RangeInclusive<usize>,
     bad_count: &'static str,
 ) -> Result<usize, ConfigError> {
+    read_versioned_head(b, kind, 1, counts, bad_count).map(|(_, n)| n)
+}
+
+/// [`read_wrapper_head`] for a wrapper with versions 1 to `latest`: (version, count).
+fn read_versioned_head(
+    b: &mut &[u8],
+    kind: &str,
+    latest: u32,
+    counts: std::ops::RangeInclusive<usize>,
+    bad_count: &'static str,
+) -> Result<(u32, usize), ConfigError> {
     let version = read_u32(b, WHAT)?;
-    if version != 1 {
+    if !(1..=latest).contains(&version) {
+        let known = if latest == 1 {
+            "1 is".to_string()
+        } else {
+            format!("1 to {latest} are")
+        };
         return Err(ConfigError::invalid(
             "drum model",
-            format!("{kind} version {version} is not supported (1 is)"),
+            format!("{kind} version {version} is not supported ({known})"),
         ));
     }
     let n = read_u32(b, WHAT)? as usize;
     if !counts.contains(&n) {
         return Err(ConfigError::invalid("drum model", bad_count));
     }
-    Ok(n)
+    Ok((version, n))
+}
+
+/// One [`Judge`] of a staged file of `version` (see `DrumModel::staged_from_bytes`).
+fn read_judge(b: &mut &[u8], version: u32) -> Result<Judge, ConfigError> {
+    let hidden = if version == 1 {
+        0
+    } else {
+        read_u32(b, WHAT)? as usize
+    };
+    if hidden == 0 {
+        let v = read_f32s(b, JUDGE_INPUTS + 1, WHAT)?;
+        let mut w = [0f32; JUDGE_INPUTS];
+        w.copy_from_slice(&v[..JUDGE_INPUTS]);
+        return Ok(Judge::linear(w, v[JUDGE_INPUTS]));
+    }
+    if hidden > JUDGE_MAX_HIDDEN {
+        return Err(ConfigError::invalid(
+            "drum model",
+            format!("a judge has at most {JUDGE_MAX_HIDDEN} hidden units"),
+        ));
+    }
+    let units = read_f32s(b, hidden * (JUDGE_INPUTS + 1), WHAT)?;
+    let out = read_f32s(b, hidden + 2, WHAT)?;
+    Ok(Judge {
+        hidden: units
+            .chunks_exact(JUDGE_INPUTS + 1)
+            .map(|u| std::array::from_fn(|k| u[k]))
+            .collect(),
+        w: out[..hidden].to_vec(),
+        bias: out[hidden],
+        cut: out[hidden + 1],
+    })
 }
 
 /// A wrapped single-network file: u32 byte length, then the file (`"TACTUSDR"`).
@@ -1066,18 +1152,21 @@ impl Staged {
             let l = peak.map(|x| logit(x) as f64);
             let m = self.seen[c] as f64;
             let sh = m / (m + stage.shrink as f64);
-            let w = judge.w.map(|x| x as f64);
-            let mut z = w[CLASSES] + w[2 * CLASSES + 1] * sh;
+            let mut x = [0f64; JUDGE_INPUTS];
+            x[CLASSES] = 1.0;
+            x[2 * CLASSES + 1] = sh;
             for (i, &li) in l.iter().enumerate() {
                 let mean = if self.seen[c] > 0 {
                     self.sums[c][i] / m
                 } else {
                     0.0
                 };
-                z += w[i] * li + w[CLASSES + 1 + i] * sh * (li - mean);
+                x[i] = li;
+                x[CLASSES + 1 + i] = sh * (li - mean);
                 self.sums[c][i] += li;
             }
             self.seen[c] += 1;
+            let z = judge.score(&x);
             f.onset[c] = z >= judge.cut as f64;
         }
         self.emitted = j + 1;
@@ -1506,7 +1595,14 @@ mod tests {
             return file;
         }
         let u = |at: usize| u32::from_le_bytes(file[at..at + 4].try_into().unwrap()) as usize;
-        let at = 28 + 44 * u(24).count_ones() as usize;
+        let mut at = 28;
+        for _ in 0..u(24).count_ones() {
+            at += match (u(8), u(at)) {
+                (1, _) => 44,
+                (_, 0) => 48,
+                (_, h) => 4 + 4 * (12 * h + 2),
+            };
+        }
         &file[at + 4..at + 4 + u(at)]
     }
 
@@ -1546,8 +1642,11 @@ mod tests {
         let st = m.stage.as_ref().unwrap();
         assert_eq!((st.wait, st.low, st.shrink), (2, 0.3, 8.0));
         assert!(st.judges[0].is_none() && st.judges[2].is_none());
-        assert_eq!(st.judges[1].unwrap().w[3], 0.3f32 - 1.0);
-        assert_eq!(st.judges[3].unwrap().cut, JUDGE_INPUTS as f32 * 0.1 - 3.0);
+        assert_eq!(st.judges[1].as_ref().unwrap().w[3], 0.3f32 - 1.0);
+        assert_eq!(
+            st.judges[3].as_ref().unwrap().cut,
+            JUDGE_INPUTS as f32 * 0.1 - 3.0
+        );
         assert_eq!(m.retunings.len(), 3, "the inner file's retunings are kept");
         let err = |v: Vec<u8>| DrumModel::from_bytes(&v).unwrap_err().to_string();
         assert!(err(staged_file(9, 0.3, 8.0, 2, inner)).contains("0 to 8 hops"));
@@ -1565,8 +1664,8 @@ mod tests {
         assert!(err(staged_file(1, 0.3, 8.0, 2, &nested)).contains("another staged"));
         assert!(err(staged_file(1, 0.3, 8.0, 2, b"TACTUSXX")).contains("not a Tactus"));
         let mut v = staged_file(1, 0.3, 8.0, 2, inner);
-        v[8] = 2;
-        assert!(err(v).contains("version 2"));
+        v[8] = 3;
+        assert!(err(v).contains("version 3 is not supported (1 to 2 are)"));
         let good = staged_file(1, 0.3, 8.0, 2, inner);
         for n in [8, 12, 20, 28, 40, good.len() / 2, good.len() - 1] {
             assert!(DrumModel::from_bytes(&good[..n]).is_err(), "{n}");
@@ -1574,6 +1673,77 @@ mod tests {
         let mut extra = good.clone();
         extra.push(0);
         assert!(err(extra).contains("trailing"));
+    }
+
+    /// A version-2 staged file: a perceptron judge with `hidden` units for the snare (unit
+    /// `h`'s weight `k` is `h - k / 10`, its bias `0.5 h`, its output weight `1 - h`), a
+    /// linear one for the cymbals.
+    fn staged_v2(hidden: u32, inner: &[u8]) -> Vec<u8> {
+        let mut v = MAGIC_STAGED.to_vec();
+        for x in [2u32, 1] {
+            v.extend(x.to_le_bytes());
+        }
+        v.extend(0.3f32.to_le_bytes());
+        v.extend(8f32.to_le_bytes());
+        v.extend(0b1010u32.to_le_bytes());
+        v.extend(hidden.to_le_bytes());
+        let mut f = |x: f32| v.extend(x.to_le_bytes());
+        for h in 0..hidden {
+            for k in 0..JUDGE_INPUTS {
+                f(h as f32 - k as f32 / 10.0);
+            }
+            f(0.5 * h as f32);
+        }
+        for h in 0..hidden {
+            f(1.0 - h as f32);
+        }
+        f(0.25);
+        f(-0.5);
+        v.extend(0u32.to_le_bytes());
+        for k in 0..=JUDGE_INPUTS {
+            v.extend((k as f32).to_le_bytes());
+        }
+        v.extend((inner.len() as u32).to_le_bytes());
+        v.extend_from_slice(inner);
+        v
+    }
+
+    #[test]
+    fn version_2_staged_files_hold_perceptron_judges() {
+        let inner = retuned_of(EMBEDDED);
+        let m = DrumModel::from_bytes(&staged_v2(3, inner)).unwrap();
+        let st = m.stage.as_ref().unwrap();
+        let snare = st.judges[1].as_ref().unwrap();
+        assert_eq!(snare.hidden.len(), 3);
+        assert_eq!(snare.hidden[2][4], 2.0 - 0.4);
+        assert_eq!(snare.hidden[2][JUDGE_INPUTS], 1.0);
+        assert_eq!(
+            (snare.w.clone(), snare.bias, snare.cut),
+            (vec![1.0, 0.0, -1.0], 0.25, -0.5)
+        );
+        let cym = st.judges[3].as_ref().unwrap();
+        assert!(cym.hidden.is_empty());
+        assert_eq!((cym.w[9], cym.cut, cym.bias), (9.0, 10.0, 0.0));
+        // The score by hand: x = (1, 0, ..., 0): unit h gives max(0, h + 0.5 h).
+        let mut x = [0f64; JUDGE_INPUTS];
+        x[0] = 1.0;
+        let want: f64 = 0.25
+            + (0..3)
+                .map(|h| (1.0 - h as f64) * 1.5 * h as f64)
+                .sum::<f64>();
+        assert!((snare.score(&x) - want).abs() < 1e-12);
+        assert_eq!(cym.score(&x), 0.0);
+        // The file inside is found whatever the judges' sizes.
+        assert_eq!(
+            retuned_of(Box::leak(staged_v2(5, inner).into_boxed_slice())),
+            inner
+        );
+        let err = |v: Vec<u8>| DrumModel::from_bytes(&v).unwrap_err().to_string();
+        assert!(err(staged_v2(JUDGE_MAX_HIDDEN as u32 + 1, inner)).contains("at most 256"));
+        let good = staged_v2(3, inner);
+        for n in [32, 40, 100, 200, good.len() - inner.len() - 5] {
+            assert!(DrumModel::from_bytes(&good[..n]).is_err(), "{n}");
+        }
     }
 
     fn embedded_network() -> &'static [u8] {

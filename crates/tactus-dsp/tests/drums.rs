@@ -876,7 +876,19 @@ fn naive_stage(acts: &[[f32; CLASSES]], m: &DrumModel) -> (Vec<[bool; CLASSES]>,
                 x.push(sh * (l[k] - mean));
             }
             x.push(sh);
-            let z: f64 = x.iter().zip(judge.w).map(|(a, w)| a * w as f64).sum();
+            let dot = |w: &[f32]| -> f64 { x.iter().zip(w).map(|(a, &w)| a * w as f64).sum() };
+            let z = if judge.hidden.is_empty() {
+                dot(&judge.w)
+            } else {
+                let mut z = judge.bias as f64;
+                for (h, unit) in judge.hidden.iter().enumerate() {
+                    let pre = dot(&unit[..10]) + unit[10] as f64;
+                    if pre > 0.0 {
+                        z += judge.w[h] as f64 * pre;
+                    }
+                }
+                z
+            };
             out[i][c] = z >= judge.cut as f64;
             if out[i][c] {
                 yes += 1;
@@ -940,22 +952,48 @@ fn second_stage_matches_an_offline_oracle_for_any_chunking() {
     // Every class judged, a longer wait, judges that accept some candidates and reject
     // others: the oracle and the stream still agree.
     let mut all = DrumModel::embedded();
-    // (The shrink factor's own weight is large, so that the shrink count matters.)
-    let judge = |c: usize| Judge {
-        w: std::array::from_fn(|k| match k {
-            9 => 2.0 - 4.0 * (c % 2) as f32,
-            _ => ((k * 7 + c * 3) % 11) as f32 / 5.0 - 1.0,
-        }),
+    // (The shrink factor's own weight is large, so that the shrink count matters.) The kick
+    // and toms have linear judges, the snare and cymbals perceptrons with a few units, some
+    // of which are off for some candidates.
+    let linear = |c: usize| {
+        Judge::linear(
+            std::array::from_fn(|k| match k {
+                9 => 2.0 - 4.0 * (c % 2) as f32,
+                _ => ((k * 7 + c * 3) % 11) as f32 / 5.0 - 1.0,
+            }),
+            0.0,
+        )
+    };
+    let perceptron = |c: usize| Judge {
+        hidden: (0..4)
+            .map(|h| {
+                std::array::from_fn(|k| match k {
+                    10 => h as f32 - 1.5,
+                    _ => ((k * 5 + h * 3 + c) % 7) as f32 / 3.0 - 1.0,
+                })
+            })
+            .collect(),
+        w: vec![1.0, -0.5, 0.75, -1.0],
+        bias: 0.1 * c as f32,
         cut: 0.0,
     };
     all.stage = Some(SecondStage {
         wait: 3,
         low: 0.2,
         shrink: 4.0,
-        judges: std::array::from_fn(|c| Some(judge(c))),
+        judges: std::array::from_fn(|c| Some(if c % 2 == 0 { linear(c) } else { perceptron(c) })),
     });
     let (yes, no) = check_stage_against_oracle(&all, &x);
     assert!(yes > 0 && no > 0, "accepted {yes}, rejected {no}");
+    // The perceptrons alone: they too must accept some candidates and reject others.
+    let mut mlp = all.clone();
+    mlp.stage.as_mut().unwrap().judges =
+        std::array::from_fn(|c| (c % 2 == 1).then(|| perceptron(c)));
+    let (yes, no) = check_stage_against_oracle(&mlp, &x);
+    assert!(
+        yes > 0 && no > 0,
+        "perceptrons: accepted {yes}, rejected {no}"
+    );
 }
 
 #[test]

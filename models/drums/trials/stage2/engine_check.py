@@ -28,7 +28,7 @@ for song in sys.argv[4:]:
     acts = T.activations(ps, mel)
     hops, X, _ = S.cands(acts, 1, [], st['k'], st['low'])
     cw = st['classes']['snare']
-    want = sorted(hops[(X @ np.asarray(cw['w'])) >= cw['cut']] * T.HOP_S)
+    want = sorted(hops[S.score(cw, X) >= cw['cut']] * T.HOP_S)
     with tempfile.TemporaryDirectory() as d:
         subprocess.run([tactus, 'render', os.path.join(song, 'mix.wav'), '--stem',
                         'drums=' + os.path.join(song, 'drums.wav'), '--map',
