@@ -53,9 +53,10 @@
 //!    activations overlap are both found). The onset's strength is `a_c[i]`.
 //!    A *staged* file (`"TACTUSD2"`) replaces some classes' threshold with a
 //!    [`SecondStage`]: candidates picked at a low threshold, judged a few hops later by a
-//!    logistic regression learnt on activations of kits the network never heard, with the
-//!    song's earlier candidates as context. The embedded default judges its snare so
-//!    (`models/drums/trials/RULE_stage2.md`).
+//!    [`Judge`] (a logistic regression, or a perceptron with one hidden layer) learnt on
+//!    activations of kits the network never heard, with the song's earlier candidates as
+//!    context. The embedded default judges its snare so, with a perceptron of 32 units
+//!    (`models/drums/trials/RULE_stage2.md`, `RULE_stage2_mlp.md`).
 //!
 //! # Latency
 //! Hop `i` is decided once mel frame `i + future` exists:
@@ -72,7 +73,9 @@
 //! short-view model, 1,152 inputs, about 156 k and one more 1024-point FFT) per 10 ms; a
 //! retuned file runs its network once per retuning (the embedded models: three times, so
 //! about 250 k for the default and 470 k for the live model, plus the retunings' linear
-//! interpolation of each view). No allocation after [`DrumTranscriber::new`].
+//! interpolation of each view). A staged file's judge runs only on its class's candidates:
+//! 10 multiply-adds for a linear judge, `12 · hidden + 1` for a perceptron (385 for the
+//! embedded snare's). No allocation after [`DrumTranscriber::new`].
 
 use crate::melbank::{MelBank, MelConfig, LOG_FLOOR};
 use crate::mlp::{read_f32s, read_u32, take};
