@@ -339,13 +339,18 @@ def retune(z, rng):
     return z
 
 
+EQ_SCALE = 1.0  # --eq-scale: the tilt's and bumps' range times this (1: about +-6 dB)
+
+
 def eq_draw(rng, b):
-    """One random spectral tilt and smooth EQ per example (about +-6 dB over the bands):
-    (tilt, bumps), each (b, 1, BANDS), to be added to log mel frames."""
+    """One random spectral tilt and smooth EQ per example (about +-6 dB over the bands, times
+    EQ_SCALE): (tilt, bumps), each (b, 1, BANDS), to be added to log mel frames."""
     pos = np.linspace(-1, 1, BANDS, dtype=np.float32)
     tilt = rng.uniform(-1.4, 1.4, (b, 1, 1)).astype(np.float32) * pos
     bumps = sum(rng.uniform(-0.7, 0.7, (b, 1, 1)).astype(np.float32)
                 * np.cos(np.pi * k * (pos + 1) / 2) for k in (2, 3, 4))
+    if EQ_SCALE != 1.0:
+        tilt, bumps = tilt * np.float32(EQ_SCALE), bumps * np.float32(EQ_SCALE)
     return tilt, bumps
 
 
@@ -748,7 +753,7 @@ def report(ps, thr, sets):
 
 
 def main():
-    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX, WHITEN, BACK, SUPER_DB, SHORT, FMASK
+    global PAST, FUTURE, SHIFT, WARP, STRETCH, FLUX, WHITEN, BACK, SUPER_DB, SHORT, FMASK, EQ_SCALE
     ap = argparse.ArgumentParser()
     ap.add_argument("--data", required=True)
     ap.add_argument("--epochs", type=int, default=20)
@@ -799,6 +804,8 @@ def main():
     ap.add_argument("--aux", type=float, default=0.0,
                     help="weight of the finer kinds of hit (AUX_KINDS) learnt by extra outputs "
                          "that the written model drops (0: none, the committed recipe)")
+    ap.add_argument("--eq-scale", type=float, default=1.0,
+                    help="augmentation: the random tilt and EQ's range times this (1: about +-6 dB)")
     ap.add_argument("--freq-mask", type=int, default=0,
                     help="augmentation: silence up to this many adjacent mel bands in half "
                          "the examples (0: none, the committed recipe)")
@@ -808,6 +815,7 @@ def main():
     a = ap.parse_args()
     BACK = a.backing
     FMASK = a.freq_mask
+    EQ_SCALE = a.eq_scale
     SHORT = a.short
     if SHORT and (BACK or a.flux or a.whiten or a.superpose or a.shift):
         sys.exit("--short goes with none of --backing, --flux, --whiten, --superpose, and "

@@ -6,12 +6,15 @@ DIR = os.environ.get('LOFO_DIR', '/tmp/lofo')  # fold models and caches (lofo.sh
 import train as T
 data = os.environ.get('LOFO_DATA', '/work/data/drums')
 R = [1.0, 1 / 1.3, 1.3]
+NAME = os.environ.get('OOF_NAME', 'fold')  # the fold models' name (lofo.sh NAME)
+CONDS = os.environ.get('OOF_CONDS', 'iso,sep').split(',')
 out = {}
 for F in sys.argv[1:]:
-    ps, thr = T.read_model(f'{DIR}/fold_{F}.bin')
+    ps, thr = T.read_model(f'{DIR}/{NAME}_{F}.bin')
     items = [it for it in T.songs(data) if it[0] == F]
-    rows = T.load(items, data, ['iso', 'sep'])
+    rows = T.load(items, data, CONDS)
     for (fam, s, c, m, t) in rows:
         out[(fam, s, c)] = (T.activations(ps, m, R).astype(np.float32), t, thr)
     print(F, len(rows), 'thr', thr, flush=True)
-    pickle.dump(out, open(f'{DIR}/oof_{"_".join(sys.argv[1:])}.pkl', 'wb'))
+    tag = '' if NAME == 'fold' else NAME + '_'
+    pickle.dump(out, open(f'{DIR}/oof_{tag}{"_".join(sys.argv[1:])}.pkl', 'wb'))
