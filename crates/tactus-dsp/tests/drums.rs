@@ -994,6 +994,17 @@ fn second_stage_matches_an_offline_oracle_for_any_chunking() {
         yes > 0 && no > 0,
         "perceptrons: accepted {yes}, rejected {no}"
     );
+    // No wait, on the live model (one frame of future context, the short view): each
+    // candidate is judged at its own hop.
+    let mut live = DrumModel::embedded_live();
+    live.stage = Some(SecondStage {
+        wait: 0,
+        low: 0.3,
+        shrink: 8.0,
+        judges: std::array::from_fn(|c| (c == 1).then(|| perceptron(c))),
+    });
+    let (yes, no) = check_stage_against_oracle(&live, &x);
+    assert!(yes > 0 && no > 0, "no wait: accepted {yes}, rejected {no}");
 }
 
 #[test]
