@@ -56,7 +56,8 @@
 //!    [`Judge`] (a logistic regression, or a perceptron with one hidden layer) learnt on
 //!    activations of kits the network never heard, with the song's earlier candidates as
 //!    context. The embedded default judges its snare so, with a perceptron of 32 units
-//!    (`models/drums/trials/RULE_stage2.md`, `RULE_stage2_mlp.md`).
+//!    (`models/drums/trials/RULE_stage2.md`, `RULE_stage2_mlp.md`), and so does the live
+//!    model, judging each candidate at its own hop (`RULE_stage2_live.md`).
 //!
 //! # Latency
 //! Hop `i` is decided once mel frame `i + future` exists:
@@ -64,7 +65,8 @@
 //! [`SecondStage::wait`] (0 without one) = 512 + (4 + 1) · 441 = 2,717 samples =
 //! **61.6 ms** at 44.1 kHz with the embedded model (its snare's second stage waits one hop);
 //! the embedded live model
-//! ([`DrumModel::embedded_live`], `future = 1`) gives 512 + 441 = 953 samples = **21.6 ms**
+//! ([`DrumModel::embedded_live`], `future = 1`, its snare's stage waits no hop) gives
+//! 512 + 441 = 953 samples = **21.6 ms**
 //! (`models/drums/README.md`). Peak picking adds nothing.
 //!
 //! # Cost

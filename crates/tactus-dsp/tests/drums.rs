@@ -995,7 +995,14 @@ fn second_stage_matches_an_offline_oracle_for_any_chunking() {
         "perceptrons: accepted {yes}, rejected {no}"
     );
     // No wait, on the live model (one frame of future context, the short view): each
-    // candidate is judged at its own hop.
+    // candidate is judged at its own hop. The embedded live model's own stage is such a
+    // stage, for its snare alone.
+    let own = DrumModel::embedded_live();
+    let st = own.stage.as_ref().expect("the live model is staged");
+    assert_eq!(st.wait, 0, "the live path has no room for a wait");
+    assert!(st.judges[1].is_some() && st.judges.iter().filter(|j| j.is_some()).count() == 1);
+    let (yes, no) = check_stage_against_oracle(&own, &x);
+    assert!(yes + no > 0, "the live snare's judge saw no candidate");
     let mut live = DrumModel::embedded_live();
     live.stage = Some(SecondStage {
         wait: 0,
