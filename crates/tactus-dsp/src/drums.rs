@@ -167,8 +167,9 @@ impl Judge {
 /// the mean of `l` over the song's earlier candidates of class `c`, times `m / (m + shrink)`
 /// (`m`: how many there were; the mean is 0 when `m = 0`), and that factor. Logits are
 /// taken of the activation clamped to [1e-4, 0.9999]. The candidate is an onset where
-/// the [`Judge`]'s score reaches its `cut`. Causal; every class's output is delayed by `wait` hops, so the transcriber's
-/// latency grows by `wait` hops. Classes without a judge keep the model's own picker.
+/// the [`Judge`]'s score reaches its `cut`. Causal; every class's output is delayed by
+/// `wait` hops, so the transcriber's latency grows by `wait` hops. Classes without a judge
+/// keep the model's own picker.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SecondStage {
     /// Hops a candidate waits before it is judged.
