@@ -469,8 +469,10 @@ SUPER_DB = (-20.0, 5.0)  # --superpose: the added window's peak relative to the 
 
 def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=None,
           mean=None, std=None, aug=True, decay=1e-5, neg_keep=1.0, in_drop=0.0, sup=0.0,
-          drop=0.0):
-    """Adam on weighted binary cross-entropy. neg_keep < 1: each epoch uses every frame
+          drop=0.0, swa=0.0):
+    """Adam on weighted binary cross-entropy. swa > 0: return the mean of the weights at
+    the end of every epoch from epochs * swa on (weight averaging) instead of the epoch with
+    the lowest validation loss. neg_keep < 1: each epoch uses every frame
     near an onset (+-3 hops) and a fresh random fraction neg_keep of the others, weighted
     1 / neg_keep (the same expected loss, fewer frames per epoch). sup > 0: the
     superposition augmentation (superpose) on that fraction of each batch."""
@@ -478,6 +480,7 @@ def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=N
     v = [[np.zeros_like(W_), np.zeros_like(b_)] for W_, b_ in ps]
     t = 0
     best = (np.inf, None)
+    avg, n_avg = None, 0
     near = near_onset(Y)
     near_idx, far_idx = np.flatnonzero(near), np.flatnonzero(~near)
     pw = np.asarray(pos_weight if pos_weight is not None else 1.0, np.float32)
@@ -530,8 +533,18 @@ def train(ps, X, Y, W, Xv, Yv, Wv, epochs, rng, lr=1e-3, batch=512, pos_weight=N
         print(f"epoch {ep + 1}: train {tot / n:.4f} val {vl:.4f}", flush=True)
         if vl < best[0]:
             best = (vl, [[W_.copy(), b_.copy()] for W_, b_ in ps])
+        if swa > 0 and ep >= int(epochs * swa):
+            n_avg += 1
+            if avg is None:
+                avg = [[W_.astype(np.float64), b_.astype(np.float64)] for W_, b_ in ps]
+            else:
+                for (aW, ab), (W_, b_) in zip(avg, ps):
+                    aW += (W_ - aW) / n_avg
+                    ab += (b_ - ab) / n_avg
         if ep == int(epochs * 0.7):
             lr *= 0.3
+    if avg is not None:
+        return [[aW.astype(np.float32), ab.astype(np.float32)] for aW, ab in avg]
     return best[1]
 
 
@@ -785,6 +798,9 @@ def main():
     ap.add_argument("--in-drop", type=float, default=0.0, help="input dropout rate (0: none)")
     ap.add_argument("--drop", type=float, default=0.0,
                     help="dropout rate of the hidden layers in training (0: none, the committed recipe)")
+    ap.add_argument("--swa", type=float, default=0.0,
+                    help="weight averaging: the mean of the weights after every epoch from this "
+                         "fraction of the epochs on (0: none, the committed recipe: the best epoch)")
     ap.add_argument("--decay", type=float, default=1e-5, help="L2 weight decay")
     ap.add_argument("--flux", action="store_true",
                     help="input: also the positive first difference of the context's frames")
@@ -873,7 +889,7 @@ def main():
         pos_weight = pos_weight + [pos_weight[1]] * (n_out - 4)
         ps = train(ps, X, Y, W, Xv, Yv, Wv, a.epochs, rng, pos_weight=pos_weight, mean=mean, std=std,
                    aug=not a.no_augment, neg_keep=a.neg_keep, in_drop=a.in_drop, decay=a.decay, drop=a.drop,
-                   sup=a.superpose)
+                   sup=a.superpose, swa=a.swa)
         ps[-1] = [ps[-1][0][:4].copy(), ps[-1][1][:4].copy()]  # the four classes' outputs
         # Tune thresholds on validation, over every condition pooled.
         acts = [sigmoid(forward(ps, (with_flux(prep(m)) - mean) / std)[-1]) for (_, _, _, m, _) in D_va]
