@@ -1,7 +1,7 @@
 """Out-of-family F per condition from oof.py's pickles, before and after a snare judge
 (the screen of RULE_stage2_live.md, which scored each condition apart, kept as a script):
 
-    STAGE2_HIDDEN=32 STAGE2_CLASSES=snare python oof_conds.py K LOW PICKLE
+    STAGE2_HIDDEN=32 python oof_conds.py K LOW PICKLE
 
 Prints, per condition (iso, sep, mix, as the pickle holds them), the four classes' F against
 each fold's own thresholds, then the snare's F through a judge with wait K and candidates at
@@ -17,18 +17,11 @@ import stage2 as S  # noqa: E402
 import train as T  # noqa: E402
 
 k, low, pickles = int(sys.argv[1]), float(sys.argv[2]), sys.argv[3:]
-os.environ.pop('STAGE2_CLASSES', None)
-S.CLASSES_ONLY = []
+S.CLASSES_ONLY = []  # every class's rows, for the F before any judge
 rows = S.load_rows(pickles, k, low)
 conds = sorted({r['cond'] for r in rows}, key=['iso', 'sep', 'mix'].index)
-fams = sorted({r['fam'] for r in rows})
 snare = T.CLASSES.index('snare')
-judged = {}
-for F in fams:
-    judge, cut = S.train_class([r for r in rows if r['c'] == snare and r['fam'] != F])
-    for r in rows:
-        if r['c'] == snare and r['fam'] == F:
-            judged[id(r)] = S.counts([r], judge, cut)
+judged = S.judged_out_of_family(rows, snare)
 after = []
 for cond in conds:
     pre = [T.prf(*sum(fast.counts(r['a'], r['ref'], r['g']) for r in rows if r['cond'] == cond and r['c'] == c))[2]

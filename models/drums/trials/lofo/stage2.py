@@ -227,19 +227,29 @@ def load_rows(pickles, k, low):
     return rows
 
 
+def judged_out_of_family(rows, c):
+    """Each class-c row's (TP, FP, FN) through a judge learnt on the other families' rows."""
+    out = {}
+    for F in sorted({r['fam'] for r in rows}):
+        judge, cut = train_class([r for r in rows if r['c'] == c and r['fam'] != F])
+        for r in rows:
+            if r['c'] == c and r['fam'] == F:
+                out[id(r)] = counts([r], judge, cut)
+    return out
+
+
 def lofo(k, low, pickles):
     rows = load_rows(pickles, k, low)
     fams = sorted({r['fam'] for r in rows})
     out = []
     for c in sorted({r['c'] for r in rows}):
         G, A = {}, {}
-        for F in fams:
-            judge, cut = train_class([r for r in rows if r['c'] == c and r['fam'] != F])
-            for r in rows:
-                if r['c'] == c and r['fam'] == F:
-                    for key in (F, 'all'):
-                        G[key] = G.get(key, 0) + fast.counts(r['a'], r['ref'], r['g'])
-                        A[key] = A.get(key, 0) + counts([r], judge, cut)
+        judged = judged_out_of_family(rows, c)
+        for r in rows:
+            if r['c'] == c:
+                for key in (r['fam'], 'all'):
+                    G[key] = G.get(key, 0) + fast.counts(r['a'], r['ref'], r['g'])
+                    A[key] = A.get(key, 0) + judged[id(r)]
         out.append('%s %.3f->%.3f [%s]' % (T.CLASSES[c], T.prf(*G['all'])[2], T.prf(*A['all'])[2],
                    ' '.join('%s %+.3f' % (F[:5], T.prf(*A[F])[2] - T.prf(*G[F])[2]) for F in fams)))
     print('K', k, 'LOW', low, '\n  ' + '\n  '.join(out), flush=True)
