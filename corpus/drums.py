@@ -64,7 +64,16 @@ FAMILY_SF2 = {
     "csound": "sf_GMbank.sf2",
     "musescore": "MuseScore_General_Full.sf2",
 }
-FAMILIES = ["fluid", "timgm", "csound", "sonicpi", "musescore", "synth", "synth2", "remix"]
+FAMILIES = ["fluid", "timgm", "csound", "sonicpi", "musescore", "synth", "synth2", "remix", "choke"]
+# `choke` (a trial family, issue 10) is made only when asked for by name
+DEFAULT_FAMILIES = [f for f in FAMILIES if f != "choke"]
+# "choke" songs: one training source per song (its name starts with it); the closed and pedal
+# hats are other cymbals of that source, choked
+CHOKE_SOURCES = ["timgm", "csound", "sonicpi"]
+CHOKE_SF2_CYMBALS = [46, 49, 51, 52, 55, 57, 59, 42]
+CHOKE_SP_CYMBALS = ["drum_cymbal_open", "drum_cymbal_hard", "drum_cymbal_soft", "drum_splash_soft",
+                    "drum_splash_hard", "elec_cymbal", "drum_cymbal_closed", "drum_cymbal_pedal"]
+HATS = (42, 44, 46)
 # "remix" songs take each class (kick, snare, toms, cymbals) from a different training source
 REMIX_SOURCES = ["timgm", "csound", "synth2"]
 REMIX_PRESETS = [0, 8, 16, 24, 25, 32, 40]
@@ -1048,6 +1057,111 @@ def remix_render(rng, hits_s, remix, remix_db, sy_kit, sy_levels, n_samples, bpm
     return y, sorted(exact)
 
 
+def choke_source(song):
+    """The training source of a `choke` song (its name's first field), else None."""
+    src = song.split("-", 1)[0]
+    return src if src in CHOKE_SOURCES else None
+
+
+def choke_plan(rng, index):
+    """A `choke` song's kit: every sound from one training source (cycling timgm, csound,
+    sonicpi), a preset for the soundfonts, and the cymbal each hat is cut from."""
+    src = CHOKE_SOURCES[index % len(CHOKE_SOURCES)]
+    plan = {"source": src}
+    if src == "sonicpi":
+        plan["closed"] = str(rng.choice(CHOKE_SP_CYMBALS))
+        plan["pedal"] = str(rng.choice(CHOKE_SP_CYMBALS))
+        tag = "sp"
+    else:
+        plan["preset"] = int(rng.choice(REMIX_PRESETS))
+        plan["closed"] = int(rng.choice(CHOKE_SF2_CYMBALS))
+        plan["pedal"] = int(rng.choice(CHOKE_SF2_CYMBALS))
+        tag = f"{plan['preset']}"
+    plan["closed_tau_s"] = round(_logu(rng, 0.012, 0.07), 4)
+    plan["pedal_tau_s"] = round(_logu(rng, 0.008, 0.04), 4)
+    plan["semitones"] = round(float(rng.uniform(-5, 5)), 2)
+    plan["tilt_db_oct"] = round(float(rng.uniform(-3, 3)), 2)
+    plan["hat_db"] = round(float(rng.uniform(-12, -3)), 2)
+    plan["name"] = f"{src}-{tag}-h{plan['closed']}".replace("drum_", "").replace("_", "")
+    return plan
+
+
+_SF2_HITS = {}
+
+
+def sf2_hit(src, preset, note, velocity, tmp):
+    """One hit of a soundfont kit, rendered alone (mono, dry, from its attack, unit peak)."""
+    key = (src, preset, note, velocity)
+    if key not in _SF2_HITS:
+        mp_ = os.path.join(tmp, "hit.mid")
+        ex = write_drum_midi(mp_, [(0.1, note, velocity)], 120, preset)
+        x = fluid_render(os.path.join(SF2_DIR, FAMILY_SF2[src]), mp_, os.path.join(tmp, "hit.wav"), False)
+        x = x.mean(axis=1)[int(round(ex[0][0] * SR)):]
+        pk = max(1e-9, float(np.max(np.abs(x))))
+        first = int(np.flatnonzero(np.abs(x) > 0.02 * pk)[0])
+        x = x[max(0, first - int(0.001 * SR)):int(first + 2.0 * SR)]
+        _SF2_HITS[key] = x / max(1e-9, float(np.max(np.abs(x))))
+    return _SF2_HITS[key]
+
+
+def choked(x, tau, semitones, tilt):
+    """A cymbal cut short: retuned, an exponential decay of time constant tau, tilted."""
+    if semitones:
+        r = 2.0 ** (semitones / 12.0)
+        x = np.interp(np.arange(int(len(x) / r)) * r, np.arange(len(x)), x)
+    n = min(len(x), int((6 * tau + 0.005) * SR))
+    y = x[:n] * np.exp(-np.arange(n) / SR / tau)
+    return _finish(_tilt(y, tilt) if tilt else y, 0.003)
+
+
+def choke_render(rng, hits_s, plan, n_samples, bpm, reverb, tmp):
+    """A `choke` song's drums: everything but the hats from its source as the source plays it
+    (a soundfont preset through fluidsynth, or a sonic-pi kit); the closed and pedal hats are
+    the planned cymbals of the same source, choked (`choked`), the open hat is the source's
+    own, cut at the next closed hat; the hats' part set `hat_db` under the rest's peak."""
+    src = plan["source"]
+    rest = [h for h in hits_s if h[1] not in HATS]
+    hats = [h for h in hits_s if h[1] in HATS]
+    if src == "sonicpi":
+        kit, levels, _ = sonicpi_kit(rng)
+        body, ex_rest = sonicpi_render(rest, kit, levels, n_samples)
+        if reverb:
+            body = simple_reverb(rng, body)
+
+        def raw(name_or_note, v):
+            return load_sample(name_or_note)
+
+        open_hat = lambda v: load_sample("drum_cymbal_open")  # noqa: E731
+    else:
+        mp_ = os.path.join(tmp, "drums_rest.mid")
+        ex_rest = write_drum_midi(mp_, rest, bpm, plan["preset"])
+        x = fluid_render(os.path.join(SF2_DIR, FAMILY_SF2[src]), mp_, os.path.join(tmp, "drums_rest.wav"), reverb)
+        body = np.zeros((n_samples, 2))
+        body[: min(n_samples, len(x))] = x[:n_samples]
+
+        def raw(note, v):
+            return sf2_hit(src, plan["preset"], note, 60 if v < 70 else 110, tmp)
+
+        open_hat = lambda v: raw(46, v)  # noqa: E731
+    cut = {}
+
+    def sample_of(n, v):
+        if n == 46:
+            return open_hat(v), 0.4
+        which = "closed" if n == 42 else "pedal"
+        key = (which, v >= 70)
+        if key not in cut:
+            cut[key] = choked(raw(plan[which], v), plan[f"{which}_tau_s"], plan["semitones"], plan["tilt_db_oct"])
+        return cut[key], 0.4
+
+    part, ex_hats = _mix_hits(hats, {42: 1.0, 44: 0.85, 46: 1.0}, n_samples, sample_of)
+    if reverb and len(hats):
+        part = simple_reverb(rng, part)
+    pk = max(1e-9, float(np.max(np.abs(body))))
+    part = part / max(1e-9, float(np.max(np.abs(part)))) * pk * 10 ** (plan["hat_db"] / 20)
+    return body + part, sorted(ex_rest + ex_hats)
+
+
 def simple_reverb(rng, y):
     """Exponentially decaying noise IR (stereo, decorrelated), wet -18..-12 dB."""
     tau = rng.uniform(0.12, 0.35)
@@ -1075,7 +1189,7 @@ def rms(x):
 def song_plan(family, index):
     """Kit, style, seed for song `index` of `family` (deterministic)."""
     seed = seed_of("tactus-drums-v1", family, index)
-    if family in ("sonicpi", "synth", "synth2", "remix"):
+    if family in ("sonicpi", "synth", "synth2", "remix", "choke"):
         kit = None
     else:
         kit = KIT_ORDER[index] if index < len(KIT_ORDER) else ACOUSTIC_KITS[index % len(ACOUSTIC_KITS)]
@@ -1125,6 +1239,9 @@ def build_song(args):
         remix_db = {c: float(rng.uniform(-4, 4)) for c in CLASSES}
         kit_name = "-".join(s[0][:2] + ("" if s[0] == "synth2" else str(s[1])) for s in remix.values())
         song = f"{kit_name}_s{index:02d}"
+    elif family == "choke":
+        ch = choke_plan(rng, index)
+        song = f"{ch['name']}_s{index:02d}"
     else:
         kit_name = f"{KIT_ABBR[kit]}{kit:02d}"
         song = f"{kit_name}_s{index:02d}"
@@ -1168,6 +1285,10 @@ def build_song(args):
                 y = simple_reverb(rng, y)
             audio["drums"] = y
             kit_desc = {"synthesised2": kit_name, "seed": seed}
+        elif family == "choke":
+            y, exact = choke_render(rng, hits_s, ch, n_samples, bpm, reverb, tmp)
+            audio["drums"] = y
+            kit_desc = {"choke": {k: v for k, v in ch.items() if k != "name"}, "seed": seed}
         elif family == "remix":
             y, exact = remix_render(rng, hits_s, remix, remix_db, sy_kit, sy_levels, n_samples, bpm, reverb,
                                     seed, tmp)
@@ -1335,7 +1456,7 @@ def main():
     ap.add_argument("--songs", type=int, default=12, help="songs per family (default 12)")
     ap.add_argument("--first", type=int, default=0,
                     help="render only song indices from this one up to --songs (default 0)")
-    ap.add_argument("--families", default=",".join(FAMILIES))
+    ap.add_argument("--families", default=",".join(DEFAULT_FAMILIES))
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--force", action="store_true", help="re-render songs that exist")
     ap.add_argument("--ready-at", type=int, default=6,
