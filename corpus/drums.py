@@ -19,6 +19,9 @@ one of five families:
             reaching down into the snare's range; two round-robin variants per layer
 * remix     each class (kick, snare, toms, cymbals) from a different training source per song:
             a TimGM6mb or sf_GMbank preset, or a synth2 kit (never fluid, musescore or sonicpi)
+* choke     (a trial, made only when named) every sound of one training source per song (timgm,
+            csound or sonicpi; the name starts with it), but the closed and pedal hats are another
+            of its cymbals retuned and cut short (12-70 ms decay): more kinds of closed hat
 * musescore MuseScore_General_Full bank 128: the HELD-OUT family (evaluate only, never train)
 
 FluidR3_GS.sf2 has only an SFX kit in bank 128, so it contributes no drum kit.
