@@ -16,6 +16,9 @@
 //!   for one scheduling stall;
 //! * the capture line (the device's own buffering) is printed, and overruns are 0.
 //!
+//! A run that misses a target is measured once more (one late wake-up on this shared machine
+//! can hold a click back by a bin); two misses in a row fail.
+//!
 //! Needs `pulseaudio`, `pactl`, `pacat`, `socat` and `python3`; without them it prints
 //! SKIPPED, and fails under `CI=true` (`.ci/run` installs them).
 #![cfg(feature = "audio")]
@@ -44,6 +47,32 @@ fn live_meets_the_latency_targets_end_to_end() {
             return;
         }
     }
+    // One retry: on this shared 2-core machine one late wake-up (of the engine thread, the
+    // sink or pacat) can hold a click back by a bin or two; two runs in a row that miss a
+    // target fail the test, and both runs' reports are printed.
+    let mut errors = Vec::new();
+    for attempt in 1..=2 {
+        match measure_once() {
+            Ok(()) => return,
+            Err(e) => {
+                eprintln!("attempt {attempt}: {e}");
+                errors.push(e);
+            }
+        }
+    }
+    panic!("both runs missed a target: {errors:?}");
+}
+
+macro_rules! check {
+    ($cond:expr, $($fmt:tt)+) => {
+        if !$cond {
+            return Err(format!($($fmt)+));
+        }
+    };
+}
+
+/// One measurement by `benches/live_latency.py` and the checks the header lists.
+fn measure_once() -> Result<(), String> {
     let d = tempfile::tempdir().unwrap();
     let json = d.path().join("latency.json");
     let out = Command::new("python3")
@@ -66,7 +95,9 @@ fn live_meets_the_latency_targets_end_to_end() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
     eprintln!("{stdout}{stderr}");
-    assert!(out.status.success(), "live_latency.py failed");
+    if !out.status.success() {
+        return Err("live_latency.py failed".into());
+    }
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let group = |name: &str| {
@@ -81,17 +112,17 @@ fn live_meets_the_latency_targets_end_to_end() {
     let f = |g: &serde_json::Value, k: &str| g[k].as_f64().unwrap_or(f64::NAN);
 
     let rhythm = group("rhythm (clicks)");
-    assert!(
+    check!(
         f(&rhythm, "felt") >= 19.0,
         "only {} of 20 clicks felt",
         rhythm["felt"]
     );
-    assert!(
+    check!(
         f(&rhythm, "median_ms") <= 30.0,
         "rhythm median {:.1} ms > 30 ms",
         f(&rhythm, "median_ms")
     );
-    assert!(
+    check!(
         f(&rhythm, "p95_ms") <= 40.0,
         "rhythm p95 {:.1} ms > 40 ms",
         f(&rhythm, "p95_ms")
@@ -102,29 +133,30 @@ fn live_meets_the_latency_targets_end_to_end() {
         .iter()
         .map(|v| v.as_u64().unwrap())
         .collect();
-    assert!(
+    check!(
         false_frames.iter().all(|&n| n == 0),
         "rhythm pins up in silence: {false_frames:?}"
     );
 
     let pitch = group("pitch (all tones)");
-    assert!(
+    check!(
         f(&pitch, "felt") >= 9.0,
         "only {} of 10 tone bursts shown",
         pitch["felt"]
     );
-    assert!(
+    check!(
         f(&pitch, "median_ms") <= 80.0,
         "pitch median {:.1} ms > 80 ms",
         f(&pitch, "median_ms")
     );
-    assert!(
+    check!(
         f(&pitch, "p95_ms") <= 120.0,
         "pitch p95 {:.1} ms > 120 ms",
         f(&pitch, "p95_ms")
     );
 
     let live_err = r["runs"][0]["tactus_stderr"].as_str().unwrap();
-    assert!(live_err.contains("tactus: capture: "), "{live_err}");
-    assert!(live_err.contains("overruns 0 samples"), "{live_err}");
+    check!(live_err.contains("tactus: capture: "), "{live_err}");
+    check!(live_err.contains("overruns 0 samples"), "{live_err}");
+    Ok(())
 }
