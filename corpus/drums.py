@@ -22,6 +22,9 @@ one of five families:
 * choke     (a trial, made only when named) every sound of one training source per song (timgm,
             csound or sonicpi; the name starts with it), but the closed and pedal hats are another
             of its cymbals retuned and cut short (12-70 ms decay): more kinds of closed hat
+* choke2    (a trial, made only when named) choke, and the snares and rim shots (37, 38, 40) of
+            the same source retuned (+-4 semitones) and tilted (+-3 dB/octave) per song: the
+            snare's colour as wide as the hats'
 * musescore MuseScore_General_Full bank 128: the HELD-OUT family (evaluate only, never train)
 
 FluidR3_GS.sf2 has only an SFX kit in bank 128, so it contributes no drum kit.
@@ -67,9 +70,12 @@ FAMILY_SF2 = {
     "csound": "sf_GMbank.sf2",
     "musescore": "MuseScore_General_Full.sf2",
 }
-FAMILIES = ["fluid", "timgm", "csound", "sonicpi", "musescore", "synth", "synth2", "remix", "choke"]
-# `choke` (a trial family, issue 10) is made only when asked for by name
-DEFAULT_FAMILIES = [f for f in FAMILIES if f != "choke"]
+FAMILIES = ["fluid", "timgm", "csound", "sonicpi", "musescore", "synth", "synth2", "remix", "choke", "choke2"]
+# `choke` and `choke2` (trial families, issue 10) are made only when asked for by name
+CHOKE_FAMILIES = ("choke", "choke2")
+DEFAULT_FAMILIES = [f for f in FAMILIES if f not in CHOKE_FAMILIES]
+# the snare notes a `choke2` song retunes and tilts
+CHOKE2_SNARES = (37, 38, 40)
 # "choke" songs: one training source per song (its name starts with it); the closed and pedal
 # hats are other cymbals of that source, choked
 CHOKE_SOURCES = ["timgm", "csound", "sonicpi"]
@@ -1066,9 +1072,10 @@ def choke_source(song):
     return src if src in CHOKE_SOURCES else None
 
 
-def choke_plan(rng, index):
+def choke_plan(rng, index, snares=False):
     """A `choke` song's kit: every sound from one training source (cycling timgm, csound,
-    sonicpi), a preset for the soundfonts, and the cymbal each hat is cut from."""
+    sonicpi), a preset for the soundfonts, and the cymbal each hat is cut from; with `snares`
+    (a `choke2` song) also a retuning and a tilt for its snares."""
     src = CHOKE_SOURCES[index % len(CHOKE_SOURCES)]
     plan = {"source": src}
     if src == "sonicpi":
@@ -1085,6 +1092,9 @@ def choke_plan(rng, index):
     plan["semitones"] = round(float(rng.uniform(-5, 5)), 2)
     plan["tilt_db_oct"] = round(float(rng.uniform(-3, 3)), 2)
     plan["hat_db"] = round(float(rng.uniform(-12, -3)), 2)
+    if snares:
+        plan["snare_semitones"] = round(float(rng.uniform(-4, 4)), 2)
+        plan["snare_tilt_db_oct"] = round(float(rng.uniform(-3, 3)), 2)
     plan["name"] = f"{src}-{tag}-h{plan['closed']}".replace("drum_", "").replace("_", "")
     return plan
 
@@ -1107,6 +1117,14 @@ def sf2_hit(src, preset, note, velocity, tmp):
     return _SF2_HITS[key]
 
 
+def recoloured(x, semitones, tilt):
+    """A hit retuned by `semitones` (resampled) and tilted by `tilt` dB/octave, unit peak."""
+    if semitones:
+        r = 2.0 ** (semitones / 12.0)
+        x = np.interp(np.arange(int(len(x) / r)) * r, np.arange(len(x)), x)
+    return _finish(_tilt(x, tilt) if tilt else x / max(1e-9, float(np.max(np.abs(x)))), 0.003)
+
+
 def choked(x, tau, semitones, tilt):
     """A cymbal cut short: retuned, an exponential decay of time constant tau, tilted."""
     if semitones:
@@ -1121,13 +1139,27 @@ def choke_render(rng, hits_s, plan, n_samples, bpm, reverb, tmp):
     """A `choke` song's drums: everything but the hats from its source as the source plays it
     (a soundfont preset through fluidsynth, or a sonic-pi kit); the closed and pedal hats are
     the planned cymbals of the same source, choked (`choked`), the open hat is the source's
-    own, cut at the next closed hat; the hats' part set `hat_db` under the rest's peak."""
+    own, cut at the next closed hat; the hats' part set `hat_db` under the rest's peak. A
+    `choke2` plan (`snare_semitones` in it) also recolours the snares (`recoloured`): a
+    sonic-pi kit's at its own levels, a soundfont's scaled to the peak the source's own snares
+    have in the song."""
     src = plan["source"]
-    rest = [h for h in hits_s if h[1] not in HATS]
+    widen = "snare_semitones" in plan
+    snares = [h for h in hits_s if widen and h[1] in CHOKE2_SNARES]
+    rest = [h for h in hits_s if h[1] not in HATS and not (widen and h[1] in CHOKE2_SNARES)]
     hats = [h for h in hits_s if h[1] in HATS]
+    ex_sn = []
     if src == "sonicpi":
         kit, levels, _ = sonicpi_kit(rng)
         body, ex_rest = sonicpi_render(rest, kit, levels, n_samples)
+        if snares:
+            def snare_of(n, v):
+                soft, hard, semis, pan = kit[n]
+                x = load_sample(soft if v < 70 else hard, semis)
+                return recoloured(x, plan["snare_semitones"], plan["snare_tilt_db_oct"]), pan
+
+            sn_part, ex_sn = _mix_hits(snares, levels, n_samples, snare_of)
+            body = body + sn_part
         if reverb:
             body = simple_reverb(rng, body)
 
@@ -1144,6 +1176,24 @@ def choke_render(rng, hits_s, plan, n_samples, bpm, reverb, tmp):
 
         def raw(note, v):
             return sf2_hit(src, plan["preset"], note, 60 if v < 70 else 110, tmp)
+
+        if snares:
+            mp_ = os.path.join(tmp, "drums_snares.mid")
+            write_drum_midi(mp_, snares, bpm, plan["preset"])
+            own = fluid_render(os.path.join(SF2_DIR, FAMILY_SF2[src]), mp_, os.path.join(tmp, "drums_snares.wav"), False)
+            recol = {}
+
+            def snare_of(n, v):
+                key = (n, v >= 70)
+                if key not in recol:
+                    recol[key] = recoloured(raw(n, v), plan["snare_semitones"], plan["snare_tilt_db_oct"])
+                return recol[key], -0.1
+
+            sn_part, ex_sn = _mix_hits(snares, {37: 0.6, 38: 1.0, 40: 1.0}, n_samples, snare_of)
+            sn_part *= float(np.max(np.abs(own))) / max(1e-9, float(np.max(np.abs(sn_part))))
+            if reverb:
+                sn_part = simple_reverb(rng, sn_part)
+            body = body + sn_part
 
         open_hat = lambda v: raw(46, v)  # noqa: E731
     cut = {}
@@ -1162,7 +1212,7 @@ def choke_render(rng, hits_s, plan, n_samples, bpm, reverb, tmp):
         part = simple_reverb(rng, part)
     pk = max(1e-9, float(np.max(np.abs(body))))
     part = part / max(1e-9, float(np.max(np.abs(part)))) * pk * 10 ** (plan["hat_db"] / 20)
-    return body + part, sorted(ex_rest + ex_hats)
+    return body + part, sorted(ex_rest + ex_sn + ex_hats)
 
 
 def simple_reverb(rng, y):
@@ -1192,7 +1242,7 @@ def rms(x):
 def song_plan(family, index):
     """Kit, style, seed for song `index` of `family` (deterministic)."""
     seed = seed_of("tactus-drums-v1", family, index)
-    if family in ("sonicpi", "synth", "synth2", "remix", "choke"):
+    if family in ("sonicpi", "synth", "synth2", "remix", *CHOKE_FAMILIES):
         kit = None
     else:
         kit = KIT_ORDER[index] if index < len(KIT_ORDER) else ACOUSTIC_KITS[index % len(ACOUSTIC_KITS)]
@@ -1242,8 +1292,8 @@ def build_song(args):
         remix_db = {c: float(rng.uniform(-4, 4)) for c in CLASSES}
         kit_name = "-".join(s[0][:2] + ("" if s[0] == "synth2" else str(s[1])) for s in remix.values())
         song = f"{kit_name}_s{index:02d}"
-    elif family == "choke":
-        ch = choke_plan(rng, index)
+    elif family in CHOKE_FAMILIES:
+        ch = choke_plan(rng, index, snares=family == "choke2")
         song = f"{ch['name']}_s{index:02d}"
     else:
         kit_name = f"{KIT_ABBR[kit]}{kit:02d}"
@@ -1288,7 +1338,7 @@ def build_song(args):
                 y = simple_reverb(rng, y)
             audio["drums"] = y
             kit_desc = {"synthesised2": kit_name, "seed": seed}
-        elif family == "choke":
+        elif family in CHOKE_FAMILIES:
             y, exact = choke_render(rng, hits_s, ch, n_samples, bpm, reverb, tmp)
             audio["drums"] = y
             kit_desc = {"choke": {k: v for k, v in ch.items() if k != "name"}, "seed": seed}

@@ -224,7 +224,7 @@ def split(items):
         if fam in HELD_OUT:
             ho.append((fam, s, sd))
             continue
-        if fam == "choke" and s.split("-", 1)[0] in HELD_OUT:
+        if fam in ("choke", "choke2") and s.split("-", 1)[0] in HELD_OUT:
             continue  # a `choke` song is made of its source family's sounds (corpus/drums.py)
         k = per_fam.get(fam, 0)
         per_fam[fam] = k + 1
