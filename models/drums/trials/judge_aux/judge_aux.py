@@ -1,0 +1,106 @@
+"""Issue 10 trial (rule trials/RULE_judge_aux.md): the snare's judge learnt with the trial
+corpus families' songs (`choke`, `choke2`) beside the training families', the network as it is.
+
+Each trial song is made of one training source's sounds (its name starts with the source), so
+it is scored by the fold model that never heard that source (lofo.sh fold), and in the
+leave-one-family-out screen it is left out with its source and never scored itself.
+
+  judge_aux.py oof FAMILY...                          -> $LOFO_DIR/oof_aux_<FAMILY_...>.pkl
+  judge_aux.py lofo K LOW BASE.pkl [AUX.pkl...]       snare F through the judge, out of family
+  judge_aux.py save K LOW OUT.json BASE.pkl [AUX.pkl...]   the judge learnt on everything
+"""
+import json
+import os
+import pickle
+import sys
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+LOFO = os.path.join(HERE, '..', 'lofo')
+sys.path[:0] = [os.path.join(HERE, '..', '..'), LOFO]
+import fastpick as fast  # noqa: E402
+import stage2 as S  # noqa: E402
+import train as T  # noqa: E402
+
+DIR = os.environ.get('LOFO_DIR', '/tmp/lofo')
+DATA = os.environ.get('LOFO_DATA', '/work/data/drums')
+R = [1.0, 1 / 1.3, 1.3]
+SNARE = T.CLASSES.index('snare')
+
+
+def source(song):
+    return song.split('-', 1)[0]
+
+
+def oof(fams):
+    out = {}
+    for F in ('sonicpi', 'timgm', 'csound'):
+        items = [it for it in T.songs(DATA) if it[0] in fams and source(it[1]) == F]
+        if not items:
+            continue
+        ps, thr = T.read_model(f'{DIR}/fold_{F}.bin')
+        for (fam, s, c, m, t) in T.load(items, DATA, ['iso', 'sep']):
+            out[(fam, s, c)] = (T.activations(ps, m, R).astype(np.float32), t, thr)
+        print(F, len(items), 'songs', flush=True)
+    path = f'{DIR}/oof_aux_{"_".join(fams)}.pkl'
+    pickle.dump(out, open(path, 'wb'))
+    print('wrote', path)
+
+
+def rows_of(path, k, low, aux):
+    """stage2.py's snare rows; a trial song's family is its source, marked aux."""
+    rows = []
+    for (fam, s, cond), (acts, truth, thr) in sorted(pickle.load(open(path, 'rb')).items()):
+        ref = [h['time_s'] for h in truth['onsets'].get('snare', [])]
+        hops, X, y = S.cands(acts, SNARE, ref, k, low)
+        rows.append(dict(fam=source(s) if aux else fam, aux=aux, cond=cond, c=SNARE,
+                         a=acts[:, SNARE], ref=ref, g=thr[SNARE], hops=hops, X=X, y=y))
+    return rows
+
+
+def load(k, low, base, auxes):
+    rows = rows_of(base, k, low, False)
+    for p in auxes:
+        rows += rows_of(p, k, low, True)
+    return rows
+
+
+def lofo(k, low, base, auxes):
+    rows = load(k, low, base, auxes)
+    fams = sorted({r['fam'] for r in rows if not r['aux']})
+    G, A = {}, {}
+    for F in fams:
+        judge, cut = S.train_class([r for r in rows if r['fam'] != F])
+        for r in rows:
+            if r['fam'] == F and not r['aux']:
+                for key in (F, 'all', r['cond']):
+                    G[key] = G.get(key, 0) + fast.counts(r['a'], r['ref'], r['g'])
+                    A[key] = A.get(key, 0) + S.counts([r], judge, cut)
+    n_aux = sum(r['aux'] for r in rows) // 2
+    print('K %d LOW %g aux songs %d: snare %.3f->%.3f (iso %.3f->%.3f, sep %.3f->%.3f) [%s]' % (
+        k, low, n_aux, T.prf(*G['all'])[2], T.prf(*A['all'])[2], T.prf(*G['iso'])[2],
+        T.prf(*A['iso'])[2], T.prf(*G['sep'])[2], T.prf(*A['sep'])[2],
+        ' '.join('%s %+.3f' % (F[:5], T.prf(*A[F])[2] - T.prf(*G[F])[2]) for F in fams)), flush=True)
+
+
+def save(k, low, path, base, auxes):
+    rows = load(k, low, base, auxes)
+    judge, cut = S.train_class(rows)
+    res = {'k': k, 'low': low, 'shrink': S.SHRINK,
+           'classes': {'snare': {**{key: np.asarray(v).tolist() for key, v in judge.items()}, 'cut': cut}}}
+    with open(path, 'w') as f:
+        json.dump(res, f, indent=1)
+    print('wrote', path)
+
+
+if __name__ == '__main__':
+    cmd, args = sys.argv[1], sys.argv[2:]
+    if cmd == 'oof':
+        oof(args)
+    elif cmd == 'lofo':
+        lofo(int(args[0]), float(args[1]), args[2], args[3:])
+    elif cmd == 'save':
+        save(int(args[0]), float(args[1]), args[2], args[3], args[4:])
+    else:
+        sys.exit(__doc__)
