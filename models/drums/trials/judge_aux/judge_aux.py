@@ -8,6 +8,10 @@ leave-one-family-out screen it is left out with its source and never scored itse
   judge_aux.py oof FAMILY...                          -> $LOFO_DIR/oof_aux_<FAMILY_...>.pkl
   judge_aux.py lofo K LOW BASE.pkl [AUX.pkl...]       snare F through the judge, out of family
   judge_aux.py save K LOW OUT.json BASE.pkl [AUX.pkl...]   the judge learnt on everything
+
+JUDGE_SPEC=1 (rule trials/RULE_judge_spec.md): three more features per candidate, the rise of
+its log-mel spectrum (max of hops i..i+2 less the mean of hops i-3..i-1, clipped at 0) averaged
+over the bands centred in 100-300 Hz, 300-2000 Hz and 5-16 kHz, over 10.
 """
 import json
 import os
@@ -27,6 +31,29 @@ DIR = os.environ.get('LOFO_DIR', '/tmp/lofo')
 DATA = os.environ.get('LOFO_DATA', '/work/data/drums')
 R = [1.0, 1 / 1.3, 1.3]
 SNARE = T.CLASSES.index('snare')
+SPEC = os.environ.get('JUDGE_SPEC', '') == '1'
+
+
+def centres():
+    """The drum front end's 48 band centres in Hz (HTK mel, 20 Hz to 16 kHz)."""
+    mel = lambda f: 2595.0 * np.log10(1 + f / 700.0)  # noqa: E731
+    m = np.linspace(mel(20.0), mel(16000.0), T.BANDS + 2)[1:-1]
+    return 700.0 * (10 ** (m / 2595.0) - 1)
+
+
+GROUPS = [(c >= lo) & (c < hi) for c in [centres()] for lo, hi in ((100, 300), (300, 2000), (5000, 16001))]
+
+
+def spectral(mel, hops):
+    """(n, 3): the candidates' rise per band group, over 10."""
+    n = len(mel)
+    out = np.zeros((len(hops), 3))
+    for j, i in enumerate(hops):
+        now = mel[i:min(i + 3, n), :T.BANDS].max(0)
+        before = mel[max(i - 3, 0):i, :T.BANDS].mean(0) if i > 0 else np.full(T.BANDS, T.LOG_FLOOR)
+        r = np.maximum(now - before, 0.0)
+        out[j] = [r[g].mean() / 10.0 for g in GROUPS]
+    return out
 
 
 def source(song):
@@ -54,6 +81,9 @@ def rows_of(path, k, low, aux):
     for (fam, s, cond), (acts, truth, thr) in sorted(pickle.load(open(path, 'rb')).items()):
         ref = [h['time_s'] for h in truth['onsets'].get('snare', [])]
         hops, X, y = S.cands(acts, SNARE, ref, k, low)
+        if SPEC:
+            mel = T.features(os.path.join(DATA, fam, s), cond, os.path.join(DATA, ".features", fam, f"{s}.{cond}.f32"))
+            X = np.concatenate([X, spectral(mel, hops)], axis=1)
         rows.append(dict(fam=source(s) if aux else fam, aux=aux, cond=cond, c=SNARE,
                          a=acts[:, SNARE], ref=ref, g=thr[SNARE], hops=hops, X=X, y=y))
     return rows
