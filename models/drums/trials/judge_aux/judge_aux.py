@@ -12,6 +12,9 @@ leave-one-family-out screen it is left out with its source and never scored itse
 JUDGE_SPEC=1 (rule trials/RULE_judge_spec.md): three more features per candidate, the rise of
 its log-mel spectrum (max of hops i..i+2 less the mean of hops i-3..i-1, clipped at 0) averaged
 over the bands centred in 100-300 Hz, 300-2000 Hz and 5-16 kHz, over 10.
+
+STAGE2_BAG=B (rule trials/RULE_judge_bag.md): B perceptrons (seeds 0..B-1) on the same rows,
+merged into one of B x STAGE2_HIDDEN units (output weights over B, output bias the mean).
 """
 import json
 import os
@@ -32,6 +35,28 @@ DATA = os.environ.get('LOFO_DATA', '/work/data/drums')
 R = [1.0, 1 / 1.3, 1.3]
 SNARE = T.CLASSES.index('snare')
 SPEC = os.environ.get('JUDGE_SPEC', '') == '1'
+
+
+BAG = int(os.environ.get('STAGE2_BAG', '0'))
+
+
+def train_judge(rows):
+    """stage2.py's judge and cut, or with BAG the merged bag and its cut."""
+    if not BAG:
+        return S.train_class(rows)
+    X = np.concatenate([r['X'] for r in rows])
+    y = np.concatenate([r['y'] for r in rows])
+    bag = []
+    for seed in range(BAG):
+        S.MLP_SEED = seed
+        bag.append(S.fit_mlp(X, y, S.HIDDEN))
+    S.MLP_SEED = 0
+    f32 = lambda a: np.asarray(a, np.float32).astype(np.float64)  # noqa: E731
+    judge = {'hidden': np.concatenate([j['hidden'] for j in bag]),
+             'out': f32(np.concatenate([j['out'] for j in bag]) / BAG),
+             'out_bias': float(f32(np.mean([j['out_bias'] for j in bag])))}
+    cut = max(S.CUTS, key=lambda t: T.prf(*S.counts(rows, judge, t))[2])
+    return judge, float(cut)
 
 
 def centres():
@@ -101,7 +126,7 @@ def lofo(k, low, base, auxes):
     fams = sorted({r['fam'] for r in rows if not r['aux']})
     G, A = {}, {}
     for F in fams:
-        judge, cut = S.train_class([r for r in rows if r['fam'] != F])
+        judge, cut = train_judge([r for r in rows if r['fam'] != F])
         for r in rows:
             if r['fam'] == F and not r['aux']:
                 for key in (F, 'all', r['cond']):
@@ -116,7 +141,7 @@ def lofo(k, low, base, auxes):
 
 def save(k, low, path, base, auxes):
     rows = load(k, low, base, auxes)
-    judge, cut = S.train_class(rows)
+    judge, cut = train_judge(rows)
     res = {'k': k, 'low': low, 'shrink': S.SHRINK,
            'classes': {'snare': {**{key: np.asarray(v).tolist() for key, v in judge.items()}, 'cut': cut}}}
     with open(path, 'w') as f:
