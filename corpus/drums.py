@@ -511,6 +511,14 @@ SP_RIMS = ["elec_wood", "elec_tick", "perc_snap"]
 _SAMPLE_CACHE = {}
 
 
+def _retuned(x, semitones):
+    """x resampled (linear) so that it sounds `semitones` higher; as it is for 0."""
+    if not semitones:
+        return x
+    r = 2.0 ** (semitones / 12.0)
+    return np.interp(np.arange(int(len(x) / r)) * r, np.arange(len(x)), x)
+
+
 def load_sample(name, semitones=0.0):
     key = (name, round(semitones, 3))
     if key in _SAMPLE_CACHE:
@@ -521,10 +529,7 @@ def load_sample(name, semitones=0.0):
     pk = np.max(np.abs(x))
     first = int(np.flatnonzero(np.abs(x) > 0.02 * pk)[0])
     x = x[max(0, first - int(0.001 * SR)):]  # the attack lands on the hit time
-    if semitones:
-        r = 2.0 ** (semitones / 12.0)
-        n = int(len(x) / r)
-        x = np.interp(np.arange(n) * r, np.arange(len(x)), x)
+    x = _retuned(x, semitones)
     x = x / max(1e-9, np.max(np.abs(x)))
     _SAMPLE_CACHE[key] = x
     return x
@@ -1119,17 +1124,13 @@ def sf2_hit(src, preset, note, velocity, tmp):
 
 def recoloured(x, semitones, tilt):
     """A hit retuned by `semitones` (resampled) and tilted by `tilt` dB/octave, unit peak."""
-    if semitones:
-        r = 2.0 ** (semitones / 12.0)
-        x = np.interp(np.arange(int(len(x) / r)) * r, np.arange(len(x)), x)
-    return _finish(_tilt(x, tilt) if tilt else x / max(1e-9, float(np.max(np.abs(x)))), 0.003)
+    x = _retuned(x, semitones)
+    return _finish(_tilt(x, tilt) if tilt else x, 0.003)
 
 
 def choked(x, tau, semitones, tilt):
     """A cymbal cut short: retuned, an exponential decay of time constant tau, tilted."""
-    if semitones:
-        r = 2.0 ** (semitones / 12.0)
-        x = np.interp(np.arange(int(len(x) / r)) * r, np.arange(len(x)), x)
+    x = _retuned(x, semitones)
     n = min(len(x), int((6 * tau + 0.005) * SR))
     y = x[:n] * np.exp(-np.arange(n) / SR / tau)
     return _finish(_tilt(y, tilt) if tilt else y, 0.003)
