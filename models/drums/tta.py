@@ -35,9 +35,10 @@ def ratios_for(spread):
     return [float(np.float32(r)) for r in (1.0, 1.0 / spread, spread)]
 
 
-def validation(data):
-    T.HELD_OUT[:] = ["fluid", "musescore"]
-    items = [it for it in T.songs(data) if it[0] in TRAIN_FAMILIES]
+def validation(data, families=TRAIN_FAMILIES, held_out=("fluid", "musescore")):
+    """The validation songs of the network's training families (train.py's split)."""
+    T.HELD_OUT[:] = list(held_out)
+    items = [it for it in T.songs(data) if it[0] in families and it[0] not in held_out]
     _, va, _ = T.split(items)
     return T.load(va, data, list(T.CONDS))
 
@@ -75,11 +76,14 @@ def main():
     ap.add_argument("--screen", help="comma-separated spreads R to compare (ratios 1, 1/R, R)")
     ap.add_argument("--spread", type=float, help="write a retuned file with ratios 1, 1/R, R")
     ap.add_argument("--out", help="the retuned file to write")
+    ap.add_argument("--families", default=",".join(TRAIN_FAMILIES),
+                    help="the network's training families, whose validation songs tune the thresholds")
+    ap.add_argument("--held-out", default="fluid,musescore", help="families never used (train.py --held-out)")
     a = ap.parse_args()
     ps, _ = T.read_model(a.model)
     assert T.RATIOS == [1.0], "already a retuned file"
     assert not (T.FLUX or T.BACK or T.WHITEN), "only a perceptron on mel frames (and its short view)"
-    D = validation(a.data)
+    D = validation(a.data, a.families.split(","), a.held_out.split(","))
     print(f"validation: {len(D)} song conditions", flush=True)
     if a.screen:
         for spread in [None] + [float(s) for s in a.screen.split(",")]:
