@@ -35,10 +35,11 @@ def ratios_for(spread):
     return [float(np.float32(r)) for r in (1.0, 1.0 / spread, spread)]
 
 
-def validation(data, families=TRAIN_FAMILIES, held_out=("fluid", "musescore")):
-    """The validation songs of the network's training families (train.py's split)."""
+def validation(data, families=TRAIN_FAMILIES, held_out=tuple(T.HELD_OUT)):
+    """The validation songs of the network's training families (train.py's split, which
+    leaves the held-out families out)."""
     T.HELD_OUT[:] = list(held_out)
-    items = [it for it in T.songs(data) if it[0] in families and it[0] not in held_out]
+    items = [it for it in T.songs(data) if it[0] in families]
     _, va, _ = T.split(items)
     return T.load(va, data, list(T.CONDS))
 
@@ -78,7 +79,7 @@ def main():
     ap.add_argument("--out", help="the retuned file to write")
     ap.add_argument("--families", default=",".join(TRAIN_FAMILIES),
                     help="the network's training families, whose validation songs tune the thresholds")
-    ap.add_argument("--held-out", default="fluid,musescore", help="families never used (train.py --held-out)")
+    ap.add_argument("--held-out", default=",".join(T.HELD_OUT), help="families never used (train.py --held-out)")
     a = ap.parse_args()
     ps, _ = T.read_model(a.model)
     assert T.RATIOS == [1.0], "already a retuned file"
