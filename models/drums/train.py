@@ -667,7 +667,7 @@ def read_model(path):
     with open(path, "rb") as f:
         buf = f.read()
     RATIOS = [1.0]
-    if buf[:8] == b"TACTUSD2":  # a second stage around a model file (trials/lofo/stage2.py)
+    if buf[:8] == b"TACTUSD2":  # a second stage around a model file (stage2/stage2.py)
         ver, _, _, _, mask = struct.unpack_from("<2I2fI", buf, 8)
         off = 28
         for _ in range(bin(mask).count("1")):  # skip the judges

@@ -1,6 +1,5 @@
 #!/usr/bin/env python3
-"""Test-time retuning of a drum perceptron (issue 10; rule and numbers in
-`trials/RULE_tta.md`).
+"""Test-time retuning of a drum perceptron (what it gains: models/drums/README.md).
 
 The network runs on its normalised context window as it is and with the mel axis retuned by
 each ratio (band b takes the value at frequency centre_b / ratio, linear between bands, then
