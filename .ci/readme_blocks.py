@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Runs README.md's setup blocks exactly as a new user would type them (issue 11).
+"""Runs README.md's setup blocks exactly as a new user would type them.
 
 A shell block is run when the line before its opening fence is
 `<!-- ci: NAME [expect=PATH,...] -->`. Each block runs from the repository root in its own
