@@ -57,11 +57,11 @@
 //! voiced hops (chorales / instrumental leads over an unseen kit / sung) against 0.837 /
 //! 0.676 / 0.683 for the lead-band ensemble (`models/bassnet/README.md`).
 
-use crate::drums::Layer;
-use crate::mlp::{read_f32s, read_u32, take};
 use std::sync::OnceLock;
 
-use crate::shs::FrameFft;
+use crate::nn::format::{read_f32s, read_u32, take};
+use crate::nn::Layer;
+use crate::spectrum::FrameFft;
 use crate::ConfigError;
 
 /// Log-frequency bands of the bass model's front end.
@@ -253,7 +253,7 @@ impl BassNet {
         {
             return Err(ConfigError::invalid("bass model", "implausible shape"));
         }
-        let layers = crate::mlp::read_layers(b, n_layers, n_off * bands, WHAT)?;
+        let layers = crate::nn::format::read_layers(b, n_layers, n_off * bands, WHAT)?;
         let expect = layers.last().map_or(0, |l| l.n_out);
         if expect != candidates + 1 {
             return Err(ConfigError::invalid(
@@ -342,7 +342,7 @@ impl BassNet {
         b: &mut [f32],
         out: &mut [f32],
     ) {
-        let z = crate::mlp::run_layers_batch(&self.layers, inputs, count, a, b);
+        let z = crate::nn::mlp::run_layers_batch(&self.layers, inputs, count, a, b);
         let k = self.candidates + 1;
         for (zr, or) in z.chunks_exact(k).zip(out.chunks_exact_mut(k)).take(count) {
             let mx = zr.iter().copied().fold(f32::NEG_INFINITY, f32::max);
@@ -512,7 +512,7 @@ impl BassFront {
 #[cfg(test)]
 mod tests {
     use super::{BassFront, BANDS, LOW_HZ};
-    use crate::shs::FrameFft;
+    use crate::spectrum::FrameFft;
 
     #[test]
     fn features_from_a_shared_spectrum_are_the_features_bit_for_bit() {

@@ -64,7 +64,9 @@
 //! | [`shs`] | harmonic-sum (subharmonic summation) salience with fixed-lag Viterbi, for a bass line or a lead in a mixture | Hermes 1988; Klapuri 2006; Goto 2004 |
 //! | [`bassnet`] | a learned bass salience over a log-frequency spectrum (small MLP), decoded by [`shs`] times the harmonic sum | deep salience (Bittner et al. 2017), product of experts |
 //! | [`pair`] | two pitch trackers over one stream: one decides whether, the other which pitch | ours |
-// `unsafe` lives in one module, `simd` (the AVX2 dense layer), which allows it and says why.
+//! | [`nn`] | the embedded networks' pieces: dense and convolutional layers, their weight files, the forward pass (AVX2 where the CPU has it) | — |
+// `unsafe` lives in two modules, `simd` (the run-time AVX2 check and the Viterbi steps
+// compiled for AVX2) and `nn::simd` (the AVX2 dense layer), which allow it and say why.
 #![deny(unsafe_code)]
 
 pub mod bassnet;
@@ -75,7 +77,7 @@ pub mod flux;
 pub mod framer;
 pub mod median;
 pub mod melbank;
-mod mlp;
+pub mod nn;
 pub mod notes;
 pub mod pair;
 pub mod pyin;
@@ -85,6 +87,7 @@ pub mod sdr;
 pub mod shs;
 mod simd;
 pub mod sos;
+mod spectrum;
 pub mod stage;
 pub mod tukey;
 pub mod twoframe;

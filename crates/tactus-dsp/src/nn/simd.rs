@@ -1,0 +1,173 @@
+//! The embedded networks' dense layer compiled for AVX2, chosen at run time when the CPU has
+//! it ([`crate::simd::avx2`]); with [`crate::simd`], the crate's only `unsafe` code.
+//!
+//! # Why
+//! A dense layer is a dot product per weight row ([`super::mlp::dot8`]): eight lanes, each
+//! one dependent chain of adds, so a row at a time is bound by the adder's latency, not its
+//! throughput, and the portable build (x86-64's SSE2 baseline) holds the eight lanes in two
+//! registers. Here one row meets four inputs at once ([`super::mlp::run_layers_batch`]'s
+//! hops): four independent chains, one 256-bit register each, and one load of the weights
+//! serves all four.
+//!
+//! # Exactness
+//! Lane `k` of an accumulator is `Σ_c w[8c + k] · x[8c + k]` in ascending `c`, each product
+//! rounded and then added (`vmulps`, then `vaddps`: no fused multiply-add, which would round
+//! once and change the bits). The lanes, the bias and the tail are then summed by the very
+//! code of [`super::mlp::dot8`]. So every output equals the portable path's bit for bit,
+//! which `tests::avx2_dense_equals_dot8_bit_for_bit` checks on awkward shapes, and the
+//! pinned render outputs check end to end.
+//!
+//! # Safety
+//! The `unsafe` is (1) calling a `#[target_feature(enable = "avx2")]` function, done only
+//! after `is_x86_feature_detected!("avx2")` said yes (which also checks that the OS saves the
+//! 256-bit registers), and (2) unaligned loads and stores through pointers derived from
+//! slices whose lengths are checked by `assert!`s at the top of the kernel.
+
+#![allow(unsafe_code)]
+
+use super::layer::Layer;
+
+/// Layer `l` over `count` inputs: `dst[h·n_out + r] = dot8(w[r], src[h], b[r])`, then
+/// `max(0)` when `relu`, for `h < count`, `r < n_out`. Returns false (and does nothing)
+/// when the CPU lacks AVX2; the caller then runs the portable loop.
+pub(crate) fn dense(l: &Layer, src: &[f32], count: usize, dst: &mut [f32], relu: bool) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::simd::avx2() {
+            // SAFETY: the CPU has AVX2 (checked on the line above).
+            unsafe { x86::dense_avx2(l, src, count, dst, relu) };
+            return true;
+        }
+    }
+    let _ = (l, src, count, dst, relu);
+    false
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use std::arch::x86_64::{
+        __m256, _mm256_add_ps, _mm256_loadu_ps, _mm256_mul_ps, _mm256_setzero_ps, _mm256_storeu_ps,
+    };
+
+    /// Inputs met by one weight row at a time.
+    const HOPS: usize = 4;
+
+    /// See [`super::dense`].
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn dense_avx2(
+        l: &super::Layer,
+        src: &[f32],
+        count: usize,
+        dst: &mut [f32],
+        relu: bool,
+    ) {
+        let (w, b, n_in, n_out) = (&l.w[..], &l.b[..], l.n_in, l.n_out);
+        // Every pointer below stays inside these lengths.
+        assert!(w.len() >= n_out * n_in && b.len() >= n_out);
+        assert!(src.len() >= count * n_in && dst.len() >= count * n_out);
+        let chunks = n_in / 8;
+        let split = chunks * 8;
+        for r in 0..n_out {
+            let row = &w[r * n_in..(r + 1) * n_in];
+            let bias = b[r];
+            let mut h = 0;
+            while h < count {
+                let k = (count - h).min(HOPS);
+                let mut acc: [__m256; HOPS] = [_mm256_setzero_ps(); HOPS];
+                for c in 0..chunks {
+                    // SAFETY: `8c + 8 ≤ split ≤ n_in = row.len()`.
+                    let wv = unsafe { _mm256_loadu_ps(row.as_ptr().add(8 * c)) };
+                    for (j, a) in acc.iter_mut().enumerate().take(k) {
+                        // SAFETY: `(h + j)·n_in + 8c + 8 ≤ count·n_in ≤ src.len()`.
+                        let xv =
+                            unsafe { _mm256_loadu_ps(src.as_ptr().add((h + j) * n_in + 8 * c)) };
+                        *a = _mm256_add_ps(*a, _mm256_mul_ps(wv, xv));
+                    }
+                }
+                for (j, a) in acc.iter().enumerate().take(k) {
+                    let mut lanes = [0f32; 8];
+                    // SAFETY: `lanes` holds eight values.
+                    unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), *a) };
+                    let x = &src[(h + j) * n_in..(h + j + 1) * n_in];
+                    // The same expression as `dot8`'s, so the same bits.
+                    let mut s: f32 = lanes.iter().sum::<f32>() + bias;
+                    for (wt, v) in row[split..].iter().zip(&x[split..]) {
+                        s += wt * v;
+                    }
+                    dst[(h + j) * n_out + r] = if relu { s.max(0.0) } else { s };
+                }
+                h += k;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::nn::layer::Layer;
+    use crate::nn::mlp::dot8;
+
+    #[test]
+    fn avx2_dense_equals_dot8_bit_for_bit() {
+        if !crate::simd::avx2() {
+            // Without AVX2 the kernel must decline, so that the portable loop runs.
+            let l = Layer {
+                n_in: 1,
+                n_out: 1,
+                w: vec![1.0],
+                b: vec![0.0],
+            };
+            assert!(!super::dense(&l, &[1.0], 1, &mut [0.0], false));
+            return;
+        }
+        let mut seed = 0x9e37_79b9u32;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            (seed as f32 / u32::MAX as f32) * 2.0 - 1.0
+        };
+        // Inputs a multiple of eight and not, one to seventeen hops (batches of four and their
+        // remainders), values of mixed sign and scale so that the order of the adds shows.
+        for (n_in, n_out) in [(864usize, 7usize), (13, 5), (8, 3), (5, 2), (129, 9)] {
+            for count in 1..=17 {
+                let l = Layer {
+                    n_in,
+                    n_out,
+                    w: (0..n_in * n_out)
+                        .map(|i| rnd() * (1 + i % 7) as f32)
+                        .collect(),
+                    b: (0..n_out).map(|_| rnd()).collect(),
+                };
+                let x: Vec<f32> = (0..count * n_in)
+                    .map(|i| rnd() * 1e3f32.powi((i % 3) as i32 - 1))
+                    .collect();
+                for relu in [false, true] {
+                    let mut got = vec![f32::NAN; count * n_out];
+                    assert!(super::dense(&l, &x, count, &mut got, relu));
+                    // The portable layer, which a CPU without AVX2 runs: the same bits.
+                    let mut portable = vec![f32::NAN; count * n_out];
+                    crate::nn::mlp::dense_portable(&l, &x, count, &mut portable, relu);
+                    for (i, (g, p)) in got.iter().zip(&portable).enumerate() {
+                        assert_eq!(g.to_bits(), p.to_bits(), "portable, output {i}");
+                    }
+                    for h in 0..count {
+                        for r in 0..n_out {
+                            let row = &l.w[r * n_in..(r + 1) * n_in];
+                            let s = dot8(row, &x[h * n_in..(h + 1) * n_in], l.b[r]);
+                            let want = if relu { s.max(0.0) } else { s };
+                            assert_eq!(
+                                got[h * n_out + r].to_bits(),
+                                want.to_bits(),
+                                "n_in {n_in} n_out {n_out} count {count} hop {h} row {r}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
