@@ -13,6 +13,7 @@ use tactus_dsp::drums::{
 };
 use tactus_dsp::melbank::{filters, MelBank, MelConfig, LOG_FLOOR};
 use tactus_dsp::HopStage;
+use tactus_testkit::Rng;
 
 #[global_allocator]
 static GLOBAL: tactus_testkit::Counting = tactus_testkit::Counting;
@@ -22,20 +23,6 @@ fn allocs() -> usize {
 }
 
 const SR: u32 = 44_100;
-
-/// SplitMix64.
-struct Rng(u64);
-
-impl Rng {
-    fn next_f32(&mut self) -> f32 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-    }
-}
 
 /// A synthetic kick: a 150 → 50 Hz sweep with a fast decay, plus a click; the last 10 ms
 /// fade out (a cut tail would be a click of its own).
@@ -192,7 +179,7 @@ fn mel_matches_direct_dft_oracle() {
             bands: 20,
             ..MelConfig::drums(SR)
         };
-        let mut rng = Rng(3);
+        let mut rng = Rng::new(3);
         let mut x: Vec<f32> = (0..3000).map(|_| 0.3 * rng.next_f32()).collect();
         add_at(&mut x, &kick(800), 1200);
         let want = mel_oracle(&x, &cfg);
@@ -217,7 +204,7 @@ fn mel_matches_direct_dft_oracle() {
 #[test]
 fn mel_is_chunk_invariant_and_reset_reproduces() {
     let cfg = MelConfig::drums(SR);
-    let mut rng = Rng(9);
+    let mut rng = Rng::new(9);
     let x: Vec<f32> = (0..30_000).map(|_| rng.next_f32()).collect();
     let whole = mel_fast(&x, &cfg, x.len());
     for chunk in [1usize, 7, 441, 1000, 4096] {
@@ -429,7 +416,7 @@ fn naive_assemble(m: &DrumModel, window: &[f32]) -> Vec<f64> {
 /// A random model with the flux input, whatever the embedded files use, so the flux path
 /// is always checked against the oracle.
 fn random_flux_model() -> DrumModel {
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     let (bands, past, future) = (48, 7, 4);
     let n_in = bands * (past + 1 + future) + bands * (past + future);
     let mut layers = Vec::new();
@@ -461,7 +448,7 @@ fn random_flux_model() -> DrumModel {
 /// A random model with the backing view (feature set 2), with random thresholds low enough
 /// that it fires, whatever the embedded files use.
 fn random_backing_model() -> DrumModel {
-    let mut rng = Rng(17);
+    let mut rng = Rng::new(17);
     let (bands, past, future) = (48, 7, 4);
     let n_in = 2 * bands * (past + 1 + future);
     let mut layers = Vec::new();
@@ -500,7 +487,7 @@ fn random_backing_model() -> DrumModel {
 /// A random convolutional model (file version 4) of the trial's shape, with an odd pool
 /// and a kernel wider than the band pool, so every edge case of the fast path is met.
 fn random_conv_model(kb2: usize, pool: (usize, usize)) -> DrumModel {
-    let mut rng = Rng(13);
+    let mut rng = Rng::new(13);
     let (bands, past, future) = (48, 7, 4);
     let frames = past + 1 + future;
     let mut r =
@@ -613,7 +600,7 @@ fn naive_retune(window: &[f32], bands: usize, ratio: f64, floor: f64) -> Vec<f64
 
 #[test]
 fn retuning_matches_a_slow_oracle() {
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     // A normalised window, as the model assembles it: maximum 0, nothing under the floor.
     let raw: Vec<f32> = (0..12 * 48).map(|_| 20.0 * rng.next_f32()).collect();
     let top = raw.iter().copied().fold(f32::NEG_INFINITY, f32::max);
@@ -675,7 +662,7 @@ fn the_default_models_retunings_change_its_answer() {
     plain.retunings.clear();
     let w = m.scratch_len();
     let (mut a, mut b, mut c) = (vec![0f32; w], vec![0f32; w], vec![0f32; w]);
-    let mut rng = Rng(3);
+    let mut rng = Rng::new(3);
     let mut most = 0f32;
     for _ in 0..20 {
         let window: Vec<f32> = (0..m.window_len())
@@ -693,7 +680,7 @@ fn the_default_models_retunings_change_its_answer() {
 }
 
 fn forward_matches_naive(m: DrumModel) {
-    let mut rng = Rng(5);
+    let mut rng = Rng::new(5);
     let widest = m.scratch_len();
     let (mut a, mut b, mut c) = (vec![0f32; widest], vec![0f32; widest], vec![0f32; widest]);
     // Dirty scratch first: the result must not depend on it.
@@ -770,7 +757,7 @@ fn groove(rng: &mut Rng) -> Vec<f32> {
 
 #[test]
 fn transcriber_is_chunk_invariant_and_counts_hops() {
-    let mut rng = Rng(11);
+    let mut rng = Rng::new(11);
     let x = groove(&mut rng);
     let whole = transcribe(&x, x.len());
     assert_eq!(whole.len(), x.len().div_ceil(441));
@@ -788,7 +775,7 @@ fn transcriber_is_chunk_invariant_and_counts_hops() {
 
 #[test]
 fn gain_does_not_change_the_activations_much() {
-    let mut rng = Rng(12);
+    let mut rng = Rng::new(12);
     let x = groove(&mut rng);
     let a = transcribe(&x, 4096);
     let quiet: Vec<f32> = x.iter().map(|v| v * 0.05).collect(); // -26 dB
@@ -940,7 +927,7 @@ fn check_stage_against_oracle(staged: &DrumModel, x: &[f32]) -> (usize, usize) {
 
 #[test]
 fn second_stage_matches_an_offline_oracle_for_any_chunking() {
-    let mut rng = Rng(21);
+    let mut rng = Rng::new(21);
     let x = busy_groove(&mut rng);
     // The embedded default: a judge for the snare alone, one hop of wait.
     let m = DrumModel::embedded();
@@ -1110,7 +1097,7 @@ fn silence_and_hard_inputs() {
 
 #[test]
 fn no_allocation_while_processing() {
-    let mut rng = Rng(13);
+    let mut rng = Rng::new(13);
     let x = groove(&mut rng);
     for model in [
         DrumModel::embedded(),
@@ -1240,7 +1227,7 @@ fn backing_view_matches_an_offline_oracle_for_any_chunking() {
     // last frame held after the end), the input assembled by the f64 oracle and run
     // through the f64 network.
     let m = random_backing_model();
-    let mut rng = Rng(19);
+    let mut rng = Rng::new(19);
     let x = groove(&mut rng);
     let back = chord_backing(x.len());
     let cfg = MelConfig::drums(SR);
@@ -1306,7 +1293,7 @@ fn short_view_matches_an_offline_oracle_for_any_chunking() {
     // end), the input assembled and the network run in f64.
     let m = DrumModel::embedded_live();
     assert!(m.short && m.backing.is_none());
-    let mut rng = Rng(29);
+    let mut rng = Rng::new(29);
     let x = groove(&mut rng);
     let (dm, sm) = (
         mel_fast(&x, &MelConfig::drums(SR), x.len()),

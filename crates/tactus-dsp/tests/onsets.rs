@@ -9,6 +9,7 @@
 use proptest::prelude::*;
 use tactus_dsp::flux::{detect_onsets, ln_1p_fast, OnsetConfig, OnsetDetector, OnsetFrame};
 use tactus_dsp::HopStage;
+use tactus_testkit::Rng;
 
 // ---------------------------------------------------------------------------------------
 #[global_allocator]
@@ -22,29 +23,6 @@ fn allocs() -> usize {
 // Signals.
 
 const SR: u32 = 44_100;
-
-/// SplitMix64: small, seeded, good enough for test noise.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Standard normal (Box–Muller).
-    fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    }
-}
 
 /// Single-sample clicks of amplitude `amp` at the given times.
 fn click_train(times: &[f64], amp: f32, len: usize) -> Vec<f32> {
@@ -104,7 +82,7 @@ fn harmonic(f0: f64, amp: f64, len: usize) -> Vec<f32> {
 }
 
 fn noise(amp: f64, len: usize, seed: u64) -> Vec<f32> {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     (0..len).map(|_| (amp * rng.normal()) as f32).collect()
 }
 
@@ -254,7 +232,7 @@ fn oracle_flux(x: &[f32], frame: usize, hop: usize, gamma: Option<f64>) -> Vec<f
 
 /// Seeded random noise, a harmonic tone with a drum hit, and clicks.
 fn oracle_signals(len: usize) -> Vec<(&'static str, Vec<f32>)> {
-    let mut rng = Rng(7);
+    let mut rng = Rng::new(7);
     let mut drums = harmonic(220.0, 0.3, len);
     add_drum(&mut drums, 0.02, 0.5, &mut rng);
     vec![
@@ -389,7 +367,7 @@ fn drum_hits_loud_and_soft_in_one_track() {
 
 /// Drum track at `rate`, scored with that rate's default configurations.
 fn drum_track_at_rate(rate: u32) {
-    let mut rng = Rng(42);
+    let mut rng = Rng::new(42);
     let len = 8 * rate as usize;
     let mut x = vec![0.0f32; len];
     let mut times = Vec::new();
@@ -683,7 +661,7 @@ fn latency_is_exact() {
 
 #[test]
 fn detect_onsets_matches_streaming() {
-    let mut rng = Rng(3);
+    let mut rng = Rng::new(3);
     let mut x = vec![0.0f32; 3 * SR as usize];
     for k in 0..8 {
         add_drum(&mut x, 0.1 + 0.33 * k as f64, 0.5, &mut rng);
@@ -697,7 +675,7 @@ fn detect_onsets_matches_streaming() {
 
 /// A signal with onsets, tones and silence, for the chunking properties.
 fn mixed_signal(seed: u64, len: usize) -> Vec<f32> {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut x = harmonic(110.0 + (seed % 200) as f64, 0.2, len);
     for v in x[len / 2..len * 3 / 4].iter_mut() {
         *v = 0.0;

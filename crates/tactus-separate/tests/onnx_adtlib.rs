@@ -23,10 +23,6 @@ use tactus_separate::onnx::{OnnxConfig, OnnxError};
 
 const SR: u32 = 44_100;
 
-fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true")
-}
-
 /// Runtime and model, or `None` with a printed reason (a panic under CI=true).
 fn onnx_or_skip(test: &str) -> Option<OnnxConfig> {
     let lib = support::runtime_or_skip(test);
@@ -38,13 +34,8 @@ fn onnx_or_skip(test: &str) -> Option<OnnxConfig> {
             // One intra-op thread: results must not depend on how ORT splits the work.
             threads: 1,
         }),
-        _ => {
-            assert!(
-                !in_ci(),
-                "CI=true: ONNX Runtime or models/adtlib.onnx missing (run models/setup_onnxruntime.sh and models/setup_adtlib.sh)"
-            );
-            None
-        }
+        // Each `*_or_skip` has skipped (or, under CI=true, failed) with its reason.
+        _ => None,
     }
 }
 
@@ -166,15 +157,10 @@ fn stream_with_one_window_equals_the_reference() {
 fn read_sample(name: &str) -> Option<Vec<f32>> {
     let path = Path::new("/usr/share/sonic-pi/samples").join(format!("{name}.flac"));
     if !path.is_file() {
-        assert!(
-            !in_ci(),
-            "CI=true: {} missing (apt install sonic-pi-samples)",
+        support::skip(&format!(
+            "{} missing (apt install sonic-pi-samples)",
             path.display()
-        );
-        eprintln!(
-            "SKIPPED: {} missing (apt install sonic-pi-samples)",
-            path.display()
-        );
+        ));
         return None;
     }
     let (planes, sr) = support::read_flac(&path);

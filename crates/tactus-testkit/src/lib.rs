@@ -7,6 +7,8 @@
 //!   `process`" test. The count is per thread, so the harness's other threads do not
 //!   interfere.
 //! * [`Rng`], SplitMix64: seeded, reproducible test signals.
+//! * [`skip`] and [`in_ci`]: a test whose stand-in (a tool, a runtime, a model) is missing
+//!   prints `SKIPPED` on a developer's machine and fails under `CI=true`.
 //!
 //! ```
 //! use tactus_testkit::{allocations, Rng};
@@ -92,6 +94,18 @@ impl Rng {
         z ^ (z >> 31)
     }
 
+    /// Uniform in `[0, 1)`, 53 bits.
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Standard normal (Box–Muller, one draw per two uniforms).
+    pub fn normal(&mut self) -> f64 {
+        let u1 = self.uniform().max(1e-300);
+        let u2 = self.uniform();
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    }
+
     /// Uniform in `[-1, 1)`.
     pub fn next_f32(&mut self) -> f32 {
         (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
@@ -100,5 +114,44 @@ impl Rng {
     /// `n` samples of white noise, uniform in `[-1, 1)`.
     pub fn noise(&mut self, n: usize) -> Vec<f32> {
         (0..n).map(|_| self.next_f32()).collect()
+    }
+}
+
+/// Whether this run is CI (`CI=true` or `CI=1`; `.ci/run` exports `CI=true`): then a missing
+/// stand-in is a failure, not a skip.
+pub fn in_ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
+}
+
+/// Skips the calling test (the caller returns) with a `SKIPPED` line on a developer's
+/// machine; panics under `CI=true`, so a broken install step cannot leave a real stand-in
+/// untested while CI is green. `what` says which test and what is missing (and how to get
+/// it).
+pub fn skip(what: &str) {
+    if in_ci() {
+        panic!("CI=true and a stand-in is missing, so this is a failure, not a skip: {what}");
+    }
+    eprintln!("SKIPPED {what}");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The reference SplitMix64 sequence for seed 0 (Vigna's `splitmix64.c`): the tests'
+    /// seeded signals depend on every bit of it.
+    #[test]
+    fn rng_is_splitmix64() {
+        let mut r = Rng::new(0);
+        assert_eq!(r.next_u64(), 0xE220_A839_7B1D_CDAF);
+        assert_eq!(r.next_u64(), 0x6E78_9E6A_A1B9_65F4);
+        assert_eq!(r.next_u64(), 0x06C4_5D18_8009_454F);
+    }
+
+    #[test]
+    fn skip_fails_only_in_ci() {
+        // Runs in both settings: the answer must follow the environment.
+        let outcome = std::panic::catch_unwind(|| skip("skip_fails_only_in_ci: a test of skip"));
+        assert_eq!(outcome.is_err(), in_ci());
     }
 }

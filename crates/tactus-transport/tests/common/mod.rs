@@ -15,19 +15,9 @@ pub fn which(tool: &str) -> Option<PathBuf> {
         .find(|p| p.is_file())
 }
 
-/// Whether this run is CI (`CI=true`, which `.ci/run` exports).
-pub fn in_ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
-}
-
-/// Skips the calling test with a `SKIPPED` line on a developer's machine; panics under
-/// `CI=true`, where a missing stand-in is a failure. The one skip helper of these tests.
-pub fn skip(what: &str) {
-    if in_ci() {
-        panic!("CI=true and a stand-in is missing, so this is a failure, not a skip: {what}");
-    }
-    eprintln!("SKIPPED {what}");
-}
+/// Skips the calling test on a developer's machine, fails it under `CI=true`, when a
+/// stand-in is missing.
+pub use tactus_testkit::skip;
 
 /// Skips (see [`skip`]) and returns true when `tool` is missing.
 pub fn skip_without(tool: &str, test: &str) -> bool {
