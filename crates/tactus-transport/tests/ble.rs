@@ -4,11 +4,33 @@
 //! order. Run with `cargo test -p tactus-transport --features ble --test ble`.
 //! Skips (with a printed reason) when dbus-daemon or python3-dbusmock is missing.
 
+/// A build without the feature (CI runs this file again with it) refuses every BLE sink and
+/// BLE scanning with the error that names the feature, and the message says how to rebuild.
 #[cfg(not(feature = "ble"))]
 #[test]
 fn ble_sink_needs_the_ble_feature() {
-    // Not a missing stand-in but a build without the feature (CI runs this file again
-    // with it), so no failure under CI=true.
+    use std::time::Duration;
+    use tactus_transport::{list_ble_devices, open_sink, SinkOptions, SinkSpec, TransportError};
+
+    let check = |what: &str, err: TransportError| {
+        assert!(
+            matches!(err, TransportError::NotBuilt { feature: "ble", .. }),
+            "{what}: {err:?}"
+        );
+        let msg = err.to_string();
+        assert!(msg.contains("--features ble"), "{what}: {msg}");
+    };
+    for spec in ["ble", "ble:HMP-Glove", "ble:AA:BB:CC:DD:EE:FF"] {
+        let spec: SinkSpec = spec.parse().unwrap();
+        match open_sink(&spec, &SinkOptions::default()) {
+            Ok(_) => panic!("{spec}: opened without the `ble` feature"),
+            Err(e) => check(&spec.to_string(), e),
+        }
+    }
+    check(
+        "scan",
+        list_ble_devices(Duration::from_millis(10)).unwrap_err(),
+    );
     eprintln!(
         "ble tests not built: run `cargo test -p tactus-transport --features ble` \
          (needs libdbus-1-dev, dbus, python3-dbusmock)"
