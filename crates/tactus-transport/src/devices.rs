@@ -4,37 +4,8 @@
 use std::fmt::Write as _;
 use std::time::Duration;
 
+pub use crate::ble::{list_ble_devices, BleDevice};
 use crate::serial::list_serial_ports;
-use crate::TransportError;
-
-/// A Bluetooth LE device seen in a scan.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct BleDevice {
-    /// Advertised name, if any.
-    pub name: Option<String>,
-    /// Address, `AA:BB:CC:DD:EE:FF`.
-    pub address: String,
-    /// Whether it advertises the glove's service 0xFFE0.
-    pub glove_service: bool,
-}
-
-/// Scans for Bluetooth LE devices for `timeout` (feature `ble`).
-///
-/// Errors: no BlueZ on the system D-Bus, no adapter, or built without the `ble` feature.
-pub fn list_ble_devices(timeout: Duration) -> Result<Vec<BleDevice>, TransportError> {
-    #[cfg(feature = "ble")]
-    {
-        crate::ble::scan(timeout)
-    }
-    #[cfg(not(feature = "ble"))]
-    {
-        let _ = timeout;
-        Err(TransportError::NotBuilt {
-            what: "BLE scanning",
-            feature: "ble",
-        })
-    }
-}
 
 /// The text `tactus devices` prints: serial ports, then BLE devices (scanning for
 /// `ble_timeout`), each with the `--glove` spec that selects it, or a note why none can be

@@ -13,7 +13,7 @@
 //! | [`factory`] | [`open_sink`]: the link a spec names, started on its sink thread |
 //! | [`sink`] | [`SinkHandle`], [`SinkCommand`], [`SinkStats`], reconnect with exponential backoff |
 //! | [`serial`] | the UART sink ([`serialport`], no DTR/RTS/CTS), [`list_serial_ports`] |
-//! | `ble` | the BLE sink (feature `ble`: btleplug over BlueZ/D-Bus), [`list_ble_devices`] |
+//! | `ble` | [`BleDevice`], [`list_ble_devices`]; the BLE sink (feature `ble`: btleplug over BlueZ/D-Bus) |
 //! | [`file`](mod@file) | the JSON Lines recorder sink |
 //! | [`emulator`] | [`VirtualGlove`]: decoder + 50 ms pin-rise model + actuation log; [`run_emulator_on_port`] |
 //! | [`clock`] | [`Clock`]: [`WallClock`], [`FakeClock`] (the audio clock lives with the device) |
@@ -46,7 +46,6 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-#[cfg(feature = "ble")]
 mod ble;
 pub mod clock;
 pub mod devices;

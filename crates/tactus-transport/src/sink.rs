@@ -309,23 +309,7 @@ fn run_sink(
         if let Some(d) = close_deadline {
             deadline = deadline.min(d);
         }
-        let (cmd, ka_request, stop) = {
-            let mut mb = lock(&shared.mailbox);
-            loop {
-                let now = Instant::now();
-                if mb.state.is_some() || mb.keep_alive || (mb.stop && !stop_seen) || now >= deadline
-                {
-                    break;
-                }
-                mb = shared
-                    .wake
-                    .wait_timeout(mb, deadline - now)
-                    .unwrap_or_else(|e| e.into_inner())
-                    .0;
-            }
-            let ka = std::mem::take(&mut mb.keep_alive);
-            (mb.state.take(), ka, mb.stop)
-        };
+        let (cmd, ka_request, stop) = take_commands(&shared, deadline, stop_seen);
         if let Some(c) = cmd {
             // An all-down right after a delivered all-down changes nothing on the glove
             // (e.g. the player's final all-down followed by close()): not re-sent.
@@ -391,20 +375,7 @@ fn run_sink(
                         if packet.kind != tactus_glove::PacketType::KeepAlive {
                             dirty = false;
                         }
-                        let mut st = lock(&shared.stats);
-                        st.sent += 1;
-                        match packet.kind {
-                            tactus_glove::PacketType::Pins => {
-                                st.frames_sent += 1;
-                                st.shown = packet.frame;
-                                st.shown_time_ms = last_time_ms;
-                            }
-                            tactus_glove::PacketType::AllDown => {
-                                st.all_down_sent += 1;
-                                st.shown = Frame::DOWN;
-                            }
-                            tactus_glove::PacketType::KeepAlive => {}
-                        }
+                        note_written(&shared, &packet, last_time_ms);
                     }
                     Err(e) => {
                         link.disconnect();
@@ -430,4 +401,46 @@ fn run_sink(
     }
     link.disconnect();
     lock(&shared.stats).link_up = false;
+}
+
+/// Waits until the mailbox holds a state command or a keep-alive request, a stop not yet
+/// seen arrives, or `deadline` passes; takes the state command and the keep-alive request.
+/// Returns them with the stop flag.
+fn take_commands(
+    shared: &Shared,
+    deadline: Instant,
+    stop_seen: bool,
+) -> (Option<StateCmd>, bool, bool) {
+    let mut mb = lock(&shared.mailbox);
+    loop {
+        let now = Instant::now();
+        if mb.state.is_some() || mb.keep_alive || (mb.stop && !stop_seen) || now >= deadline {
+            break;
+        }
+        mb = shared
+            .wake
+            .wait_timeout(mb, deadline - now)
+            .unwrap_or_else(|e| e.into_inner())
+            .0;
+    }
+    let ka = std::mem::take(&mut mb.keep_alive);
+    (mb.state.take(), ka, mb.stop)
+}
+
+/// Counts a packet the link took, and what the glove shows now (`time_ms`: its frame time).
+fn note_written(shared: &Shared, packet: &Packet, time_ms: u32) {
+    let mut st = lock(&shared.stats);
+    st.sent += 1;
+    match packet.kind {
+        tactus_glove::PacketType::Pins => {
+            st.frames_sent += 1;
+            st.shown = packet.frame;
+            st.shown_time_ms = time_ms;
+        }
+        tactus_glove::PacketType::AllDown => {
+            st.all_down_sent += 1;
+            st.shown = Frame::DOWN;
+        }
+        tactus_glove::PacketType::KeepAlive => {}
+    }
 }

@@ -30,7 +30,7 @@ use tactus_glove::Packet;
 use tokio::runtime::Runtime;
 use uuid::Uuid;
 
-use crate::devices::BleDevice;
+use super::BleDevice;
 use crate::link::Link;
 use crate::spec::BleTarget;
 use crate::{LinkError, TransportError};
