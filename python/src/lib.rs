@@ -5,7 +5,8 @@
 //! wheel for every Python from 3.9).
 //!
 //! Every render releases the GIL ([`Python::detach`]); errors raise `tactus.TactusError`
-//! with the CLI's one-line message.
+//! with the CLI's one-line message, except that options are named as keyword arguments
+//! (`levels`, `bin_ms=`), not as flags (`--levels <LEVELS>`): see [`keyword_names`].
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -32,8 +33,101 @@ fn fail(e: impl std::fmt::Display) -> PyErr {
     TactusError::new_err(e.to_string().replace('\n', " "))
 }
 
+/// The options from `tactus/__init__.py`'s JSON; a value of the wrong type names its
+/// keyword argument (serde's own message names only a column of the JSON).
 fn options(json: &str) -> PyResult<RenderOptions> {
-    serde_json::from_str(json).map_err(|e| fail(format!("options: {e}")))
+    serde_json::from_str(json).map_err(|e| {
+        let all: serde_json::Map<String, serde_json::Value> =
+            serde_json::from_str(json).unwrap_or_default();
+        all.into_iter()
+            .find_map(|(k, v)| {
+                let one = serde_json::Value::Object([(k.clone(), v)].into_iter().collect());
+                let e = serde_json::from_value::<RenderOptions>(one).err()?;
+                Some(fail(format!(
+                    "invalid value for keyword argument '{k}': {e}"
+                )))
+            })
+            .unwrap_or_else(|| fail(format!("options: {e}")))
+    })
+}
+
+/// The Python keyword argument of each CLI flag that tactus-batch's option messages name.
+const KEYWORDS: &[(&str, &str)] = &[
+    ("bin-ms", "bin_ms"),
+    ("drum-model", "drum_model"),
+    ("drums", "drums"),
+    ("kit-mask", "kit_mask"),
+    ("levels", "levels"),
+    ("levels-rule", "levels_rule"),
+    ("map", "map"),
+    ("mode", "mode"),
+    ("model", "model"),
+    ("note-onsets", "note_onsets"),
+    ("out-dir", "out_dir"),
+    ("pitch", "pitch"),
+    ("profile", "profile"),
+    ("separator", "separator"),
+    ("stem", "stems"),
+    ("threads", "threads"),
+];
+
+/// An option error in Python's words. tactus-batch words its messages for the CLI (one
+/// parser for both); here clap's `'--levels <LEVELS>'` becomes `keyword argument 'levels'`,
+/// `--separator htdemucs needs --model PATH` becomes `separator=htdemucs needs model=PATH`,
+/// and a flag followed by a verb (`--stem does not go with ...`) becomes its bare keyword.
+/// Only the flags of [`KEYWORDS`], at the start of a word, are rewritten.
+fn keyword_names(msg: &str) -> String {
+    let mut out = String::with_capacity(msg.len());
+    let mut rest = msg;
+    while let Some(i) = rest.find("--") {
+        out.push_str(&rest[..i]);
+        let tail = &rest[i + 2..];
+        let len = tail
+            .find(|c: char| !(c.is_ascii_lowercase() || c == '-'))
+            .unwrap_or(tail.len());
+        let at_word = out
+            .chars()
+            .last()
+            .is_none_or(|c| c.is_whitespace() || c == '\'' || c == '(');
+        let keyword = KEYWORDS
+            .iter()
+            .find(|(flag, _)| at_word && *flag == &tail[..len])
+            .map(|(_, kw)| *kw);
+        let after = &tail[len..];
+        let placeholder = after
+            .strip_prefix(" <")
+            .and_then(|s| s.find(">'").map(|j| &s[j + 1..]));
+        match (keyword, placeholder) {
+            (Some(kw), Some(closing_quote)) if out.ends_with('\'') => {
+                out.pop();
+                out.push_str("keyword argument '");
+                out.push_str(kw);
+                rest = closing_quote;
+            }
+            (Some(kw), _) => {
+                out.push_str(kw);
+                let verb = ["is ", "does ", "needs "];
+                rest = match after.strip_prefix(' ') {
+                    Some(value) if !verb.iter().any(|v| value.starts_with(v)) => {
+                        out.push('=');
+                        value
+                    }
+                    _ => after,
+                };
+            }
+            (None, _) => {
+                out.push_str("--");
+                rest = tail;
+            }
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
+/// [`fail`] for an option error: the message names keyword arguments.
+fn option_error(e: impl std::fmt::Display) -> PyErr {
+    fail(keyword_names(&e.to_string()))
 }
 
 fn le_f32(v: &[f32]) -> Vec<u8> {
@@ -98,7 +192,7 @@ fn result_dict<'py>(py: Python<'py>, out: &RenderOutput) -> PyResult<Bound<'py, 
 #[pyfunction]
 fn render<'py>(py: Python<'py>, path: PathBuf, options_json: &str) -> PyResult<Bound<'py, PyDict>> {
     let opts = options(options_json)?;
-    let (config, stems) = opts.to_config(true).map_err(fail)?;
+    let (config, stems) = opts.to_config(true).map_err(option_error)?;
     let req = RenderRequest {
         input: path,
         stems,
@@ -120,7 +214,9 @@ fn render_samples(
     opts: &RenderOptions,
 ) -> Result<RenderOutput, Box<dyn std::error::Error + Send + Sync>> {
     let t_all = Instant::now();
-    let (mut config, stems) = opts.to_config(true)?;
+    let (mut config, stems) = opts
+        .to_config(true)
+        .map_err(|e| keyword_names(&e.to_string()))?;
     if !stems.is_empty() {
         return Err("stems are not supported by render_array (use render with a file)".into());
     }
@@ -251,7 +347,7 @@ fn batch_plan(
 #[pyfunction]
 fn batch_key(options_json: &str) -> PyResult<String> {
     let opts = options(options_json)?;
-    let (_, key) = tactus_batch::prepare(&opts, 1).map_err(fail)?;
+    let (_, key) = tactus_batch::prepare(&opts, 1).map_err(option_error)?;
     Ok(key.to_string())
 }
 
@@ -278,7 +374,7 @@ fn batch_job(
     earlier_json: Option<&str>,
 ) -> PyResult<String> {
     let opts = options(options_json)?;
-    let (config, key) = tactus_batch::prepare(&opts, job_threads.max(1)).map_err(fail)?;
+    let (config, key) = tactus_batch::prepare(&opts, job_threads.max(1)).map_err(option_error)?;
     let earlier: Option<Record> = earlier_json.and_then(|j| serde_json::from_str(j).ok());
     let mut spec = BatchSpec::new(out_dir, opts);
     spec.features = features;

@@ -11,7 +11,8 @@ The same engine as the ``tactus`` command line, in-process::
     r2 = tactus.render_array(samples, 44100)      # samples: (n,), (n, channels) or (channels, n)
 
 ``r.frames`` equals the CLI pattern file's ``frames`` byte for byte. Errors raise
-:class:`TactusError` with the CLI's one-line message. The GIL is released while rendering,
+:class:`TactusError` with the CLI's one-line message, naming options as keyword arguments
+(``levels``, not ``--levels``). The GIL is released while rendering,
 so threads render in parallel. :mod:`tactus.eval` has the metrics, :mod:`tactus.ray` the
 library job on a Ray cluster.
 """
@@ -160,7 +161,8 @@ def render(path: PathLike, **options: Any) -> Result:
         **options: see :data:`OPTIONS` (the CLI's flags; ``stems`` is a dict).
 
     Raises:
-        TactusError: with the CLI's one-line message (unreadable file, bad option, ...).
+        TactusError: with the CLI's one-line message (unreadable file, bad option named by
+            its keyword, ...).
         TypeError: an unknown keyword.
     """
     opts = _options_json("render", options)
