@@ -70,6 +70,11 @@ pub enum SourceError {
     /// The path is a directory.
     #[error("{}: is a directory, not an audio file (render takes one song; name the file)", .0.display())]
     Directory(PathBuf),
+    /// The file is text (a document, a playlist, source code), not audio. Told apart from
+    /// [`SourceError::UnsupportedFormat`] because a decoder library probing text may find
+    /// what looks like a marker inside it and report that marker's problem instead.
+    #[error("{}: not an audio file (no known audio format found; the file is text)", .0.display())]
+    NotAudio(PathBuf),
     /// No container format recognised the file.
     #[error("{}: not a recognised audio file (unsupported or corrupt container)", .path.display())]
     UnsupportedFormat {
@@ -195,7 +200,26 @@ enum Step {
 impl AudioSource {
     /// Opens `path`, recognises its container and codec, and decodes up to the first packet
     /// that holds audio (so that a file with no decodable audio fails here, not later).
+    ///
+    /// A file that cannot be decoded and whose first bytes are text is reported as
+    /// [`SourceError::NotAudio`], whatever the decoder library said about it.
     pub fn open(path: &Path) -> Result<AudioSource, SourceError> {
+        Self::open_decoding(path).map_err(|e| match e {
+            SourceError::UnsupportedFormat { .. }
+            | SourceError::UnsupportedCodec { .. }
+            | SourceError::NoAudioTrack(_)
+            | SourceError::Corrupt { .. }
+            | SourceError::Truncated { .. }
+                if file_is_text(path) =>
+            {
+                SourceError::NotAudio(path.to_path_buf())
+            }
+            e => e,
+        })
+    }
+
+    /// [`AudioSource::open`] as the decoder library sees the file.
+    fn open_decoding(path: &Path) -> Result<AudioSource, SourceError> {
         let p = path.to_path_buf();
         let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
             io::ErrorKind::NotFound => SourceError::NotFound(p.clone()),
@@ -607,6 +631,36 @@ impl MediaSource for RiffSizeIgnored {
     fn byte_len(&self) -> Option<u64> {
         Some(self.len)
     }
+}
+
+/// Whether the file's first KiB reads as text ([`looks_like_text`]); false when it cannot be
+/// read.
+fn file_is_text(path: &Path) -> bool {
+    let mut head = Vec::with_capacity(1024);
+    File::open(path)
+        .and_then(|f| f.take(1024).read_to_end(&mut head))
+        .is_ok_and(|_| looks_like_text(&head))
+}
+
+/// Whether `head` (a file's first bytes) is text: UTF-8 (a character cut off at the end
+/// allowed) without NUL or any other control character but tab, line feed, form feed and
+/// carriage return. No audio container starts so: their headers hold binary sizes and
+/// flags (zero bytes, bytes of 0x80 and above that are not UTF-8), and an MPEG stream
+/// starts with 0xFF.
+pub(crate) fn looks_like_text(head: &[u8]) -> bool {
+    let text = match std::str::from_utf8(head) {
+        Ok(t) => t,
+        // A multi-byte character cut off by the end of `head`.
+        Err(e) if e.error_len().is_none() => match std::str::from_utf8(&head[..e.valid_up_to()]) {
+            Ok(t) => t,
+            Err(_) => return false,
+        },
+        Err(_) => return false,
+    };
+    !text.is_empty()
+        && text
+            .chars()
+            .all(|c| !c.is_control() || matches!(c, '\t' | '\n' | '\r' | '\x0c'))
 }
 
 fn is_no_reader(e: &SymError) -> bool {
