@@ -248,6 +248,53 @@ fn smoothstep(x: f32) -> f32 {
     x * x * (3.0 - 2.0 * x)
 }
 
+/// Checks the rate, the stems and `cfg` before anything is built; returns the STFT
+/// configuration.
+fn validate(
+    sample_rate: u32,
+    stems: StemSet,
+    cfg: &SpectralConfig,
+) -> Result<StftConfig, SeparateError> {
+    if sample_rate < 1000 {
+        return Err(SeparateError::SampleRate(sample_rate));
+    }
+    if stems.is_empty() {
+        return Err(SeparateError::NoStems);
+    }
+    if cfg.n_fft < 16 {
+        return Err(ConfigError::invalid("n_fft", "must be at least 16").into());
+    }
+    let stft = StftConfig {
+        n_fft: cfg.n_fft,
+        hop: cfg.hop,
+    };
+    stft.validate()?;
+    let nyquist = sample_rate as f32 / 2.0;
+    let finite_pos = |x: f32| x.is_finite() && x > 0.0;
+    if !finite_pos(cfg.bass_crossover_hz) || cfg.bass_crossover_hz >= nyquist {
+        return Err(ConfigError::invalid("bass_crossover_hz", "must be in (0, Nyquist)").into());
+    }
+    let (v_lo, v_hi) = cfg.vocal_band_hz;
+    if !finite_pos(v_lo) || !finite_pos(v_hi) || v_lo >= v_hi {
+        return Err(ConfigError::invalid("vocal_band_hz", "must be 0 < low < high").into());
+    }
+    let (full, none_db) = (cfg.centre_full_db, cfg.centre_zero_db);
+    if !(full.is_finite() && none_db.is_finite() && full >= 0.0 && none_db > full) {
+        return Err(
+            ConfigError::invalid("centre_zero_db", "must exceed centre_full_db >= 0").into(),
+        );
+    }
+    if cfg.past_frames + cfg.lookahead_frames > 256
+        || cfg.bass_past_frames + cfg.lookahead_frames > 256
+        || cfg.percussive_half_bins > 256
+    {
+        return Err(
+            ConfigError::invalid("median", "windows are limited to 256 frames / bins").into(),
+        );
+    }
+    Ok(stft)
+}
+
 impl SpectralSeparator {
     /// A spectral separator at `sample_rate` Hz that outputs `stems`.
     pub fn new(
@@ -255,46 +302,9 @@ impl SpectralSeparator {
         stems: StemSet,
         cfg: SpectralConfig,
     ) -> Result<Self, SeparateError> {
-        if sample_rate < 1000 {
-            return Err(SeparateError::SampleRate(sample_rate));
-        }
-        if stems.is_empty() {
-            return Err(SeparateError::NoStems);
-        }
-        if cfg.n_fft < 16 {
-            return Err(ConfigError::invalid("n_fft", "must be at least 16").into());
-        }
-        let stft = StftConfig {
-            n_fft: cfg.n_fft,
-            hop: cfg.hop,
-        };
-        stft.validate()?;
-        let nyquist = sample_rate as f32 / 2.0;
-        let finite_pos = |x: f32| x.is_finite() && x > 0.0;
-        if !finite_pos(cfg.bass_crossover_hz) || cfg.bass_crossover_hz >= nyquist {
-            return Err(
-                ConfigError::invalid("bass_crossover_hz", "must be in (0, Nyquist)").into(),
-            );
-        }
+        let stft = validate(sample_rate, stems, &cfg)?;
         let (v_lo, v_hi) = cfg.vocal_band_hz;
-        if !finite_pos(v_lo) || !finite_pos(v_hi) || v_lo >= v_hi {
-            return Err(ConfigError::invalid("vocal_band_hz", "must be 0 < low < high").into());
-        }
         let (full, none_db) = (cfg.centre_full_db, cfg.centre_zero_db);
-        if !(full.is_finite() && none_db.is_finite() && full >= 0.0 && none_db > full) {
-            return Err(
-                ConfigError::invalid("centre_zero_db", "must exceed centre_full_db >= 0").into(),
-            );
-        }
-        if cfg.past_frames + cfg.lookahead_frames > 256
-            || cfg.bass_past_frames + cfg.lookahead_frames > 256
-            || cfg.percussive_half_bins > 256
-        {
-            return Err(
-                ConfigError::invalid("median", "windows are limited to 256 frames / bins").into(),
-            );
-        }
-
         let bins = stft.bins();
         let needs_all = stems.contains(Stem::Drums) || stems.contains(Stem::Other);
         let stereo = stems.contains(Stem::Vocals) || stems.contains(Stem::Other);
