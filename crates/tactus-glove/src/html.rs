@@ -3,7 +3,7 @@
 //!
 //! [`render_page`] takes a [`Pattern`], its [`Features`] and the bytes of the song file and
 //! returns the page as a string. Nothing on the page refers to the network: the CSS and the
-//! script are inline, the pattern and a compact copy of the features are a JSON island, and
+//! script (`assets/preview.css`, `assets/preview.js`, built in) are inline, the pattern and a compact copy of the features are a JSON island, and
 //! the song is the source file's own bytes as base64 (decoded into a `blob:` URL at load), so
 //! the page weighs about 4/3 of the song file plus the features (see [`HtmlPage`]).
 //!
@@ -443,7 +443,8 @@ pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: 
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <meta name="generator" content="tactus render --html">
 <title>Tactus — {title_html}</title>
-<style>{CSS}</style></head>
+<style>
+{CSS}</style></head>
 <body>
 <header><h1>Tactus preview <small>{title_html}</small></h1>
 <div id="status" data-audio="loading" data-clock="audio"><button id="playbtn" type="button">▶ play</button>
@@ -464,7 +465,8 @@ pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: 
 <audio id="audio" preload="auto"></audio>
 <script type="application/json" id="tactus-data">{data}</script>
 <script type="application/octet-stream" id="tactus-audio" data-mime="{mime}" data-playable="{playable}">{b64}</script>
-<script>{JS}</script>
+<script>
+{JS}</script>
 </body></html>
 "#,
         audio_note_html = escape_html(&audio_note),
@@ -481,266 +483,11 @@ pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: 
     }
 }
 
-const CSS: &str = r##"
-:root{font-family:system-ui,"DejaVu Sans",sans-serif;color:#222;background:#f6f5f2}
-body{margin:0 16px}
-h1{font-size:20px;margin:10px 0 6px}h1 small{font-weight:normal;color:#666;font-size:14px}
-#status{display:flex;gap:12px;align-items:center;font-size:14px}
-#status[data-audio=error] #note{color:#b03030}
-#note{color:#666}
-#time{font-variant-numeric:tabular-nums;min-width:6em}
-#seek{width:100%;margin:6px 0}
-main{display:flex;gap:24px;align-items:flex-start;flex-wrap:wrap}
-#glove{background:#fff;border-radius:12px;padding:12px 16px;box-shadow:0 1px 4px #0002}
-.hand{display:flex;gap:12px;align-items:flex-end;padding-left:64px}
-.finger{display:flex;flex-direction:column;align-items:center;gap:6px;padding:6px 6px 10px;
- background:#efe6dc;border-radius:28px 28px 8px 8px}
-.f-thumb{margin-bottom:-60px;transform:rotate(-18deg);transform-origin:bottom right}
-.f-index{margin-bottom:24px}.f-middle{margin-bottom:40px}.f-ring{margin-bottom:26px}.f-pinky{margin-bottom:0}
-.fname{font-size:12px;color:#555}
-.cell{display:grid;grid-template-columns:repeat(2,18px);grid-auto-rows:18px;gap:4px;padding:5px;
- border:2px solid var(--c);border-radius:6px;background:#fff}
-.cell[data-group=off]{border-color:#ccc}
-.cell.muted{opacity:.35;border-style:dashed}
-.dot{width:16px;height:16px;border-radius:50%;border:1px solid #999;background:#eee;box-sizing:border-box}
-.dot.up{background:var(--c);border-color:#222;box-shadow:0 0 6px var(--c)}
-.palm{margin-top:84px;text-align:center;font-size:12px;color:#777}
-#side{flex:1;min-width:420px}
-#lanes{width:100%;max-width:760px;background:#fff;border-radius:8px;box-shadow:0 1px 4px #0002}
-#toggles{margin:8px 0;font-size:14px;display:flex;gap:10px;flex-wrap:wrap}
-#toggles label{border-bottom:3px solid var(--c)}
-#legend{border-collapse:collapse;font-size:13px}
-#legend td,#legend th{padding:2px 8px;text-align:left;border-bottom:1px solid #ddd}
-#legend i{display:inline-block;width:10px;height:10px;border-radius:50%;margin-right:6px}
-.help{font-size:12px;color:#666}
-"##;
+/// The page's style sheet (`assets/preview.css`).
+const CSS: &str = include_str!("../assets/preview.css");
 
-const JS: &str = r##"
-"use strict";
-(function () {
-  const D = JSON.parse(document.getElementById("tactus-data").textContent);
-  const binS = D.bin_ms / 1000;
-  const frames = D.frames.map(function (h) {
-    const b = new Uint8Array(10);
-    for (let i = 0; i < 10; i++) b[i] = parseInt(h.substr(2 * i, 2), 16);
-    return b;
-  });
-  const FINGERS = ["thumb", "index", "middle", "ring", "pinky"];
-  const glove = document.getElementById("glove");
-  const status = document.getElementById("status");
-  const note = document.getElementById("note");
-  const timeEl = document.getElementById("time");
-  const seekEl = document.getElementById("seek");
-  const btn = document.getElementById("playbtn");
-  const audio = document.getElementById("audio");
-  // dots[cell][bit] for cell = finger * 2 + c, bit = dot - 1; cellEls[cell].
-  const dots = [], cellEls = [];
-  for (let k = 0; k < 10; k++) dots.push(new Array(8));
-  document.querySelectorAll(".dot").forEach(function (el) {
-    const k = FINGERS.indexOf(el.dataset.finger) * 2 + Number(el.dataset.cell);
-    dots[k][Number(el.dataset.dot) - 1] = el;
-    cellEls[k] = el.parentNode;
-  });
-  const cellGroup = D.cells.map(function (c) { return c.group; });
-  const muted = {};
-  const duration = D.duration_s;
-  const S = { t: 0, clock: "audio", wallStart: 0, wallPlaying: false, shown: null, drawnT: -1 };
-
-  function frameIndex(t) { return Math.floor(t / binS); }
-  function render(t, force) {
-    const i = frameIndex(t);
-    const f = i >= 0 && i < frames.length ? frames[i] : null;
-    const key = (f ? i : -1) + "|" + Object.keys(muted).filter(function (g) { return muted[g]; }).join(",");
-    glove.dataset.t = t.toFixed(6);
-    if (force || key !== S.shown) {
-      S.shown = key;
-      glove.dataset.frame = f ? i : -1;
-      for (let k = 0; k < 10; k++) {
-        const off = muted[cellGroup[k]] === true;
-        cellEls[k].classList.toggle("muted", off);
-        const byte = f && !off ? f[k] : 0;
-        for (let j = 0; j < 8; j++) dots[k][j].classList.toggle("up", ((byte >> j) & 1) === 1);
-      }
-    }
-    timeEl.textContent = t.toFixed(2) + " s";
-    if (document.activeElement !== seekEl) seekEl.value = t;
-    if (t !== S.drawnT) { draw(t); S.drawnT = t; }
-  }
-
-  // ---- lanes: pitch contours and onset rasters, scrolling under a fixed playhead ----
-  const canvas = document.getElementById("lanes");
-  const ctx = canvas.getContext("2d");
-  const BEFORE = 2, SPAN = 8;
-  const pitchKeys = Object.keys(D.pitch_hz).filter(function (k) { return D.pitch_hz[k].length > 0; });
-  const onsetKeys = Object.keys(D.onsets_s);
-  const ranges = {};
-  pitchKeys.forEach(function (k) {
-    let lo = Infinity, hi = -Infinity;
-    D.pitch_hz[k].forEach(function (f) { if (f > 0) { const m = 69 + 12 * Math.log2(f / 440); if (m < lo) lo = m; if (m > hi) hi = m; } });
-    if (!(hi > lo)) { lo = 40; hi = 80; }
-    ranges[k] = [lo - 1, hi + 1];
-  });
-  const COLOURS = { bass: "#e4572e", kick: "#3b6fd8", snare: "#17a589", toms: "#9b59b6", cymbals: "#d4ac0d", vocals: "#e84393", other: "#2e86c1", drums: "#16a085" };
-  const laneH = 64, rowH = 16, top = 16;
-  canvas.height = top + pitchKeys.length * laneH + onsetKeys.length * rowH + 8;
-  function lowerBound(a, x) { let lo = 0, hi = a.length; while (lo < hi) { const m = (lo + hi) >> 1; if (a[m] < x) lo = m + 1; else hi = m; } return lo; }
-  function draw(t) {
-    const W = canvas.width, H = canvas.height, t0 = t - BEFORE, px = W / SPAN;
-    ctx.clearRect(0, 0, W, H);
-    ctx.font = "11px sans-serif";
-    ctx.fillStyle = "#888";
-    for (let s = Math.ceil(t0); s <= t0 + SPAN; s++) {
-      const x = (s - t0) * px;
-      ctx.fillRect(x, 0, 1, H);
-      if (s >= 0) ctx.fillText(s + " s", x + 2, 11);
-    }
-    let y = top;
-    pitchKeys.forEach(function (k) {
-      const a = D.pitch_hz[k], r = ranges[k], hop = D.hop_s;
-      ctx.fillStyle = "#555"; ctx.fillText(k + " pitch", 4, y + 12);
-      ctx.strokeStyle = COLOURS[k] || "#444"; ctx.lineWidth = 2; ctx.beginPath();
-      const i0 = Math.max(0, Math.floor(t0 / hop)), i1 = Math.min(a.length, Math.ceil((t0 + SPAN) / hop) + 1);
-      let pen = false;
-      for (let i = i0; i < i1; i++) {
-        if (a[i] > 0) {
-          const m = 69 + 12 * Math.log2(a[i] / 440);
-          const x = (i * hop - t0) * px, yy = y + laneH - 4 - (m - r[0]) / (r[1] - r[0]) * (laneH - 8);
-          if (pen) ctx.lineTo(x, yy); else ctx.moveTo(x, yy);
-          pen = true;
-        } else pen = false;
-      }
-      ctx.stroke();
-      ctx.fillStyle = "#ddd"; ctx.fillRect(0, y + laneH - 1, W, 1);
-      y += laneH;
-    });
-    onsetKeys.forEach(function (k) {
-      const a = D.onsets_s[k];
-      ctx.fillStyle = "#555"; ctx.fillText(k, 4, y + 12);
-      ctx.fillStyle = muted[k] ? "#ccc" : (COLOURS[k] || "#444");
-      for (let i = lowerBound(a, t0); i < a.length && a[i] <= t0 + SPAN; i++) ctx.fillRect((a[i] - t0) * px - 1, y + 2, 3, rowH - 4);
-      y += rowH;
-    });
-    ctx.fillStyle = "#d00"; ctx.fillRect(BEFORE * px, 0, 2, H);
-  }
-
-  // ---- clock ----
-  function playing() { return S.clock === "audio" ? !audio.paused : S.wallPlaying; }
-  function now() {
-    if (S.clock === "audio") return audio.paused ? S.t : audio.currentTime;
-    return S.wallPlaying ? (performance.now() - S.wallStart) / 1000 : S.t;
-  }
-  function clamp(t) { return Math.min(Math.max(t, 0), duration); }
-  function seek(t) {
-    t = clamp(t);
-    S.t = t;
-    if (S.clock === "wall") S.wallStart = performance.now() - t * 1000;
-    try { audio.currentTime = t; } catch (e) { /* not loaded yet: seeked again on load */ }
-    render(t, false);
-  }
-  function play() {
-    if (S.clock === "audio") {
-      const p = audio.play();
-      if (p && p.catch) p.catch(function (e) { note.textContent = "press space to play (" + e.name + ")"; });
-    } else { S.wallStart = performance.now() - S.t * 1000; S.wallPlaying = true; }
-    btn.textContent = "❚❚ pause";
-  }
-  function pause() {
-    S.t = now();
-    if (S.clock === "audio") audio.pause(); else S.wallPlaying = false;
-    btn.textContent = "▶ play";
-    render(S.t, false);
-  }
-  function toggle() { if (playing()) pause(); else play(); }
-  function useWallClock(why) {
-    const was = playing();
-    S.clock = "wall"; S.wallPlaying = false;
-    status.dataset.audio = "error"; status.dataset.clock = "wall";
-    note.textContent = "audio unavailable (" + why + "): the glove runs on the wall clock, silently";
-    if (was) play();
-  }
-  // Animation-frame statistics while playing, for measurements (window.tactusStats):
-  // callbacks, gaps over 25 ms between callbacks (a dropped 60 Hz frame), the longest gap
-  // the longest and the total time spent inside callbacks.
-  const stats = { frames: 0, late: 0, maxGapMs: 0, maxWorkMs: 0, sumWorkMs: 0 };
-  window.tactusStats = stats;
-  let lastRaf = -1;
-  function loop(ts) {
-    const w0 = performance.now();
-    if (playing() && lastRaf >= 0) {
-      const gap = ts - lastRaf;
-      stats.frames++;
-      if (gap > 25) stats.late++;
-      if (gap > stats.maxGapMs) stats.maxGapMs = gap;
-    }
-    lastRaf = playing() ? ts : -1;
-    if (playing()) {
-      const t = now();
-      if (t >= duration && S.clock === "wall") { S.wallPlaying = false; S.t = duration; }
-      S.t = clamp(t);
-    }
-    render(S.t, false);
-    const work = performance.now() - w0;
-    if (playing()) { stats.sumWorkMs += work; if (work > stats.maxWorkMs) stats.maxWorkMs = work; }
-    requestAnimationFrame(loop);
-  }
-
-  // ---- audio: the source file's bytes, base64 -> blob: URL ----
-  const src = document.getElementById("tactus-audio");
-  try {
-    const b64 = src.textContent.trim();
-    const bin = atob(b64);
-    const u8 = new Uint8Array(bin.length);
-    for (let i = 0; i < bin.length; i++) u8[i] = bin.charCodeAt(i);
-    audio.src = URL.createObjectURL(new Blob([u8], { type: src.dataset.mime }));
-  } catch (e) { useWallClock(e.name); }
-  audio.addEventListener("loadedmetadata", function () {
-    if (S.clock !== "audio") return;
-    status.dataset.audio = "ready";
-    if (audio.paused) { try { audio.currentTime = S.t; } catch (e) { } }
-  });
-  audio.addEventListener("error", function () { if (S.clock === "audio") useWallClock("the browser cannot decode it"); });
-  audio.addEventListener("seeked", function () {
-    if (audio.paused && S.clock === "audio" && Math.abs(audio.currentTime - S.t) > 0.05) { S.t = audio.currentTime; }
-  });
-  audio.addEventListener("pause", function () { btn.textContent = "▶ play"; });
-  audio.addEventListener("play", function () { btn.textContent = "❚❚ pause"; });
-  audio.addEventListener("ended", function () { S.t = duration; });
-
-  // ---- controls ----
-  btn.addEventListener("click", toggle);
-  seekEl.addEventListener("input", function () { seek(Number(seekEl.value)); });
-  document.querySelectorAll("input[data-mute]").forEach(function (cb) {
-    cb.addEventListener("change", function () { muted[cb.dataset.mute] = !cb.checked; render(now(), true); draw(now()); });
-  });
-  document.addEventListener("keydown", function (e) {
-    if (e.target && e.target.tagName === "INPUT" && e.target.type !== "checkbox" && e.key !== " ") return;
-    if (e.key === " " || e.code === "Space") { e.preventDefault(); toggle(); }
-    else if (e.key === "ArrowLeft") { e.preventDefault(); seek(now() - 5); }
-    else if (e.key === "ArrowRight") { e.preventDefault(); seek(now() + 5); }
-  });
-  function fromHash() {
-    const h = location.hash.replace(/^#/, "");
-    const p = {};
-    h.split("&").forEach(function (kv) { if (!kv) return; const i = kv.indexOf("="); p[decodeURIComponent(i < 0 ? kv : kv.slice(0, i))] = i < 0 ? "" : decodeURIComponent(kv.slice(i + 1)); });
-    if ("mute" in p) {
-      const m = p.mute.split(",");
-      document.querySelectorAll("input[data-mute]").forEach(function (cb) {
-        const off = m.indexOf(cb.dataset.mute) >= 0;
-        cb.checked = !off; muted[cb.dataset.mute] = off;
-      });
-    }
-    if ("t" in p && isFinite(Number(p.t))) {
-      if (playing()) pause();
-      seek(Number(p.t));
-    }
-    if ("play" in p) play();
-    render(S.t, true);
-  }
-  window.addEventListener("hashchange", fromHash);
-  fromHash();
-  requestAnimationFrame(loop);
-})();
-"##;
+/// The page's script (`assets/preview.js`): the clock, the glove, the lanes, the controls.
+const JS: &str = include_str!("../assets/preview.js");
 
 #[cfg(test)]
 mod tests {

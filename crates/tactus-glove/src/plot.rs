@@ -49,11 +49,23 @@ fn esc(s: &str) -> String {
         .replace('"', "&quot;")
 }
 
+/// Time to x: the plot's width spans the song.
+struct TimeAxis {
+    duration: f64,
+    plot_w: f64,
+}
+
+impl TimeAxis {
+    fn x(&self, t: f64) -> f64 {
+        LEFT + self.plot_w * (t / self.duration).clamp(0.0, 1.0)
+    }
+}
+
 /// Draws the plot.
 pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
     let duration = pattern.source.duration_s.max(1e-3);
     let plot_w = W - LEFT - RIGHT;
-    let x_of = |t: f64| LEFT + plot_w * (t / duration).clamp(0.0, 1.0);
+    let axis = TimeAxis { duration, plot_w };
     let n_pitch = f.pitch_hz.len() as f64;
     let n_bands = f.beats.len() as f64;
     let roll_h = 80.0 * DOT_H;
@@ -74,121 +86,156 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
         pattern.levels
     );
     let mut y = 40.0;
-    let bin_s = pattern.bin_ms as f64 / 1000.0;
-
-    // Pitch panels.
     for (stem, hz) in &f.pitch_hz {
-        let voiced: Vec<f64> = hz
-            .iter()
-            .filter(|&&v| v > 0.0)
-            .map(|&v| 69.0 + 12.0 * (v as f64 / 440.0).log2())
-            .collect();
-        let (lo, hi) = voiced
-            .iter()
-            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
-        let (lo, hi) = if voiced.is_empty() {
-            (40.0, 80.0)
-        } else {
-            (lo.floor() - 1.0, hi.ceil() + 1.0)
-        };
-        let y_of = |st: f64| y + PITCH_H - PITCH_H * (st - lo) / (hi - lo).max(1.0);
-        panel(&mut s, y, plot_w, PITCH_H, stem, 16.0, 13);
-        let _ = writeln!(
-            s,
-            r##"<text x="8" y="{}" fill="#1f77b4">pitch (st)</text>"##,
-            y + 32.0
-        );
-        let _ = writeln!(
-            s,
-            r##"<text x="8" y="{}" fill="#d62728">level 0–{}</text>"##,
-            y + 46.0,
-            pattern.levels
-        );
-        let _ = writeln!(
-            s,
-            r#"<text x="{}" y="{}">{:.0}</text>"#,
-            LEFT - 28.0,
-            y + 10.0,
-            hi
-        );
-        let _ = writeln!(
-            s,
-            r#"<text x="{}" y="{}">{:.0}</text>"#,
-            LEFT - 28.0,
-            y + PITCH_H,
-            lo
-        );
-        // levels as a step line scaled to the panel
-        if let Some(levels) = f.levels.get(stem) {
-            let mut d = String::new();
-            let lv_y = |l: u8| y + PITCH_H - PITCH_H * l as f64 / pattern.levels.max(1) as f64;
-            for (k, &l) in levels.iter().enumerate() {
-                let (x0, x1) = (x_of(k as f64 * bin_s), x_of((k + 1) as f64 * bin_s));
-                let _ = write!(
-                    d,
-                    "{}{x0:.1},{:.1} L{x1:.1},{:.1} ",
-                    if k == 0 { "M" } else { "L" },
-                    lv_y(l),
-                    lv_y(l)
-                );
-            }
-            let _ = writeln!(
-                s,
-                r##"<path d="{d}" fill="none" stroke="#d62728" stroke-width="1" opacity="0.7"/>"##
-            );
-        }
-        // pitch contour as short segments between consecutive voiced hops
-        let mut d = String::new();
-        let mut prev = false;
-        for (i, &v) in hz.iter().enumerate() {
-            if v > 0.0 {
-                let st = 69.0 + 12.0 * (v as f64 / 440.0).log2();
-                let _ = write!(
-                    d,
-                    "{}{:.1},{:.1} ",
-                    if prev { "L" } else { "M" },
-                    x_of(i as f64 * f.hop_s),
-                    y_of(st)
-                );
-                prev = true;
-            } else {
-                prev = false;
-            }
-        }
-        let _ = writeln!(
-            s,
-            r##"<path d="{d}" fill="none" stroke="#1f77b4" stroke-width="1.2"/>"##
-        );
+        pitch_panel(&mut s, &axis, y, stem, hz, pattern, f);
         y += PITCH_H + GAP;
     }
-
-    // Band rasters.
+    let bin_s = pattern.bin_ms as f64 / 1000.0;
     for (band, beats) in &f.beats {
-        panel(&mut s, y, plot_w, BAND_H, band, 18.0, 12);
-        let mut d = String::new();
-        for (k, &b) in beats.iter().enumerate() {
-            if b != 0 {
-                let (x0, x1) = (x_of(k as f64 * bin_s), x_of((k + 1) as f64 * bin_s));
-                let w = (x1 - x0).max(0.5);
-                let _ = write!(d, "M{x0:.1},{y}h{w:.2}v{BAND_H}h{:.2}z", -w);
-            }
-        }
-        if !d.is_empty() {
-            let _ = writeln!(s, r##"<path d="{d}" fill="#ff7f0e" fill-opacity="0.35"/>"##);
-        }
-        if let Some(on) = f.onsets_s.get(band) {
-            let mut d = String::new();
-            for &t in on {
-                let x = x_of(t);
-                let _ = write!(d, "M{x:.1},{:.1} L{x:.1},{:.1} ", y + 3.0, y + BAND_H - 3.0);
-            }
-            let _ = writeln!(s, r##"<path d="{d}" stroke="#000" stroke-width="1"/>"##);
-        }
+        band_raster(&mut s, &axis, y, band, beats, f.onsets_s.get(band), bin_s);
         y += BAND_H + 6.0;
     }
-
-    // Piano roll of the 80 dots.
     y += GAP - 6.0;
+    piano_roll(&mut s, &axis, y, pattern);
+    y += roll_h + 18.0;
+    time_labels(&mut s, &axis, y);
+    s.push_str("</svg>\n");
+    s
+}
+
+/// One melodic stem's panel at `y`: its pitch contour (semitones) and its level per bin.
+fn pitch_panel(
+    s: &mut String,
+    axis: &TimeAxis,
+    y: f64,
+    stem: &str,
+    hz: &[f32],
+    pattern: &Pattern,
+    f: &Features,
+) {
+    let (plot_w, bin_s) = (axis.plot_w, pattern.bin_ms as f64 / 1000.0);
+    let x_of = |t: f64| axis.x(t);
+    let voiced: Vec<f64> = hz
+        .iter()
+        .filter(|&&v| v > 0.0)
+        .map(|&v| 69.0 + 12.0 * (v as f64 / 440.0).log2())
+        .collect();
+    let (lo, hi) = voiced
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    let (lo, hi) = if voiced.is_empty() {
+        (40.0, 80.0)
+    } else {
+        (lo.floor() - 1.0, hi.ceil() + 1.0)
+    };
+    let y_of = |st: f64| y + PITCH_H - PITCH_H * (st - lo) / (hi - lo).max(1.0);
+    panel(s, y, plot_w, PITCH_H, stem, 16.0, 13);
+    let _ = writeln!(
+        s,
+        r##"<text x="8" y="{}" fill="#1f77b4">pitch (st)</text>"##,
+        y + 32.0
+    );
+    let _ = writeln!(
+        s,
+        r##"<text x="8" y="{}" fill="#d62728">level 0–{}</text>"##,
+        y + 46.0,
+        pattern.levels
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}">{:.0}</text>"#,
+        LEFT - 28.0,
+        y + 10.0,
+        hi
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="{}">{:.0}</text>"#,
+        LEFT - 28.0,
+        y + PITCH_H,
+        lo
+    );
+    // levels as a step line scaled to the panel
+    if let Some(levels) = f.levels.get(stem) {
+        let mut d = String::new();
+        let lv_y = |l: u8| y + PITCH_H - PITCH_H * l as f64 / pattern.levels.max(1) as f64;
+        for (k, &l) in levels.iter().enumerate() {
+            let (x0, x1) = (x_of(k as f64 * bin_s), x_of((k + 1) as f64 * bin_s));
+            let _ = write!(
+                d,
+                "{}{x0:.1},{:.1} L{x1:.1},{:.1} ",
+                if k == 0 { "M" } else { "L" },
+                lv_y(l),
+                lv_y(l)
+            );
+        }
+        let _ = writeln!(
+            s,
+            r##"<path d="{d}" fill="none" stroke="#d62728" stroke-width="1" opacity="0.7"/>"##
+        );
+    }
+    // pitch contour as short segments between consecutive voiced hops
+    let mut d = String::new();
+    let mut prev = false;
+    for (i, &v) in hz.iter().enumerate() {
+        if v > 0.0 {
+            let st = 69.0 + 12.0 * (v as f64 / 440.0).log2();
+            let _ = write!(
+                d,
+                "{}{:.1},{:.1} ",
+                if prev { "L" } else { "M" },
+                x_of(i as f64 * f.hop_s),
+                y_of(st)
+            );
+            prev = true;
+        } else {
+            prev = false;
+        }
+    }
+    let _ = writeln!(
+        s,
+        r##"<path d="{d}" fill="none" stroke="#1f77b4" stroke-width="1.2"/>"##
+    );
+}
+
+/// One drum band's raster at `y`: its beat bins as bands, its onsets as ticks.
+fn band_raster(
+    s: &mut String,
+    axis: &TimeAxis,
+    y: f64,
+    band: &str,
+    beats: &[u8],
+    onsets: Option<&Vec<f64>>,
+    bin_s: f64,
+) {
+    let plot_w = axis.plot_w;
+    let x_of = |t: f64| axis.x(t);
+    panel(s, y, plot_w, BAND_H, band, 18.0, 12);
+    let mut d = String::new();
+    for (k, &b) in beats.iter().enumerate() {
+        if b != 0 {
+            let (x0, x1) = (x_of(k as f64 * bin_s), x_of((k + 1) as f64 * bin_s));
+            let w = (x1 - x0).max(0.5);
+            let _ = write!(d, "M{x0:.1},{y}h{w:.2}v{BAND_H}h{:.2}z", -w);
+        }
+    }
+    if !d.is_empty() {
+        let _ = writeln!(s, r##"<path d="{d}" fill="#ff7f0e" fill-opacity="0.35"/>"##);
+    }
+    if let Some(on) = onsets {
+        let mut d = String::new();
+        for &t in on {
+            let x = x_of(t);
+            let _ = write!(d, "M{x:.1},{:.1} L{x:.1},{:.1} ", y + 3.0, y + BAND_H - 3.0);
+        }
+        let _ = writeln!(s, r##"<path d="{d}" stroke="#000" stroke-width="1"/>"##);
+    }
+}
+
+/// The piano roll of the 80 dots at `y`, with its heading above.
+fn piano_roll(s: &mut String, axis: &TimeAxis, y: f64, pattern: &Pattern) {
+    let (plot_w, bin_s, roll_h) = (axis.plot_w, pattern.bin_ms as f64 / 1000.0, 80.0 * DOT_H);
+    let x_of = |t: f64| axis.x(t);
     let _ = writeln!(
         s,
         r#"<text x="{LEFT}" y="{}" font-size="13">glove pins (finger / cell / dot 1–8)</text>"#,
@@ -236,7 +283,12 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
             let _ = writeln!(s, r#"<path d="{d}" fill="{color}"/>"#);
         }
     }
-    y += roll_h + 18.0;
+}
+
+/// The time axis's labels at `y`: every 1, 2, 5, ... s, at most about 12 of them.
+fn time_labels(s: &mut String, axis: &TimeAxis, y: f64) {
+    let duration = axis.duration;
+    let x_of = |t: f64| axis.x(t);
     // time axis
     let step = [1.0, 2.0, 5.0, 10.0, 15.0, 30.0, 60.0]
         .into_iter()
@@ -251,8 +303,6 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
         );
         t += step;
     }
-    s.push_str("</svg>\n");
-    s
 }
 
 #[cfg(test)]
