@@ -50,9 +50,12 @@
   }
 
   // ---- lanes: pitch contours and onset rasters, scrolling under a fixed playhead ----
+  // The row labels sit in a gutter at the left; the lanes scroll right of it, never over it.
+  // The canvas fills its column, and when the column stands beside the glove and its legend
+  // its rows grow to their height, so that neither column leaves an empty half.
   const canvas = document.getElementById("lanes");
   const ctx = canvas.getContext("2d");
-  const BEFORE = 2, SPAN = 8;
+  const BEFORE = 2, SPAN = 8, GUTTER = 76, TOP = 16;
   const pitchKeys = Object.keys(D.pitch_hz).filter(function (k) { return D.pitch_hz[k].length > 0; });
   const onsetKeys = Object.keys(D.onsets_s);
   const ranges = {};
@@ -63,47 +66,91 @@
     ranges[k] = [lo - 1, hi + 1];
   });
   const COLOURS = { bass: "#e4572e", kick: "#3b6fd8", snare: "#17a589", toms: "#9b59b6", cymbals: "#d4ac0d", vocals: "#e84393", other: "#2e86c1", drums: "#16a085" };
-  const laneH = 64, rowH = 16, top = 16;
-  canvas.height = top + pitchKeys.length * laneH + onsetKeys.length * rowH + 8;
+  const NOTES = ["C", "C#", "D", "D#", "E", "F", "F#", "G", "G#", "A", "A#", "B"];
+  function noteName(m) { const n = Math.round(m); return NOTES[((n % 12) + 12) % 12] + (Math.floor(n / 12) - 1); }
+  const L = { w: 760, h: 300, laneH: 64, rowH: 16 };
+  function layout() {
+    const side = document.getElementById("side"), left = document.getElementById("left");
+    const w = Math.max(240, canvas.clientWidth || 760);
+    const base = TOP + pitchKeys.length * 64 + onsetKeys.length * 16 + 8;
+    // The height beside the glove and its legend, less what sits under the lanes.
+    const besides = left.offsetTop === side.offsetTop;
+    const room = besides ? left.offsetHeight - (side.offsetHeight - canvas.offsetHeight) : 0;
+    let laneH = 64, rowH = 16;
+    if (room > base && pitchKeys.length > 0) laneH = Math.min(160, 64 + Math.floor((room - base) / pitchKeys.length));
+    else if (room > base && onsetKeys.length > 0) rowH = Math.min(32, 16 + Math.floor((room - base) / onsetKeys.length));
+    const h = TOP + pitchKeys.length * laneH + onsetKeys.length * rowH + 8;
+    const dpr = window.devicePixelRatio || 1;
+    L.w = w; L.h = h; L.laneH = laneH; L.rowH = rowH;
+    canvas.style.height = h + "px";
+    canvas.width = Math.round(w * dpr);
+    canvas.height = Math.round(h * dpr);
+    ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+    S.drawnT = -1;
+  }
+  layout();
   function lowerBound(a, x) { let lo = 0, hi = a.length; while (lo < hi) { const m = (lo + hi) >> 1; if (a[m] < x) lo = m + 1; else hi = m; } return lo; }
   function draw(t) {
-    const W = canvas.width, H = canvas.height, t0 = t - BEFORE, px = W / SPAN;
+    const W = L.w, H = L.h, t0 = t - BEFORE, px = (W - GUTTER) / SPAN;
+    function xOf(s) { return GUTTER + (s - t0) * px; }
     ctx.clearRect(0, 0, W, H);
     ctx.font = "11px sans-serif";
+    ctx.textAlign = "left";
+    ctx.save();
+    ctx.beginPath();
+    ctx.rect(GUTTER, 0, W - GUTTER, H);
+    ctx.clip();
     ctx.fillStyle = "#888";
     for (let s = Math.ceil(t0); s <= t0 + SPAN; s++) {
-      const x = (s - t0) * px;
+      const x = xOf(s);
       ctx.fillRect(x, 0, 1, H);
       if (s >= 0) ctx.fillText(s + " s", x + 2, 11);
     }
-    let y = top;
+    let y = TOP;
     pitchKeys.forEach(function (k) {
-      const a = D.pitch_hz[k], r = ranges[k], hop = D.hop_s;
-      ctx.fillStyle = "#555"; ctx.fillText(k + " pitch", 4, y + 12);
+      const a = D.pitch_hz[k], r = ranges[k], hop = D.hop_s, laneH = L.laneH;
       ctx.strokeStyle = COLOURS[k] || "#444"; ctx.lineWidth = 2; ctx.beginPath();
       const i0 = Math.max(0, Math.floor(t0 / hop)), i1 = Math.min(a.length, Math.ceil((t0 + SPAN) / hop) + 1);
       let pen = false;
       for (let i = i0; i < i1; i++) {
         if (a[i] > 0) {
           const m = 69 + 12 * Math.log2(a[i] / 440);
-          const x = (i * hop - t0) * px, yy = y + laneH - 4 - (m - r[0]) / (r[1] - r[0]) * (laneH - 8);
+          const x = xOf(i * hop), yy = y + laneH - 4 - (m - r[0]) / (r[1] - r[0]) * (laneH - 8);
           if (pen) ctx.lineTo(x, yy); else ctx.moveTo(x, yy);
           pen = true;
         } else pen = false;
       }
       ctx.stroke();
-      ctx.fillStyle = "#ddd"; ctx.fillRect(0, y + laneH - 1, W, 1);
+      ctx.fillStyle = "#ddd"; ctx.fillRect(GUTTER, y + laneH - 1, W - GUTTER, 1);
       y += laneH;
     });
     onsetKeys.forEach(function (k) {
-      const a = D.onsets_s[k];
-      ctx.fillStyle = "#555"; ctx.fillText(k, 4, y + 12);
+      const a = D.onsets_s[k], rowH = L.rowH;
       ctx.fillStyle = muted[k] ? "#ccc" : (COLOURS[k] || "#444");
-      for (let i = lowerBound(a, t0); i < a.length && a[i] <= t0 + SPAN; i++) ctx.fillRect((a[i] - t0) * px - 1, y + 2, 3, rowH - 4);
+      for (let i = lowerBound(a, t0); i < a.length && a[i] <= t0 + SPAN; i++) ctx.fillRect(xOf(a[i]) - 1, y + 2, 3, rowH - 4);
       y += rowH;
     });
-    ctx.fillStyle = "#d00"; ctx.fillRect(BEFORE * px, 0, 2, H);
+    ctx.fillStyle = "#d00"; ctx.fillRect(GUTTER + BEFORE * px, 0, 2, H);
+    ctx.restore();
+    // The gutter: each row's name, and each pitch lane's top and bottom as note names.
+    ctx.fillStyle = "#ddd"; ctx.fillRect(GUTTER - 1, 0, 1, H);
+    y = TOP;
+    pitchKeys.forEach(function (k) {
+      const r = ranges[k], laneH = L.laneH;
+      ctx.fillStyle = "#555"; ctx.fillText(k, 4, y + 12);
+      ctx.fillStyle = "#888"; ctx.fillText("pitch", 4, y + 25);
+      ctx.textAlign = "right";
+      ctx.fillText(noteName(r[1]), GUTTER - 6, y + 12);
+      ctx.fillText(noteName(r[0]), GUTTER - 6, y + laneH - 4);
+      ctx.textAlign = "left";
+      y += laneH;
+    });
+    onsetKeys.forEach(function (k) {
+      ctx.fillStyle = "#555"; ctx.fillText(k, 4, y + L.rowH / 2 + 4);
+      y += L.rowH;
+    });
   }
+  window.addEventListener("resize", function () { layout(); render(S.t, false); });
 
   // ---- clock ----
   function playing() { return S.clock === "audio" ? !audio.paused : S.wallPlaying; }

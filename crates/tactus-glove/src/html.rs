@@ -14,7 +14,9 @@
 //!   4, 5, 6, 8); a raised dot is filled with its feature's colour;
 //! * the map's legend (which finger and cell shows what) with a checkbox per stem or drum
 //!   class that mutes its cells;
-//! * pitch contours and onset rasters from the features, scrolling under a fixed playhead;
+//! * pitch contours and onset rasters from the features, scrolling under a fixed playhead,
+//!   each row named in a gutter of its own (each pitch lane with its range in note names);
+//!   the lanes fill the column beside the glove, and the legend sits under the glove;
 //! * keyboard: space plays or pauses, ← / → seek 5 s.
 //!
 //! The page, for tools (the contract):
@@ -267,7 +269,7 @@ fn colour(group: &str) -> &'static str {
         "vocals" => "#e84393",
         "other" => "#2e86c1",
         "drums" => "#16a085",
-        _ => "#888888",
+        _ => "rgb(136,136,136)",
     }
 }
 
@@ -452,13 +454,15 @@ pub fn render_page(pattern: &Pattern, features: &Features, audio: &[u8], title: 
 <input id="seek" type="range" min="0" max="{dur}" step="0.01" value="0" aria-label="position">
 </header>
 <main>
+<div id="left">
 <section id="glove" data-t="0" data-frame="0" aria-label="glove">
 <div class="hand">{glove}</div><div class="palm">back of the right hand · cell 0 at the finger tip · dots 1 2 3 7 | 4 5 6 8</div>
 </section>
+<div id="legendbox"><table id="legend"><thead><tr><th>finger</th><th>cell</th><th>shows</th></tr></thead><tbody>{legend}</tbody></table></div>
+</div>
 <section id="side">
 <canvas id="lanes" width="760" height="300"></canvas>
 <div id="toggles"><b>show:</b> {toggles}</div>
-<table id="legend"><thead><tr><th>finger</th><th>cell</th><th>shows</th></tr></thead><tbody>{legend}</tbody></table>
 <p class="help">space: play / pause · ← →: seek 5 s · <code>#t=SECONDS</code>: show that moment · {bin_ms} ms per frame, {frames} frames</p>
 </section>
 </main>
@@ -587,7 +591,7 @@ mod tests {
         let hash = crate::sha256_hex(page.html.as_bytes()).unwrap();
         assert_eq!(
             hash,
-            "55ff156e7078d8fa12cc899b2b76bd3b84c906cff14ed6ee3ba52db994502194"
+            "98c70e63b1765c2a49a548a4ee93c3c396d9014d42729c2a34672c020975066e"
         );
     }
 

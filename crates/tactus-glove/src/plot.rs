@@ -1,8 +1,11 @@
 //! The pattern and features as a figure (`render --plot`), after the paper's Figures 5 and 7.
 //!
-//! * one panel per melodic stem: the pitch contour (semitones) and the tactile level per bin;
+//! * one panel per melodic stem: the pitch contour (on a semitone scale, labelled with note
+//!   names and Hz) and the tactile level per bin (0 at the bottom to the top level);
 //! * one raster per drum band: onsets as ticks over the beat bins they light;
-//! * the glove: a piano roll of the 80 dots over time (finger, cell, dot), runs merged.
+//! * the glove: a piano roll of the 80 dots over time (finger, cell, dot), runs merged, each
+//!   finger's two cells labelled with what the map shows on them;
+//! * a key under the time axis saying what each mark means.
 //!
 //! The figure is drawn as SVG ([`render_svg`]); the `tactus` binary writes it as is or
 //! rasterises it to PNG.
@@ -11,12 +14,14 @@
 //! from x = 110 to 1380; title at y = 22; pitch panels 140 high from y = 40, one every 166;
 //! band rasters 28 high, one every 34; then 20 more and the piano roll, 80 rows of 4 (row =
 //! 8 × cell index + dot index, cells thumb 0, thumb 1, index 0, ...), each dot drawn 3.2 high
-//! from the top of its row; a bin `k` spans `[k, k+1) × bin / duration` of the plot width.
+//! from the top of its row; a bin `k` spans `[k, k+1) × bin / duration` of the plot width;
+//! the time axis 18 below the roll and the key's three lines 20, 35 and 50 below it.
 //! Every run of raised dots of one row is one subpath of that row's single `<path>`, so the
 //! element count stays small for any song length (usvg refuses more than 10⁶ elements).
 
 use std::fmt::Write as _;
 
+use crate::map::CellSource;
 use crate::{Features, Finger, Pattern};
 
 const W: f64 = 1400.0;
@@ -47,6 +52,35 @@ fn esc(s: &str) -> String {
         .replace('<', "&lt;")
         .replace('>', "&gt;")
         .replace('"', "&quot;")
+}
+
+/// Names of the twelve pitch classes, C first.
+const NOTE_NAMES: [&str; 12] = [
+    "C", "C#", "D", "D#", "E", "F", "F#", "G", "G#", "A", "A#", "B",
+];
+
+/// The note name of MIDI semitone `st` (A4 = 69) and its frequency in Hz (`A2`, `110 Hz`).
+fn note_and_hz(st: f64) -> (String, String) {
+    let n = st.round() as i64;
+    let hz = 440.0 * ((n as f64 - 69.0) / 12.0).exp2();
+    (
+        format!(
+            "{}{}",
+            NOTE_NAMES[n.rem_euclid(12) as usize],
+            n.div_euclid(12) - 1
+        ),
+        format!("{hz:.0} Hz"),
+    )
+}
+
+/// What a cell shows, in a few words for the piano roll's margin.
+fn cell_words(source: CellSource) -> String {
+    match source {
+        CellSource::Off => "nothing".into(),
+        CellSource::PitchLevel(stem) => format!("{} level", stem.name()),
+        CellSource::NoteOnsets { stem, .. } => format!("{} onsets", stem.name()),
+        CellSource::BandOnsets { band, .. } => band.name().into(),
+    }
 }
 
 /// Time to x: the plot's width spans the song.
@@ -99,6 +133,7 @@ pub fn render_svg(pattern: &Pattern, f: &Features) -> String {
     piano_roll(&mut s, &axis, y, pattern);
     y += roll_h + 18.0;
     time_labels(&mut s, &axis, y);
+    key(&mut s, y, pattern.levels);
     s.push_str("</svg>\n");
     s
 }
@@ -132,28 +167,28 @@ fn pitch_panel(
     panel(s, y, plot_w, PITCH_H, stem, 16.0, 13);
     let _ = writeln!(
         s,
-        r##"<text x="8" y="{}" fill="#1f77b4">pitch (st)</text>"##,
+        r##"<text x="8" y="{}" fill="#1f77b4">pitch</text>"##,
         y + 32.0
     );
     let _ = writeln!(
         s,
-        r##"<text x="8" y="{}" fill="#d62728">level 0–{}</text>"##,
-        y + 46.0,
+        r##"<text x="8" y="{}" fill="#d62728">level</text>"##,
+        y + 46.0
+    );
+    pitch_axis(s, y, lo, hi, &y_of);
+    // The level scale at the right edge: 0 at the bottom, the top level at the top.
+    let _ = writeln!(
+        s,
+        r##"<text x="{}" y="{}" font-size="10" fill="#d62728">{}</text>"##,
+        W - RIGHT + 3.0,
+        y + 10.0,
         pattern.levels
     );
     let _ = writeln!(
         s,
-        r#"<text x="{}" y="{}">{:.0}</text>"#,
-        LEFT - 28.0,
-        y + 10.0,
-        hi
-    );
-    let _ = writeln!(
-        s,
-        r#"<text x="{}" y="{}">{:.0}</text>"#,
-        LEFT - 28.0,
-        y + PITCH_H,
-        lo
+        r##"<text x="{}" y="{}" font-size="10" fill="#d62728">0</text>"##,
+        W - RIGHT + 3.0,
+        y + PITCH_H - 2.0
     );
     // levels as a step line scaled to the panel
     if let Some(levels) = f.levels.get(stem) {
@@ -198,6 +233,42 @@ fn pitch_panel(
     );
 }
 
+/// The pitch axis of a panel at `y` spanning semitones `lo..hi`, at the left of the plot: its
+/// two ends as note names over Hz, and every C between them as one label and a faint line
+/// across.
+fn pitch_axis(s: &mut String, y: f64, lo: f64, hi: f64, y_of: &dyn Fn(f64) -> f64) {
+    let label = |s: &mut String, at: f64, text: &str| {
+        let _ = writeln!(
+            s,
+            r#"<text x="{}" y="{at:.1}" font-size="10" text-anchor="end">{text}</text>"#,
+            LEFT - 4.0
+        );
+    };
+    let (note, hz) = note_and_hz(hi);
+    label(s, y + 10.0, &note);
+    label(s, y + 21.0, &hz);
+    let (note, hz) = note_and_hz(lo);
+    label(s, y + PITCH_H - 11.0, &hz);
+    label(s, y + PITCH_H, &note);
+    let mut d = String::new();
+    let first = (lo / 12.0).floor() as i64 * 12 + 12;
+    for c in (first..hi.ceil() as i64).step_by(12) {
+        let cy = y_of(c as f64);
+        let _ = write!(d, "M{LEFT},{cy:.1}H{} ", W - RIGHT);
+        // Labelled where it does not crowd the ends' labels.
+        if cy > y + 32.0 && cy < y + PITCH_H - 24.0 {
+            let (note, hz) = note_and_hz(c as f64);
+            label(s, cy + 3.5, &format!("{note} {hz}"));
+        }
+    }
+    if !d.is_empty() {
+        let _ = writeln!(
+            s,
+            r##"<path d="{d}" stroke="#e4e4e4" stroke-dasharray="4 3"/>"##
+        );
+    }
+}
+
 /// One drum band's raster at `y`: its beat bins as bands, its onsets as ticks.
 fn band_raster(
     s: &mut String,
@@ -228,7 +299,7 @@ fn band_raster(
             let x = x_of(t);
             let _ = write!(d, "M{x:.1},{:.1} L{x:.1},{:.1} ", y + 3.0, y + BAND_H - 3.0);
         }
-        let _ = writeln!(s, r##"<path d="{d}" stroke="#000" stroke-width="1"/>"##);
+        let _ = writeln!(s, r##"<path d="{d}" stroke="black" stroke-width="1"/>"##);
     }
 }
 
@@ -250,12 +321,21 @@ fn piano_roll(s: &mut String, axis: &TimeAxis, y: f64, pattern: &Pattern) {
         let _ = writeln!(
             s,
             r#"<text x="8" y="{}">{}</text>"#,
-            fy + 8.0 * DOT_H + 4.0,
+            fy + 12.0,
             finger.name()
         );
+        // Which cell is which: cell 0 the upper eight rows, cell 1 the lower eight.
+        for cell in 0..2 {
+            let _ = writeln!(
+                s,
+                r#"<text x="14" y="{}" font-size="10" fill="dimgray">{cell}: {}</text>"#,
+                fy + 8.0 * DOT_H * cell as f64 + if cell == 0 { 26.0 } else { 22.0 },
+                esc(&cell_words(pattern.map.get(*finger, cell)))
+            );
+        }
         let _ = writeln!(
             s,
-            r##"<line x1="{LEFT}" y1="{fy}" x2="{}" y2="{fy}" stroke="#999"/>"##,
+            r##"<line x1="{LEFT}" y1="{fy}" x2="{}" y2="{fy}" stroke="rgb(153,153,153)"/>"##,
             W - RIGHT
         );
     }
@@ -282,6 +362,31 @@ fn piano_roll(s: &mut String, axis: &TimeAxis, y: f64, pattern: &Pattern) {
         if !d.is_empty() {
             let _ = writeln!(s, r#"<path d="{d}" fill="{color}"/>"#);
         }
+    }
+}
+
+/// The key under the time axis (at `y`): what the marks of each part of the figure mean.
+fn key(s: &mut String, y: f64, levels: u8) {
+    let lines = [
+        format!(
+            "Pitch panels: blue line = the stem's pitch (axis in note names and Hz); red steps = its \
+             tactile level per bin, 0 (no dot: silent or unvoiced) at the bottom to {levels} (the \
+             highest dot) at the top."
+        ),
+        "Drum rows: black tick = an onset detected in that band or class; orange band = a bin in \
+         which its cell raises its dots."
+            .to_string(),
+        "Glove pins: one row per dot (1–8, top to bottom) of each cell; cell 0 is a finger's \
+         upper eight rows, cell 1 its lower eight; a bar = the dot raised for those bins."
+            .to_string(),
+    ];
+    for (i, line) in lines.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            r#"<text x="8" y="{}" fill="dimgray">{}</text>"#,
+            y + 20.0 + 15.0 * i as f64,
+            esc(line)
+        );
     }
 }
 
@@ -406,7 +511,7 @@ mod tests {
         let hash = crate::sha256_hex(render_svg(&p, &f).as_bytes()).unwrap();
         assert_eq!(
             hash,
-            "dd895dcc757a8dea8c1a8c3b97d9a90476da453b44bf93246d00a941ed74a277"
+            "a174205a7e1137adfaaf2a45207363ec3bb782892a1fefc6863487e99d2ecc2e"
         );
     }
 
