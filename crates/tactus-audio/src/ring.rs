@@ -30,7 +30,8 @@ struct Shared {
     base: Instant,
     first_cb_ns: AtomicU64,
     first_cb_frames: AtomicU64,
-    /// The device's `callback − capture` delay for the latest block, ns (issue 13).
+    /// The device's `callback − capture` delay for the latest block, ns (for the live
+    /// report's latency budget).
     input_delay_ns: AtomicU64,
     callbacks: AtomicU64,
     frames: AtomicU64,
@@ -39,7 +40,7 @@ struct Shared {
     /// (non-negative floats order like their bits, so `fetch_max` works).
     peak_bits: AtomicU32,
     error: AtomicBool,
-    /// Device-side overruns (xruns) the device reported (issue 13).
+    /// Device-side overruns (xruns) the device reported.
     xruns: AtomicU64,
 }
 
@@ -98,7 +99,7 @@ impl CaptureWriter {
         let channels = channels.max(1);
         let frames = data.len() / channels;
         let shared = &*self.shared;
-        // Issue 13: the device's own buffering, kept for every block so the report shows
+        // The device's own buffering, kept for every block so the report shows
         // the steady state rather than the start-up.
         shared
             .input_delay_ns

@@ -3,12 +3,12 @@
 //! bass line has there. [`crate::shs`] decodes its output with the same fixed-lag Viterbi as
 //! the harmonic sum ([`crate::shs::ShsConfig::learned`]).
 //!
-//! Why: on a mixture's low band the harmonic sum follows whatever is loudest there. A kick's
-//! or an 808's body under a bass note with a weak fundamental makes the subharmonic an octave
-//! or a fifth below win (`f/2` collects the body and every harmonic of the note), and the
-//! Viterbi then holds it (README, issue 16, "Where the remaining wrong mix-bass hops
-//! point"). A network that sees a few frames around the hop learns what a drum's body looks
-//! like (a decaying, falling sine that starts with a hit) and what a bass note looks like.
+//! Why: on a mixture's low band the harmonic sum follows whatever is loudest there. A kick's or
+//! an 808's body under a bass note with a weak fundamental makes the subharmonic an octave or a
+//! fifth below win (`f/2` collects the body and every harmonic of the note), and the Viterbi
+//! then holds it (`docs/decisions/0024-learned-bass-salience.md`). A network that sees a few
+//! frames around the hop learns what a drum's body looks like (a decaying, falling sine that
+//! starts with a hit) and what a bass note looks like.
 //!
 //! # Algorithm
 //! 1. **Spectrum** of the frame exactly as the harmonic sum computes it ([`BassFront`]):
@@ -81,30 +81,30 @@ const MAGIC: &[u8; 8] = b"TACTUSBN";
 static EMBEDDED: &[u8] = include_bytes!("../weights/bassnet.bin");
 
 /// The embedded lead model: the same network over a mixture's lead band (216 bands from
-/// 70 Hz, candidates 70–1400 Hz; `models/bassnet/README.md`, "The lead model").
+/// 70 Hz, candidates 70–1400 Hz; `models/bassnet/README.md`).
 static EMBEDDED_LEAD: &[u8] = include_bytes!("../weights/leadnet.bin");
 
 /// The second embedded lead model: the same recipe trained with 80 more sung songs
-/// (`models/bassnet/README.md`, "The lead ensemble"), averaged with the first
+/// (`docs/decisions/0031-lead-ensemble.md`), averaged with the first
 /// ([`crate::shs::ShsConfig::learned_ensemble`]).
 static EMBEDDED_LEAD_SUNG: &[u8] = include_bytes!("../weights/leadnet_sung.bin");
 
 /// The third embedded lead model: the lead recipe with another seed on other songs
-/// (`models/bassnet/README.md`, "The lead ensemble's third member").
+/// (`docs/decisions/0033-third-lead-ensemble-member.md`).
 static EMBEDDED_LEAD_3: &[u8] = include_bytes!("../weights/leadnet_3.bin");
 
 /// The harmonic-view lead models: the lead recipe trained on the spectral separator's
 /// harmonic sum (vocals + bass + other) instead of its vocals stem, seeds 7, 11 and 13 on
-/// the same 348 songs (`models/bassnet/README.md`, "The learned lead reads the harmonic
-/// sum"; module docs, "The harmonic view").
+/// the same 348 songs (`docs/decisions/0037-learned-lead-reads-the-harmonic-sum.md`; module
+/// docs, "The harmonic view").
 static EMBEDDED_LEAD_HARM: &[u8] = include_bytes!("../weights/leadnet_harm.bin");
 static EMBEDDED_LEAD_HARM_2: &[u8] = include_bytes!("../weights/leadnet_harm_2.bin");
 static EMBEDDED_LEAD_HARM_3: &[u8] = include_bytes!("../weights/leadnet_harm_3.bin");
 
 /// The harmonic-view bass model: the bass recipe trained on the spectral separator's
 /// harmonic sum (vocals + bass + other) instead of its bass stem, seed 7 on
-/// `models/bassnet/bass_train_songs_2.txt` (`models/bassnet/README.md`, "The bass reads the
-/// harmonic sum"; module docs, "The harmonic view").
+/// `models/bassnet/bass_train_songs_2.txt` (`docs/decisions/0042-bass-reads-the-harmonic-sum.md`;
+/// module docs, "The harmonic view").
 static EMBEDDED_BASS_HARM: &[u8] = include_bytes!("../weights/bassnet_harm.bin");
 
 /// The network and its input layout.

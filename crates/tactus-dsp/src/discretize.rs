@@ -41,67 +41,71 @@
 //! converges to the offline range as the song goes on. O(cells) per hop, no allocation after
 //! construction.
 //!
-//! **Range from held notes** ([`HeldRange`], [`range_quantiles_held`], our addition, issue 16).
-//! A hop counts towards the range only when it sits inside a held note: it and the `k` hops on
-//! each side are voiced and within `tol_st` semitones of it ([`held_mask`]). A tracker's
-//! errors where one note gives way to the next (the bass harmonic-sum tracker's 200 ms frame
-//! straddles both and reports their common subharmonic for up to ~100 ms), or a brief
-//! spurious island in a rest, then do not widen the range. When fewer than `min_share` of
-//! the voiced hops are held (a line of very short notes), every voiced hop counts as before.
-//! Offline: the quantiles of the held hops of the whole track. Streaming: hop `i` enters
-//! its own [`PriorRange`] once hop `i + k` has arrived (its padding fading with the voiced
-//! hops, as the plain one's), beside a [`PriorRange`] of every voiced hop; the held one is used while the held hops seen so far are at least `min_share`
-//! of the voiced hops seen so far. No added latency (the range lags by `k` hops); no
-//! allocation after construction; `k = 0` is the plain [`PriorRange`].
+//! **Range from held notes** ([`HeldRange`], [`range_quantiles_held`], our addition;
+//! `docs/decisions/0019-clean-bass-range-from-held-notes.md`). A hop counts towards the range
+//! only when it sits inside a held note: it and the `k` hops on each side are voiced and within
+//! `tol_st` semitones of it ([`held_mask`]). A tracker's errors where one note gives way to the
+//! next (the bass harmonic-sum tracker's 200 ms frame straddles both and reports their common
+//! subharmonic for up to ~100 ms), or a brief spurious island in a rest, then do not widen the
+//! range. When fewer than `min_share` of the voiced hops are held (a line of very short notes),
+//! every voiced hop counts as before. Offline: the quantiles of the held hops of the whole
+//! track. Streaming: hop `i` enters its own [`PriorRange`] once hop `i + k` has arrived (its
+//! padding fading with the voiced hops, as the plain one's), beside a [`PriorRange`] of every
+//! voiced hop; the held one is used while the held hops seen so far are at least `min_share` of
+//! the voiced hops seen so far. No added latency (the range lags by `k` hops); no allocation
+//! after construction; `k = 0` is the plain [`PriorRange`].
 //!
 //! **Range without octave shadows** ([`shadow_mask`], [`range_quantiles_kept`],
-//! [`HeldRange::with_shadow`], our addition, issue 16). On a mixture a bass tracker
+//! [`HeldRange::with_shadow`], our addition;
+//! `docs/decisions/0026-mix-bass-range-without-octave-shadows.md`). On a mixture a bass tracker
 //! sometimes reports the line's own note an octave low for a run of hops (a kick or tom body
 //! under the note supplies the subharmonic). A few percent of such hops are enough to put the
-//! 1st percentile an octave under the line's lowest note and shift every level. A voiced hop
-//! is an *octave shadow* when the line sounds an octave above it (within [`SHADOW_TOL_ST`]
-//! of its pitch + 12) within `w` hops on either side; shadows are left out of the range the
-//! way unheld hops are (same `min_share` and `min_hops` fallback). A line that really drops
-//! an octave within `w` hops loses that low note from its range; a line that alternates
-//! root and octave throughout falls back to every voiced hop (too few kept). Streaming:
-//! hop `i` is judged once hop `i + max(k, w)` has arrived (no added latency; the range lags
-//! by that many hops, and the first `max(k, w)` hops of a stream never count).
+//! 1st percentile an octave under the line's lowest note and shift every level. A voiced hop is
+//! an *octave shadow* when the line sounds an octave above it (within [`SHADOW_TOL_ST`] of its
+//! pitch + 12) within `w` hops on either side; shadows are left out of the range the way unheld
+//! hops are (same `min_share` and `min_hops` fallback). A line that really drops an octave
+//! within `w` hops loses that low note from its range; a line that alternates root and octave
+//! throughout falls back to every voiced hop (too few kept). Streaming: hop `i` is judged once
+//! hop `i + max(k, w)` has arrived (no added latency; the range lags by that many hops, and the
+//! first `max(k, w)` hops of a stream never count).
 //!
 //! **Range from held or agreed hops** ([`agree_mask`], [`range_quantiles_kept_or`],
-//! [`HeldRange::update_trusted`], our addition, issue 16). A mixture's lead, tracked by one
-//! tracker for its pitch and a second one for its voicing, follows another instrument or an
-//! octave for short stretches; those set the range's ends. Held notes alone leave them out, but
-//! also a fast line's true extremes (eighths at 132 bpm hold for about 23 hops). A hop
+//! [`HeldRange::update_trusted`], our addition;
+//! `docs/decisions/0029-mix-lead-range-from-held-or-agreed-hops.md`). A mixture's lead, tracked
+//! by one tracker for its pitch and a second one for its voicing, follows another instrument or
+//! an octave for short stretches; those set the range's ends. Held notes alone leave them out,
+//! but also a fast line's true extremes (eighths at 132 bpm hold for about 23 hops). A hop
 //! therefore also counts when the second tracker's pitch agrees with it within `tol_st`
-//! semitones: its pitch has two witnesses however short the note. Offline and streaming as
-//! the held range (same fallbacks, same lag); a hop that is neither held nor agreed is left
-//! out.
+//! semitones: its pitch has two witnesses however short the note. Offline and streaming as the
+//! held range (same fallbacks, same lag); a hop that is neither held nor agreed is left out.
 //!
 //! **Narrowed to the sure hops** ([`range_quantiles_kept_or_sure`], [`narrow_range`],
-//! [`HeldRange::update_sure`], our addition, issue 16). A learned tracker knows how sure it is of a pitch (the
-//! network's probability near the decided candidate, `tactus_dsp::shs` module docs, "Learned
-//! salience"). On a mixture's lead the unsure hops are mostly where it sits on a chord tone,
-//! an octave or the bass while the voice rests or is masked, and those set the range's ends
-//! even when they are held or agreed, sometimes many semitones past the voice. But a voice's
-//! own extremes can be unsure too (a soprano's low notes under the alto), and dropping them
-//! narrows a short range. So the range of the held or agreed hops is narrowed to at most
-//! `margin` semitones beyond the range of those of them that are also sure: the held test
-//! still reads every voiced hop, and the fallbacks are unchanged. A mixture's bass line uses
-//! the bottom only: its unsure hops under the line are a kick's body or a subharmonic, but
-//! its unsure high notes are real. Streaming, a second [`HeldRange`] fed the same hops keeps
-//! only the sure ones ([`HeldRange::update_sure`]), and the running range is narrowed to it
-//! once it holds ([`HeldRange::holds`]); leaving the unsure hops out of the running range
-//! itself delays it and drops early extremes.
+//! [`HeldRange::update_sure`], our addition;
+//! `docs/decisions/0038-mix-lead-range-narrowed-to-sure-hops.md`). A learned tracker knows how
+//! sure it is of a pitch (the network's probability near the decided candidate,
+//! `tactus_dsp::shs` module docs, "Learned salience"). On a mixture's lead the unsure hops are
+//! mostly where it sits on a chord tone, an octave or the bass while the voice rests or is
+//! masked, and those set the range's ends even when they are held or agreed, sometimes many
+//! semitones past the voice. But a voice's own extremes can be unsure too (a soprano's low
+//! notes under the alto), and dropping them narrows a short range. So the range of the held or
+//! agreed hops is narrowed to at most `margin` semitones beyond the range of those of them that
+//! are also sure: the held test still reads every voiced hop, and the fallbacks are unchanged.
+//! A mixture's bass line uses the bottom only: its unsure hops under the line are a kick's body
+//! or a subharmonic, but its unsure high notes are real. Streaming, a second [`HeldRange`] fed
+//! the same hops keeps only the sure ones ([`HeldRange::update_sure`]), and the running range
+//! is narrowed to it once it holds ([`HeldRange::holds`]); leaving the unsure hops out of the
+//! running range itself delays it and drops early extremes.
 //!
-//! **Register prior** ([`RangePrior::Register`], [`PriorRange::with_prior`], our addition,
-//! issue 16). A span prior pads the first notes symmetrically, but where a line starts says
-//! little about which way it will go: a bass line that opens on its lowest roots only climbs.
-//! A register prior knows the instrument's usual compass `[r_lo, r_hi]` instead: each end of
-//! the running (quantile) range starts at the register's edge and moves to the line's own end
-//! as voiced hops accumulate, `lo' = lo − w·max(0, lo − r_lo)` (and mirrored for `hi`) in
-//! semitones, with the same weight `w = fade / (fade + n)`. The range is never narrower than
-//! the line's own, an end beyond the register is kept, and the prior fades to nothing.
-//! Causal, O(1) on top of the quantile range, no allocation after construction.
+//! **Register prior** ([`RangePrior::Register`], [`PriorRange::with_prior`], our addition;
+//! `docs/decisions/0022-streaming-levels-from-a-register-prior.md`). A span prior pads the
+//! first notes symmetrically, but where a line starts says little about which way it will go: a
+//! bass line that opens on its lowest roots only climbs. A register prior knows the
+//! instrument's usual compass `[r_lo, r_hi]` instead: each end of the running (quantile) range
+//! starts at the register's edge and moves to the line's own end as voiced hops accumulate,
+//! `lo' = lo − w·max(0, lo − r_lo)` (and mirrored for `hi`) in semitones, with the same weight
+//! `w = fade / (fade + n)`. The range is never narrower than the line's own, an end beyond the
+//! register is kept, and the prior fades to nothing. Causal, O(1) on top of the quantile range,
+//! no allocation after construction.
 //!
 //! **Defaults.** [`DEFAULT_LEVELS`] = 8 (paper), semitone scale (docs/design.md). **Latency:** none.
 

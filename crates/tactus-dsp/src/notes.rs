@@ -1,23 +1,25 @@
 //! Note onsets from a pitch track: a new note starts where voicing begins or where the
 //! pitch moves to a new stable note.
 //!
-//! Spectral flux sees attacks; a sung or legato note changes pitch without one (issue 16,
-//! item 4). This stage reads the tracked f0 per hop (Hz, 0 = unvoiced, after gate and fences)
-//! and marks hop `j` as a **note onset** when the `stable` hops `j ..= j + stable − 1` are all
-//! voiced and lie within ± `tolerance_st` semitones of their median (a stable note), and
-//! either no note is current (voicing began, or resumed after more than `gap_hops` unvoiced
-//! hops) or hop `j`'s pitch is at least `jump_st` semitones from the current note's. The new
-//! note's pitch is the window's median; while the note lasts, each later stable window pulls
-//! it 3 % of the way towards its own median, so it settles on the note's centre. Vibrato (±35 cents) and scoops (−40 cents) stay inside one
+//! Spectral flux sees attacks; a sung or legato note changes pitch without one
+//! (`docs/decisions/0004-note-onsets-from-the-pitch-track.md`). This stage reads the tracked f0
+//! per hop (Hz, 0 = unvoiced, after gate and fences) and marks hop `j` as a **note onset** when
+//! the `stable` hops `j ..= j + stable − 1` are all voiced and lie within ± `tolerance_st`
+//! semitones of their median (a stable note), and either no note is current (voicing began, or
+//! resumed after more than `gap_hops` unvoiced hops) or hop `j`'s pitch is at least `jump_st`
+//! semitones from the current note's. The new note's pitch is the window's median; while the
+//! note lasts, each later stable window pulls it 3 % of the way towards its own median, so it
+//! settles on the note's centre. Vibrato (±35 cents) and scoops (−40 cents) stay inside one
 //! note; a bend or glide only starts a note once it settles.
 //!
-//! **The stem's level** (the `attack` rule, [`NoteOnsets::push_level`]; issue 16): the pitch
-//! cannot see a note repeated at the same pitch (a pop bass line on its root, a sung syllable
-//! on the previous note's pitch), and it hears a new note only once its pitch has settled,
-//! after the previous note's release or reverb (50–90 ms on the corpus's soundfont leads). So
-//! the detector also reads the stem's RMS per hop `L` (dB, the pitch track's own 40 ms
-//! frames). With `step(h) = L[h] − L[h−1]` and `rise(h) = max L[h ..= h+2] − min L[h−3 ..= h−1]`,
-//! a hop is an **attack** when its step is positive and the steepest of hops `h−1 ..= h+2`:
+//! **The stem's level** (the `attack` rule, [`NoteOnsets::push_level`];
+//! `docs/decisions/0017-note-onsets-from-the-attack.md`): the pitch cannot see a note repeated
+//! at the same pitch (a pop bass line on its root, a sung syllable on the previous note's
+//! pitch), and it hears a new note only once its pitch has settled, after the previous note's
+//! release or reverb (50–90 ms on the corpus's soundfont leads). So the detector also reads the
+//! stem's RMS per hop `L` (dB, the pitch track's own 40 ms frames). With `step(h) = L[h] −
+//! L[h−1]` and `rise(h) = max L[h ..= h+2] − min L[h−3 ..= h−1]`, a hop is an **attack** when
+//! its step is positive and the steepest of hops `h−1 ..= h+2`:
 //! 1. **Re-attack**: inside a held note (hop `j`'s pitch within `jump_st` of the current
 //!    note's), an attack with `rise ≥ reattack_db` starts a new note of the same pitch, when
 //!    at least `reattack_min_hops` have passed since the previous onset (0 by default; the
@@ -32,12 +34,11 @@
 //! 5. **Attacked changes** (`pitch_needs_attack`, off by default; the engine turns it on for
 //!    the bass of a mixture): a change of note counts only where rule 2 finds an attack.
 //! 6. **Guided onsets** (`guide_back_hops`, off by default and in the engine: tried, not
-//!    adopted, `benches/trials/RULE_guided_onsets.md`): a
-//!    pitch onset that rule 2 did not move goes back to where a *guide* pitch fed beside
-//!    the decoded one ([`NoteOnsets::push_guided`]: the harmonic-sum tracker's
-//!    attack-aligned pitch) already holds the new note, within the attack search's
-//!    window: a choir's slow attack cross-fades with the old note's release without
-//!    raising the level, but the new note's own salience grows from its start.
+//!    adopted): a pitch onset that rule 2 did not move goes back to where a *guide* pitch fed
+//!    beside the decoded one ([`NoteOnsets::push_guided`]: the harmonic-sum tracker's
+//!    attack-aligned pitch) already holds the new note, within the attack search's window: a
+//!    choir's slow attack cross-fades with the old note's release without raising the level,
+//!    but the new note's own salience grows from its start.
 //!
 //! Without a level (NaN) rules 1, 2 and 4 find no attack, so the rule never adds an onset the
 //! pitch rule lacks. The kick leaking into a separated bass stem also raises its level, but on
@@ -55,7 +56,7 @@
 //! hops), tolerance 0.5 semitone, jump 0.7 semitone, gap 2 hops (tuned on 4 chorales);
 //! re-attack 6 dB, attack search 8 hops with 3 dB, minimum interval 10 hops (100 ms), dropouts
 //! up to 10 hops (tuned on the tuning halves of the sung, drum and chorale corpora,
-//! `benches/bass_eval.py`, `benches/note_onset_diag.py`). [`NoteConfig::pitch_only`] is the
+//! `benches/bass_eval.py`). [`NoteConfig::pitch_only`] is the
 //! first implementation (the pitch alone).
 //!
 //! **Latency** ([`NoteOnsets::latency_hops`]): the decision's look-ahead, `stable − 1` hops

@@ -4,7 +4,7 @@
 //! Why: on a mixture's lead band a learned salience picks the lead's pitch better than the
 //! harmonic sum (it knows a low voice whose fundamental the band lacks, and a chord tone
 //! from the tune), but on a drum kit it has never heard it falls silent where the lead
-//! plays (README, issue 16, "The learned lead's pitch inside the harmonic sum's voicing").
+//! plays (`docs/decisions/0027-learned-lead-pitch-inside-harmonic-sum-voicing.md`).
 //! The pair keeps the voicing tracker's decisions and replaces its pitch by the pitch
 //! tracker's wherever both are voiced.
 //!
@@ -19,13 +19,13 @@
 //! unvoiced too, in the merged estimate and in the voicing tracker's own as emitted by
 //! [`VoicingPitchPair::process_both`]: on a mixture's lead the harmonic sum keeps a pitch
 //! through the lead's rests while the chords sound, and the learned lead salience knows a
-//! rest (README, "The learned lead's voicing veto").
+//! rest (`docs/decisions/0028-learned-lead-voicing-veto.md`).
 //!
 //! **Two views** ([`VoicingPitchPair::process_two`]). The pitch tracker may read another
 //! signal of the same span than the voicing tracker: on the spectral separator's lead the
 //! learned lead models read the separator's harmonic sum (vocals + bass + other), which
 //! keeps what the lead band's masks take from the voice, while the harmonic sum still
-//! decides voicing on the lead band (README, "The learned lead reads the harmonic sum").
+//! decides voicing on the lead band (`docs/decisions/0037-learned-lead-reads-the-harmonic-sum.md`).
 //!
 //! # Latency
 //! The larger of the two trackers' latencies: a hop leaves once both have decided it.

@@ -1,5 +1,5 @@
-//! Two-frame YIN for the live profile (issue 13): a short frame answers first, a long frame
-//! answers for the lowest octave.
+//! Two-frame YIN for the live profile (`docs/decisions/0013-two-frame-yin-for-live-pitch.md`):
+//! a short frame answers first, a long frame answers for the lowest octave.
 //!
 //! YIN needs two periods of the lowest note in its frame, so a bass frame from 41 Hz (E1) is
 //! 48.8 ms long, and a new note shows once most of that frame holds it: on the live bench a

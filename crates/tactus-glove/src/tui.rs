@@ -1,4 +1,4 @@
-//! The terminal glove view (`tactus live --tui`, `tactus play --tui`; issue 13): one
+//! The terminal glove view (`tactus live --tui`, `tactus play --tui`): one
 //! [`Frame`] and a status, as lines of plain ASCII text.
 //!
 //! Pure functions only: [`render`] turns a frame and a [`ViewStatus`] into lines,

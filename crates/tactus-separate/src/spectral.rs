@@ -12,20 +12,19 @@
 //!    streaming with a bounded look-ahead: it spans `past_frames` frames before the frame
 //!    and `lookahead_frames` after it (frames before the start and after the end count as
 //!    silence).
-//! 2. **Bass** = the harmonic part below `bass_crossover_hz`, with a raised-cosine
-//!    crossover half an octave wide (in log frequency) centred on it. Below the crossover
-//!    a second, longer time median (`bass_past_frames` past frames, same look-ahead, so no
-//!    added latency) also votes: `bass = min(harm, harm_long) · crossover`. A kick's low
-//!    body lasts long enough that the short median still calls part of it harmonic; the
-//!    long one calls it less so, and the bass tracker stops following kicks
-//!    (`tests/quality.rs`: kick energy left in bass −1.1 → −2.0 dB; on the drum corpus's
-//!    `timgm` mixes bass RPA 0.733 → 0.758, bass levels ±1 0.60 → 0.71).
-//!    Then the **kit mask** (`low_band_drums`, [`crate::lowband`]): a small learned network
-//!    gives, per bin below 301 Hz, the drum kit's share, which moves from the bass mask to
-//!    the drums (`bass·p` leaves bass, joins drums; vocals and other are untouched). It reads
-//!    the frames the time median already holds, so it adds no latency. Held-out mixes of the
-//!    corpus: bass RPA 0.61 → 0.69 (sung songs), 0.71 → 0.77 (drum corpus), README
-//!    "Bass, levels and note onsets".
+//! 2. **Bass** = the harmonic part below `bass_crossover_hz`, with a raised-cosine crossover
+//!    half an octave wide (in log frequency) centred on it. Below the crossover a second,
+//!    longer time median (`bass_past_frames` past frames, same look-ahead, so no added latency)
+//!    also votes: `bass = min(harm, harm_long) · crossover`. A kick's low body lasts long
+//!    enough that the short median still calls part of it harmonic; the long one calls it less
+//!    so, and the bass tracker stops following kicks (`tests/quality.rs`: kick energy left in
+//!    bass −1.1 → −2.0 dB; on the drum corpus's `timgm` mixes bass RPA 0.733 → 0.758, bass
+//!    levels ±1 0.60 → 0.71). Then the **kit mask** (`low_band_drums`, [`crate::lowband`]): a
+//!    small learned network gives, per bin below 301 Hz, the drum kit's share, which moves from
+//!    the bass mask to the drums (`bass·p` leaves bass, joins drums; vocals and other are
+//!    untouched). It reads the frames the time median already holds, so it adds no latency.
+//!    Held-out mixes of the corpus: bass RPA 0.61 → 0.69 (sung songs), 0.71 → 0.77 (drum
+//!    corpus) (`docs/decisions/0020-kit-mask.md`).
 //! 3. **Vocals** = the rest of the harmonic part, times a vocal band (`vocal_band_hz`,
 //!    raised-cosine edges half an octave wide), times a **centre** weight. With side
 //!    spectrum `S = (L − R) / 2`, the per-bin index `c = (|M|² − |S|²) / (|M|² + |S|²)`
@@ -54,11 +53,11 @@
 //! **Latency** = `n_fft − 1 + lookahead_frames · hop` samples (the STFT round trip plus
 //! the look-ahead): 2047 + 2 · 1024 = 4095 samples = 92.9 ms by default at 44.1 kHz.
 //!
-//! **Measured** (synthetic 8 s stereo mix of `tests/quality.rs`, plain SDR): drums 0.6,
-//! bass 6.8, vocals 9.1, other 2.2 dB, i.e. 8.2 / 5.8 / 14.5 / 13.1 dB better than using
-//! the mix itself. The weak spot is drums: kick thumps are long low sines, which the time
-//! median calls harmonic, so they leak into bass. Speed (`benches/separate.rs`, 2 shared
-//! cores, idle): about 180× real time for all four stems, about 1900× for bass alone.
+//! **Measured** (synthetic 8 s stereo mix of `tests/quality.rs`, plain SDR): drums 0.6, bass
+//! 6.8, vocals 9.1, other 2.2 dB, i.e. 8.2 / 5.8 / 14.5 / 13.1 dB better than using the mix
+//! itself. The weak spot is drums: kick thumps are long low sines, which the time median calls
+//! harmonic, so they leak into bass. Speed (`crates/tactus-separate/benches/separate.rs`, 2
+//! shared cores, idle): about 180× real time for all four stems, about 1900× for bass alone.
 //!
 //! **Hygiene**: non-finite input samples become 0, samples below 1e-30 are flushed to 0
 //! (`tactus_dsp::sanitize`), and mid/side samples are clamped to ±1e9 so the output is
@@ -128,11 +127,12 @@ impl Default for SpectralConfig {
 /// Samples per internal block when converting L/R to mid/side.
 const BLOCK: usize = 512;
 
-/// Samples of point-reflected signal appended at the end of the stream: enough that the
-/// frame centred on the last sample and the `lookahead_frames` after it see signal, not
-/// zeros. Zero padding was a cut that the harmonic/percussive split saw as a broadband
-/// hit, so a sound lasting to the end gave the drum stem a burst (issue 11). The
-/// synthesis is limited to the real length, so none of the padding's own output leaves.
+/// Samples of point-reflected signal appended at the end of the stream: enough that the frame
+/// centred on the last sample and the `lookahead_frames` after it see signal, not zeros. Zero
+/// padding was a cut that the harmonic/percussive split saw as a broadband hit, so a sound
+/// lasting to the end gave the drum stem a burst
+/// (`docs/decisions/0010-reflected-end-padding.md`). The synthesis is limited to the real
+/// length, so none of the padding's own output leaves.
 fn end_padding(cfg: &SpectralConfig) -> usize {
     cfg.n_fft / 2 + cfg.lookahead_frames * cfg.hop
 }

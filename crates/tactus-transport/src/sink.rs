@@ -78,7 +78,7 @@ pub struct SinkStats {
     /// The link's MTU in bytes, where it reports one (BLE).
     pub mtu: Option<u16>,
     /// The pin state the last pins or all-down packet written to the link showed: what the
-    /// glove shows now (issue 13, the terminal view). All down before the first packet.
+    /// glove shows now (for the terminal view, `--tui`). All down before the first packet.
     pub shown: Frame,
     /// That packet's frame time, ms since stream start.
     pub shown_time_ms: u32,

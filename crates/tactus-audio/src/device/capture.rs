@@ -36,7 +36,7 @@ where
             let delay = ts.callback.saturating_duration_since(ts.capture);
             writer.write(data, channels, |x: T| x.to_sample::<f32>(), delay)
         },
-        // Issue 13: an xrun (the device's buffer overflowed while nobody read it) is
+        // An xrun (the device's buffer overflowed while nobody read it) is
         // counted, not an error: cpal recovers the stream and capture goes on.
         move |e: cpal::Error| {
             if e.kind() == cpal::ErrorKind::Xrun {
@@ -49,8 +49,9 @@ where
     )
 }
 
-/// What the live profile asks of the capture device (issue 13). Both are requests: a
-/// device that cannot honour one keeps its default.
+/// What the live profile asks of the capture device
+/// (`docs/decisions/0006-live-latency-profile.md`). Both are requests: a device that cannot
+/// honour one keeps its default.
 ///
 /// * `rate`: capture at the engine's rate where the device offers it, so no resampler
 ///   stands between the device and the engine (ours needs 40 ms of look-ahead for
@@ -108,7 +109,7 @@ impl Capture {
         Self::open_with(name, &CaptureRequest::default())
     }
 
-    /// [`Capture::open`] asking for a rate and a period (issue 13, the live profile; see
+    /// [`Capture::open`] asking for a rate and a period (the live profile; see
     /// [`CaptureRequest`]); what the device refuses falls back to its default.
     pub fn open_with(name: Option<&str>, req: &CaptureRequest) -> Result<Capture, DeviceError> {
         const WHAT: &str = "input";

@@ -40,7 +40,8 @@ impl DrumModel {
 
     /// The embedded low-latency model: the same network shape with one frame of future
     /// context instead of four, so a hit is decided 512 + 441 samples = 21.6 ms after it
-    /// at 44.1 kHz (issue 10's live budget is 30 ms), at some cost in accuracy
+    /// at 44.1 kHz (within the live profile's rhythm budget,
+    /// `docs/decisions/0015-live-drums-by-the-one-hop-model.md`), at some cost in accuracy
     /// (`models/drums/README.md`).
     pub fn embedded_live() -> DrumModel {
         // Checked by a unit test, like `embedded`.

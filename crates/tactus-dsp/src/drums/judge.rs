@@ -56,8 +56,8 @@ impl Judge {
 }
 
 /// A second stage for some classes' onsets, learnt on *out-of-family* activations (each
-/// training kit family scored by a network that never heard it, `models/drums/trials/lofo/
-/// stage2.py`; rule `models/drums/trials/RULE_stage2.md`): on an unheard kit the network's
+/// training kit family scored by a network that never heard it, `models/drums/stage2/
+/// stage2.py`; `docs/decisions/0047-snare-second-stage.md`): on an unheard kit the network's
 /// activations are biased in a way its own training kits do not show, and this stage has
 /// seen how.
 ///

@@ -26,38 +26,36 @@
 //!    signal's mel frames from a frame half as long ([`MelConfig::drums_short`]: 1024
 //!    points ending at the same sample, so no added latency), same context, normalised by
 //!    their own window's maximum and clipped at `floor`: a hit is sharper in time there.
-//! 4. **Network**: a multilayer perceptron, ReLU hidden layers, one sigmoid per class.
-//!    The input standardisation (training mean and standard deviation) is folded into the
-//!    first layer's weights. The weights are trained by `models/drums/train.py` on kits
-//!    rendered from free soundfonts and samples (provenance in `models/drums/README.md`)
-//!    and embedded in the binary ([`DrumModel::embedded`]).
-//!    A model file may instead hold a small convolutional network (file version 4,
-//!    `models/drums/train_cnn.py`: [`Conv`] layers over time × band, "valid" in time and
-//!    zero-padded in band, ReLU, max-pool; the standardisation applied explicitly, then
-//!    dense layers), or be an ensemble of such files whose activations are averaged
-//!    ([`DrumModel::members`]). The embedded models are perceptrons; the other kinds run
-//!    through `render --drum-model FILE` (a trial that was not adopted,
-//!    `benches/trials/RULE_cnn_ensemble.md`).
-//!    A *retuned* file (`"TACTUSDT"`, `models/drums/tta.py`) wraps a perceptron with a list
-//!    of test-time retunings ([`Retuning`]): the network also runs on its normalised window
-//!    with the mel axis retuned by each ratio (band `b` takes the value at frequency
-//!    `centre_b / ratio`, linear between bands, then normalised again as in step 3), and the
-//!    activations are averaged: the network is asked about each hit as if the kit were
-//!    tuned a little lower and higher (`models/drums/trials/RULE_tta.md`). A short-view
-//!    model's two views are retuned alike, each normalised by its own maximum.
-//! 5. **Peak picking** per class, causal: hop `i` is an onset of class `c` when the
-//!    activation `a_c[i] >= threshold_c`, the detector is *armed*, and at least
-//!    `min_interval` (50 ms, docs/design.md) has passed since the last onset of that class. A
-//!    class is disarmed by an onset and re-armed when its activation falls below the
-//!    threshold or below half the peak it reached since the onset (so two hits whose
-//!    activations overlap are both found). The onset's strength is `a_c[i]`.
-//!    A *staged* file (`"TACTUSD2"`) replaces some classes' threshold with a
-//!    [`SecondStage`]: candidates picked at a low threshold, judged a few hops later by a
-//!    [`Judge`] (a logistic regression, or a perceptron with one hidden layer) learnt on
-//!    activations of kits the network never heard, with the song's earlier candidates as
-//!    context. The embedded default judges its snare so, with a perceptron of 32 units
-//!    (`models/drums/trials/RULE_stage2.md`, `RULE_stage2_mlp.md`), and so does the live
-//!    model, judging each candidate at its own hop (`RULE_stage2_live.md`).
+//! 4. **Network**: a multilayer perceptron, ReLU hidden layers, one sigmoid per class. The
+//!    input standardisation (training mean and standard deviation) is folded into the first
+//!    layer's weights. The weights are trained by `models/drums/train.py` on kits rendered from
+//!    free soundfonts and samples (provenance in `models/drums/README.md`) and embedded in the
+//!    binary ([`DrumModel::embedded`]). A model file may instead hold a small convolutional
+//!    network (file version 4, `models/drums/train_cnn.py`: [`Conv`] layers over time × band,
+//!    "valid" in time and zero-padded in band, ReLU, max-pool; the standardisation applied
+//!    explicitly, then dense layers), or be an ensemble of such files whose activations are
+//!    averaged ([`DrumModel::members`]). The embedded models are perceptrons; the other kinds
+//!    run through `render --drum-model FILE` (tried, and not adopted as a default). A *retuned*
+//!    file (`"TACTUSDT"`, `models/drums/tta.py`) wraps a perceptron with a list of test-time
+//!    retunings ([`Retuning`]): the network also runs on its normalised window with the mel
+//!    axis retuned by each ratio (band `b` takes the value at frequency `centre_b / ratio`,
+//!    linear between bands, then normalised again as in step 3), and the activations are
+//!    averaged: the network is asked about each hit as if the kit were tuned a little lower and
+//!    higher (`docs/decisions/0046-drum-test-time-retuning.md`). A short-view model's two views
+//!    are retuned alike, each normalised by its own maximum.
+//! 5. **Peak picking** per class, causal: hop `i` is an onset of class `c` when the activation
+//!    `a_c[i] >= threshold_c`, the detector is *armed*, and at least `min_interval` (50 ms,
+//!    docs/design.md) has passed since the last onset of that class. A class is disarmed by an
+//!    onset and re-armed when its activation falls below the threshold or below half the peak
+//!    it reached since the onset (so two hits whose activations overlap are both found). The
+//!    onset's strength is `a_c[i]`. A *staged* file (`"TACTUSD2"`) replaces some classes'
+//!    threshold with a [`SecondStage`]: candidates picked at a low threshold, judged a few hops
+//!    later by a [`Judge`] (a logistic regression, or a perceptron with one hidden layer)
+//!    learnt on activations of kits the network never heard, with the song's earlier candidates
+//!    as context. The embedded default judges its snare so, with a perceptron of 32 units
+//!    (`docs/decisions/0047-snare-second-stage.md`, `0049-snare-judge-perceptron.md`), and so
+//!    does the live model, judging each candidate at its own hop
+//!    (`0050-live-snare-second-stage.md`).
 //!
 //! # Latency
 //! Hop `i` is decided once mel frame `i + future` exists:

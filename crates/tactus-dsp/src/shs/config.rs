@@ -83,7 +83,7 @@ pub struct ShsConfig {
     pub learned_voicing_nats: f32,
     /// With [`ShsConfig::learned`] on the lead's grid: the candidates' probabilities are the
     /// mean of the embedded lead models' ([`BassNet::embedded_lead`] and
-    /// [`BassNet::embedded_lead_others`]: three since 2026-11-28), `log(Σᵢ pᵢ / n)` per
+    /// [`BassNet::embedded_lead_others`]: three models), `log(Σᵢ pᵢ / n)` per
     /// candidate and for "no pitch" ([`crate::bassnet`] module docs, "The lead models and
     /// their ensemble"). Errors on the bass grid. Off by default.
     pub learned_ensemble: bool,

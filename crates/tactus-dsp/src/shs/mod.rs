@@ -65,26 +65,25 @@
 //!    default; the engine turns it on (σ = 12 semitones) for the bass of a mix, where on
 //!    the tuning songs it moved bass RPA from 0.80 / 0.85 / 0.89 to 0.82 / 0.89 / 0.90
 //!    (sung, chorales, timgm mixes; `benches/bass_eval.py`).
-//! 9. **Attack alignment** (`attack_rise_db` > 0, harmonic sum only). A soundfont's lead
-//!    or choir patch holds the old note's release over the new note's slow attack, so the
-//!    decoded change comes 50–150 ms after the note starts (README, "The clean chorales'
-//!    and instrumental leads' late note changes"). When hop `h` is decided (at `t = h +
-//!    lag_hops`) as a voiced note `A`, the provisional path backtracked from the best state
-//!    at `t` is read for the hops after `h`: if it leaves `A` for a note `B` in one step of
-//!    at least a semitone, every hop up to that jump voiced and sounding, `B` held for
-//!    [`ATTACK_HOLD_HOPS`] hops (within a bin), and the frame's band level (the mean
-//!    power over the searched band, in dB of the input's units) rises from `h` to the
-//!    jump by at least `attack_rise_db` in all and falls by no more than that from one hop
-//!    to the next, hop `h` reports `B` (refined on its own salience). A cross-fade between
-//!    two sung notes need not raise the band level, so with `attack_salience_ratio` = r > 0
-//!    hop `h` also reports `B` (same jump and hold) when `B` already sounds there, its
-//!    salience (the largest within a bin of `B`) at least r times `A`'s at `h`, and it
-//!    grows towards the jump, falling by no more than [`ATTACK_SALIENCE_TOL`] from one hop
-//!    to the next; the band level's fall then does not end the search. The decoded state
-//!    still drives everything else (contour voicing, register, the Viterbi), and
-//!    [`Shs::process_both`] gives both. No latency is added: only the lag is read. Off by
-//!    default; the engine turns it on (0.5 dB, r = 0.3) for a lead that comes as its own
-//!    stem.
+//! 9. **Attack alignment** (`attack_rise_db` > 0, harmonic sum only). A soundfont's lead or
+//!    choir patch holds the old note's release over the new note's slow attack, so the decoded
+//!    change comes 50–150 ms after the note starts
+//!    (`docs/decisions/0035-clean-lead-note-changes-at-the-attack.md`). When hop `h` is decided
+//!    (at `t = h + lag_hops`) as a voiced note `A`, the provisional path backtracked from the
+//!    best state at `t` is read for the hops after `h`: if it leaves `A` for a note `B` in one
+//!    step of at least a semitone, every hop up to that jump voiced and sounding, `B` held for
+//!    [`ATTACK_HOLD_HOPS`] hops (within a bin), and the frame's band level (the mean power over
+//!    the searched band, in dB of the input's units) rises from `h` to the jump by at least
+//!    `attack_rise_db` in all and falls by no more than that from one hop to the next, hop `h`
+//!    reports `B` (refined on its own salience). A cross-fade between two sung notes need not
+//!    raise the band level, so with `attack_salience_ratio` = r > 0 hop `h` also reports `B`
+//!    (same jump and hold) when `B` already sounds there, its salience (the largest within a
+//!    bin of `B`) at least r times `A`'s at `h`, and it grows towards the jump, falling by no
+//!    more than [`ATTACK_SALIENCE_TOL`] from one hop to the next; the band level's fall then
+//!    does not end the search. The decoded state still drives everything else (contour voicing,
+//!    register, the Viterbi), and [`Shs::process_both`] gives both. No latency is added: only
+//!    the lag is read. Off by default; the engine turns it on (0.5 dB, r = 0.3) for a lead that
+//!    comes as its own stem.
 //!
 //! ## Defaults ([`ShsConfig::new`])
 //! Range 35–400 Hz (the bass stem of docs/design.md); hop 10 ms; frame = the power of two nearest
