@@ -41,7 +41,7 @@ pub enum TransportError {
     /// This build lacks the cargo feature a request needs.
     #[error(
         "{what} is not in this build of tactus: rebuild it with `cargo build --release \
-         --features {feature}` (see README, \"Live setup\")"
+         --features {feature}` (see docs/install.md, \"The binary\")"
     )]
     NotBuilt {
         /// What was asked for.
