@@ -61,7 +61,7 @@ impl Judge {
 /// activations are biased in a way its own training kits do not show, and this stage has
 /// seen how.
 ///
-/// For a judged class `c`: the candidates are the onsets of a [`Picker`] at threshold
+/// For a judged class `c`: the candidates are the onsets of a `Picker` at threshold
 /// `low`; candidate hop `i` waits `wait` hops, then its features are the logits `l` of the
 /// four classes' largest activation over hops `i ..= i + wait`, a bias 1, the same `l` minus
 /// the mean of `l` over the song's earlier candidates of class `c`, times `m / (m + shrink)`

@@ -76,6 +76,10 @@
 //! interpolation of each view). A staged file's judge runs only on its class's candidates:
 //! 10 multiply-adds for a linear judge, `12 · hidden + 1` for a perceptron (385 for the
 //! embedded snare's). No allocation after [`DrumTranscriber::new`].
+//!
+//! [`MelBank`]: crate::melbank::MelBank
+//! [`MelConfig::drums`]: crate::melbank::MelConfig::drums
+//! [`MelConfig::drums_short`]: crate::melbank::MelConfig::drums_short
 
 mod format;
 mod judge;

@@ -26,6 +26,8 @@ pub struct DrumModel {
     /// Whether the input also carries the short view (file version 2, feature set 3): the
     /// same signal's mel frames from a frame half as long ([`MelConfig::drums_short`]), same
     /// context, normalised by their own window's maximum and clipped at `floor` (step 3).
+    ///
+    /// [`MelConfig::drums_short`]: crate::melbank::MelConfig::drums_short
     pub short: bool,
     /// Convolutional front layers (file version 4), run before the dense ones; `None` for a
     /// perceptron.

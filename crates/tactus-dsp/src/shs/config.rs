@@ -4,6 +4,9 @@
 use crate::ConfigError;
 
 /// Parameters of [`Shs`]. Build with [`ShsConfig::new`]; [`Shs::new`] validates.
+///
+/// [`Shs`]: super::Shs
+/// [`Shs::new`]: super::Shs::new
 #[derive(Clone, Debug, PartialEq)]
 pub struct ShsConfig {
     /// Sample rate in Hz.
@@ -86,6 +89,9 @@ pub struct ShsConfig {
     /// [`BassNet::embedded_lead_others`]: three models), `log(Σᵢ pᵢ / n)` per
     /// candidate and for "no pitch" ([`crate::bassnet`] module docs, "The lead models and
     /// their ensemble"). Errors on the bass grid. Off by default.
+    ///
+    /// [`BassNet::embedded_lead`]: crate::bassnet::BassNet::embedded_lead
+    /// [`BassNet::embedded_lead_others`]: crate::bassnet::BassNet::embedded_lead_others
     pub learned_ensemble: bool,
     /// With [`ShsConfig::learned`]: the harmonic-view models, trained on the spectral
     /// separator's harmonic sum (vocals + bass + other). On the lead's grid
@@ -95,6 +101,12 @@ pub struct ShsConfig {
     /// [`BassNet::embedded_bass_harmonic`], whose network reads the sum given as the view of
     /// [`Shs::process_view`] ([`crate::bassnet`] module docs, "The harmonic view"). Off by
     /// default.
+    ///
+    /// [`BassNet::embedded_lead_harmonic`]: crate::bassnet::BassNet::embedded_lead_harmonic
+    /// [`BassNet::embedded_lead_harmonic_others`]:
+    ///     crate::bassnet::BassNet::embedded_lead_harmonic_others
+    /// [`BassNet::embedded_bass_harmonic`]: crate::bassnet::BassNet::embedded_bass_harmonic
+    /// [`Shs::process_view`]: super::Shs::process_view
     pub learned_harmonic: bool,
     /// Attack alignment of a clean lead's note changes (module docs, step 9): a decided
     /// voiced hop reports the note the provisional path jumps to within the lag when the

@@ -127,6 +127,9 @@
 //! No allocation after [`Shs::new`]: FFT plan, scratch, the harmonic-bin table, the Viterbi
 //! scores and a ring of `lag_hops + 1` hops of backpointers and salience are allocated up
 //! front.
+//!
+//! [`Framer`]: crate::framer::Framer
+//! [`HopStage::latency_samples`]: crate::HopStage::latency_samples
 
 mod attack;
 mod config;
