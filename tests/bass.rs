@@ -4,7 +4,7 @@
 //! that the bass model was never trained on).
 //!
 //! Floors sit about 0.05 under the measured raw pitch accuracy (0.947 on `bwv347`, 0.968 on
-//! `bwv66-6`, 2026-11-24), so a regression of the model, its front end or the engine wiring
+//! `bwv66-6`), so a regression of the model, its front end or the engine wiring
 //! fails here; `--pitch auto-shs` (the previous default) must give another bass track.
 use std::path::{Path, PathBuf};
 

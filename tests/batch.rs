@@ -1,4 +1,4 @@
-//! `tactus render INPUT... --out-dir DIR` (issue 14) through the binary: the layout, the
+//! `tactus render INPUT... --out-dir DIR` through the binary: the layout, the
 //! manifest, a broken file that does not stop the library, the same bytes as single renders
 //! whatever the number of jobs, and resume (what a rerun skips and what it renders again).
 

@@ -3,7 +3,7 @@
 //! (`crates/tactus-engine/tests/fixtures/drums/`, made by `models/drums/make_fixtures.py`),
 //! scored by `tactus eval` against their exact per-hit truth (±50 ms).
 //!
-//! Floors sit about 0.1 under the measured F (README, "Drums"), so a regression of the
+//! Floors sit about 0.1 under the measured F (docs/results.md, "Drums"), so a regression of the
 //! embedded model, its front end or the engine wiring fails here; the band method is
 //! checked to stay far below them (the comparison the issue asks to keep reproducible).
 use std::path::{Path, PathBuf};
@@ -149,20 +149,20 @@ fn the_band_method_stays_available_and_is_worse() {
 }
 
 /// Measured F on these two excerpts (kick, snare, toms, cymbals) minus about 0.1: isolated
-/// 0.92 / 0.54 / 0.77 / 0.84, mix 0.98 / 0.53 / 0.70 / 0.86 (2026-11-24, the model trained
+/// 0.92 / 0.54 / 0.77 / 0.84, mix 0.98 / 0.53 / 0.70 / 0.86 (the model trained
 /// with retune and stretch augmentation, `models/drums/README.md`). The excerpts are short
 /// (12–78 hits per class), so these are regression guards; README's table has the corpus
 /// figures. The isolated kick and snare floors stay where the previous model put them (0.88,
 /// 0.50: measured 0.98 / 0.60 then); the toms and mix floors rose with this model. The
-/// default model rebuilt from its Rebuild command (2026-11-28 14:17,
-/// `models/drums/trials/RULE_rebuild_default.md`) measures isolated 0.96 / 0.58 / 0.92 / 0.84
+/// default model rebuilt from its Rebuild command
+/// (docs/decisions/0044-default-drum-model-rebuilt.md) measures isolated 0.96 / 0.58 / 0.92 / 0.84
 /// and mix 0.95 / 0.47 / 0.92 / 0.82 here (23 snare hits: one hit moves F by about 0.03), same
 /// floors.
 const ISOLATED_FLOORS: [f64; 4] = [0.88, 0.50, 0.67, 0.75];
 const MIX_FLOORS: [f64; 4] = [0.88, 0.43, 0.60, 0.76];
 /// The 21.6 ms live model (`--drums classes-live`) on the same excerpts, isolated: measured
 /// 0.91 / 0.46 / 0.50 / 0.75, minus about 0.1 (the live model trained on the raw mix too,
-/// 2026-11-28: 0.94 / 0.47 / 0.48 / 0.74, same floors). The toms floor was lowered from 0.51 (the
+/// a later draw: 0.94 / 0.47 / 0.48 / 0.74, same floors). The toms floor was lowered from 0.51 (the
 /// previous live model measured 0.61) on purpose: these excerpts hold 12 tom hits (one hit
 /// moves F by about 0.05), and on the 24 held-out corpus songs (569 tom hits) the retrained
 /// live model's isolated toms F moved 0.61 → 0.58 while its snare rose 0.55 → 0.66 and its

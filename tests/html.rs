@@ -391,7 +391,7 @@ fn playing_follows_the_audio_clock() {
     // The audio pipeline starts on real time while the page runs on virtual time, so a run
     // can end before the clock moves: measured (chromium 2026-11, the demo page, one run
     // alone) 8 runs in 12 advanced on an idle 2-core machine and 3 in 10 with both cores
-    // busy; six tries failed once in a local CI run (2026-11-25, the other tests of this
+    // busy; six tries failed once in a local CI run (with the other tests of this
     // binary decoding screenshots alongside). So try up to 30 times (0.7–1.5 s each), and
     // stop at the first run whose clock moved; every run's dump is checked either way.
     for _ in 0..30 {

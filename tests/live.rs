@@ -1,5 +1,5 @@
 //! Live audio with real stand-ins: a private PulseAudio server with a null sink (`vsink`)
-//! whose monitor is the default source (README, "Live audio"; NOTES.md recipe). `paplay`
+//! whose monitor is the default source (docs/install.md, "Live setup"). `paplay`
 //! plays a generated drum pattern into the sink, and cpal's ALSA `default` device captures
 //! it through PulseAudio's ALSA plugin.
 //!

@@ -1,4 +1,4 @@
-//! End-to-end latency of `tactus live` (issue 13), measured from outside the program by
+//! End-to-end latency of `tactus live`, measured from outside the program by
 //! `benches/live_latency.py`: a private PulseAudio null sink as the microphone, `pacat`
 //! writing drum hits and tone bursts at wall-clock pace, `tactus live --glove serial:PTY`
 //! over a socat pty pair, and the wire protocol read with arrival times on the far end.

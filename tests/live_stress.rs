@@ -1,4 +1,4 @@
-//! Issue 13, real-time hygiene under stress: `tactus live` through a private PulseAudio null
+//! Real-time hygiene under stress: `tactus live` through a private PulseAudio null
 //! sink (the recipe of `tests/live.rs`), drum hits every 500 ms played into it, the frames
 //! logged by the file sink, while
 //!

@@ -1,5 +1,5 @@
 //! Every numeric option of every subcommand, given inf, nan, -1, 0 and huge values: the
-//! binary either succeeds or fails with one line on stderr, and never panics (issue 11:
+//! binary either succeeds or fails with one line on stderr, and never panics (bad input:
 //! `devices --ble-scan-s inf` and `emulate --duration 1e300` used to exit 101).
 
 use std::path::Path;

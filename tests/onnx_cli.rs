@@ -140,7 +140,7 @@ fn htdemucs_verbose_reports_segments_and_threads_is_checked() {
 }
 
 /// A separator that fails at run time fails the render with one line naming the stage and
-/// the cause, and leaves no output (issue 11). The model is a deliberately broken Spleeter
+/// the cause, and leaves no output. The model is a deliberately broken Spleeter
 /// stand-in whose `vocals` output has the wrong shape (models/make_broken_spleeter.py).
 #[test]
 fn a_failing_network_fails_the_render_with_one_line() {

@@ -1,4 +1,4 @@
-//! Outputs are a transaction (issue 11): an output that is the input, two outputs naming
+//! Outputs are a transaction: an output that is the input, two outputs naming
 //! one file, a directory the user cannot write, Ctrl-C mid-render: each through the binary,
 //! each leaving every pre-existing file byte for byte as it was and no temporary behind.
 

@@ -1,4 +1,4 @@
-//! The terminal glove view (issue 13: `play --tui`, `live --tui`) in a real terminal:
+//! The terminal glove view (`play --tui`, `live --tui`) in a real terminal:
 //! `tactus play PATTERN.json --no-audio --tui --glove file:LOG` runs in a tmux pane, and
 //! every capture of the pane (`tmux capture-pane -p`) taken while the log stood still must
 //! show, dot for dot, the frame the log says was sent last.

@@ -1,4 +1,4 @@
-//! Bounded fuzzing of the audio front door (issue 11): every container and codec fixture,
+//! Bounded fuzzing of the audio front door: every container and codec fixture,
 //! mutated by a seeded xorshift generator (bit flips, overwritten header bytes, inserted
 //! and deleted runs, truncation, random bytes), then opened and decoded to the end. Every
 //! case must return: samples or one clear error line, never a panic.

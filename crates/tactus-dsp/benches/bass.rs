@@ -1,4 +1,4 @@
-//! Criterion benches for the bass trackers of a mix (issue 16).
+//! Criterion benches for the bass trackers of a mix.
 //!
 //! * `bass_210s/shs` and `bass_210s/learned`: a 210 s bass line at the bass chain's 4.9 kHz
 //!   through the harmonic-sum tracker with the mixture settings (fundamental presence 0.1,
@@ -9,7 +9,7 @@
 //! * `lead_210s/shs` and `lead_210s/pair`: a 210 s melody at the lead chain's 14.7 kHz
 //!   through the harmonic-sum melody tracker alone and through the voicing/pitch pair with
 //!   the lead network's tracker and its veto (the render's default for the spectral
-//!   separator's lead since 2026-11-25): what the learned lead adds to a song's lead chain.
+//!   separator's lead): what the learned lead adds to a song's lead chain.
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -129,7 +129,7 @@ fn forward(c: &mut Criterion) {
             o[0]
         })
     });
-    // The default's ensemble since 2026-11-28: the first lead model and both others
+    // The default's ensemble: the first lead model and both others
     // (`BassNet::embedded_lead_others`), 8 hops at once (time per 8 hops).
     let others = BassNet::embedded_lead_others();
     let mut o3 = vec![0.0f32; others.len() * BATCH * out];
@@ -211,7 +211,7 @@ fn lead(c: &mut Criterion) {
             })
         });
     }
-    // The spectral separator's lead as the engine runs it since 2026-11-28: the pitch
+    // The spectral separator's lead as the engine runs it: the pitch
     // tracker (harmonic-view ensemble) reads a second view of the same span
     // (`process_two`; here the melody under a quiet low pad).
     let view: Vec<f32> = x

@@ -1,4 +1,4 @@
-//! Criterion benches for the drum transcriber (issue 10).
+//! Criterion benches for the drum transcriber.
 //!
 //! * `drums_210s/default` and `drums_210s/live`: a 210 s drum groove at 44.1 kHz through
 //!   the whole transcriber (mel front end, network per 10 ms hop, peak picking) with the

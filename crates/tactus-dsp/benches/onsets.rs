@@ -8,7 +8,7 @@
 //!
 //! Run: `cargo bench -p tactus-dsp --bench onsets -- --warm-up-time 1 --measurement-time 3`
 //!
-//! Measured 2026-11-23 on the shared 2-core dev box (load average 4–7, so upper bounds):
+//! Measured on the shared 2-core dev box (load average 4–7, so upper bounds):
 //! 180 s track, frame 2048 / hop 512: 99–116 ms; defaults: ~92 ms (look-ahead),
 //! ~95 ms (causal); 1 s in blocks of 128/256/512: 0.49–0.62 ms (≈ 2000x real time).
 use std::hint::black_box;

@@ -824,7 +824,7 @@ fn naive_pick(a: &[f32], thr: f32, min_gap: usize) -> Vec<usize> {
     out
 }
 
-/// The second stage offline, from the whole song's activations (`models/drums/trials/lofo/
+/// The second stage offline, from the whole song's activations (`models/drums/stage2/
 /// stage2.py`'s `cands` and score, in f64): per judged class the candidates of a picker at
 /// `low`, each scored on the logits of the largest activations over its hop and the `wait`
 /// after it (fewer at the end) and on those logits minus the mean over the earlier
@@ -1003,7 +1003,7 @@ fn second_stage_matches_an_offline_oracle_for_any_chunking() {
 
 #[test]
 fn live_model_onset_comes_out_within_30_ms() {
-    // Issue 10: at most 30 ms added on the live path. 512 + 441 samples = 21.6 ms.
+    // The live budget: at most 30 ms added on the live path. 512 + 441 samples = 21.6 ms.
     let lat = 512 + 441;
     assert!(lat as f64 / SR as f64 <= 0.030);
     onset_within_latency(DrumModel::embedded_live(), lat);
@@ -1287,7 +1287,7 @@ fn short_view_config_ends_where_the_long_frame_ends() {
 
 #[test]
 fn short_view_matches_an_offline_oracle_for_any_chunking() {
-    // The embedded live model has the short view (feature set 3, 2026-11-28): the
+    // The embedded live model has the short view (feature set 3): the
     // transcriber against the obvious way, both front ends' frames computed whole, the
     // windows cut out by hand (silence before the start, the last frame held after the
     // end), the input assembled and the network run in f64.

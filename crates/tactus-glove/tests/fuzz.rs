@@ -1,4 +1,4 @@
-//! Bounded fuzzing of the readers (issue 11): the wire-protocol decoder, the pattern and
+//! Bounded fuzzing of the readers: the wire-protocol decoder, the pattern and
 //! features files and the map, fed random bytes and mutations of valid inputs from a
 //! seeded xorshift generator. Every case must return (no panic); the decoder must accept
 //! no packet whose 16 bytes are not in the input with a valid CRC; a file that reads back

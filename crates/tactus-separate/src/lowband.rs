@@ -5,7 +5,7 @@
 //! low, slowly decaying partial for 100–300 ms), so it stays in the bass stem and the bass
 //! tracker hears a second, louder "bass" an octave or a fifth under the real one. Subtracting
 //! the drum stem from the corpus mixes lifted held-out mix bass RPA from 0.61–0.71 to
-//! 0.88–0.92 (README, "Known weaknesses"); no hand-made rule found the bodies (attack-tail
+//! 0.88–0.92 (docs/decisions/0020-kit-mask.md); no hand-made rule found the bodies (attack-tail
 //! subtraction, sustain weighting: ±0.03).
 //!
 //! ## Model

@@ -171,7 +171,7 @@ fn rms(x: &[f32]) -> f32 {
     (x.iter().map(|v| v * v).sum::<f32>() / x.len().max(1) as f32).sqrt()
 }
 
-/// A sound that lasts to the very end of the stream is not a hit there (issue 11): the
+/// A sound that lasts to the very end of the stream is not a hit there: the
 /// end of the stream used to be padded with zeros, a cut that the harmonic/percussive
 /// split saw as a broadband burst in the drum stem (measured on the tone: the drum stem's
 /// last 100 ms at −22 dB of the input's RMS; with the reflected padding −48 dB). The bound

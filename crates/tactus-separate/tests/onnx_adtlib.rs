@@ -513,7 +513,7 @@ fn corpus_songs_table() {
 }
 
 /// Floors for the mean F over the 2 songs × 2 modes, [drums stem, mix] × [kick, snare,
-/// cymbals]. Measured (2026-11-23, default settings): drums stem 0.91 / 0.75 / 0.76, mix
+/// cymbals]. Measured (default settings): drums stem 0.91 / 0.75 / 0.76, mix
 /// 0.72 / 0.40 / 0.82; the floors sit about 0.1 below. The network is deterministic on one
 /// thread, so the margin is for ONNX Runtime builds and CPUs, not for noise; a wrong
 /// window, frame alignment or level is worth far more than 0.1 (the level alone moves

@@ -323,7 +323,7 @@ fn stream(sep: &mut HtDemucsSeparator, mix: &common::Mix, block: usize) -> StemO
     out
 }
 
-/// Issue 5: "skip the iSTFT and the downstream work for stems that the map does not use".
+/// Compute only what the scene needs: "skip the iSTFT and the downstream work for stems that the map does not use".
 /// With the tiny golden model (a real htdemucs layout, so the four sources differ), a
 /// drums-only separator must (1) run one inverse FFT per frame and segment instead of
 /// four, as counted by its `SegmentStats`, (2) output drums and nothing else, and (3)

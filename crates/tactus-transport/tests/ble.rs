@@ -297,7 +297,7 @@ print('ok')
         assert_eq!(tail[1].kind, tactus_glove::PacketType::AllDown);
         eprintln!("ble reconnect: {stats:?}");
 
-        // Issue 11, link faults: five drops in one session, each recovered, and after each
+        // Link faults: five drops in one session, each recovered, and after each
         // the first packet written is the newest state (never a backlog of the frames that
         // were due while the link was down).
         const DROPS: usize = 5;

@@ -238,7 +238,7 @@ fn clock_ms(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
 }
 
-/// Issue 11, link faults: in one 12 s song the serial link is pulled (socat killed) and
+/// Link faults: in one 12 s song the serial link is pulled (socat killed) and
 /// plugged back (a new pty pair under the same names) 10 times, 300 ms each. Every outage
 /// must be recovered (a frame arrives between its end and the next outage), no stale frame
 /// may ever arrive (more than 100 ms after its time, as above), and the song ends in the

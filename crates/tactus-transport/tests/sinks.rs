@@ -111,7 +111,7 @@ fn null_sink_counts() {
     assert!(!stats.link_up, "closed");
 }
 
-/// Issue 13 (the terminal view): the stats show the state the last packet written put on
+/// The terminal view: the stats show the state the last packet written put on
 /// the glove, and its frame time.
 #[test]
 fn stats_show_what_the_last_packet_put_on_the_glove() {
