@@ -11,7 +11,8 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 use tactus_dsp::Stem;
 use tactus_engine::{
-    DrumMethod, EngineConfig, LevelRule, Mode, NoteRule, PitchMethod, Profile, SeparatorChoice,
+    recipe, DrumMethod, EngineConfig, LevelRule, Mode, NoteRule, PitchMethod, Profile,
+    SeparatorChoice,
 };
 use tactus_glove::GloveMap;
 
@@ -64,6 +65,15 @@ pub struct RenderOptions {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub profile: Option<String>,
 }
+
+/// The pitch trackers a user may name (`--pitch`), in the CLI's order.
+const PITCH_CHOICES: [PitchMethod; 5] = [
+    PitchMethod::Auto,
+    PitchMethod::Yin,
+    PitchMethod::Pyin,
+    PitchMethod::Shs,
+    PitchMethod::AutoShs,
+];
 
 /// The command the options are for: `live` and `play` have other defaults than `render`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -181,21 +191,13 @@ impl RenderOptions {
             (Profile::Full, _) => 25,
         });
         let bin_ms = in_range("--bin-ms <BIN_MS>", bin_ms, 1, 10_000)?;
+        // The user's choice; which tracker each stem then runs is the recipe table's
+        // (`tactus_engine::recipe`).
         let pitch = pick(
             "pitch",
             self.pitch.as_deref(),
-            if live && profile == Profile::Full {
-                "pyin"
-            } else {
-                "auto"
-            },
-            &[
-                ("auto", PitchMethod::Auto),
-                ("yin", PitchMethod::Yin),
-                ("pyin", PitchMethod::Pyin),
-                ("shs", PitchMethod::Shs),
-                ("auto-shs", PitchMethod::AutoShs),
-            ],
+            recipe::default_pitch(live, profile).name(),
+            &PITCH_CHOICES.map(|m| (m.name(), m)),
         )?;
         let level_rule = pick(
             "levels-rule",

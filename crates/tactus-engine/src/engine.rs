@@ -17,9 +17,10 @@ use tactus_separate::spectral::{SpectralConfig, SpectralSeparator};
 use tactus_separate::{SegmentStats, Separator, StemOutput, StemSet};
 
 use crate::drums::{ClassTrack, DrumMethod};
-use crate::notes::{NoteRole, NoteRule, NoteTrack, PitchNotes};
+use crate::notes::{NoteRule, NoteTrack, PitchNotes};
 use crate::profile::{self, Profile};
-use crate::track::{Denoise, Geometry, LevelRule, Mode, OnsetTrack, PitchMethod, PitchTrack};
+use crate::recipe::{recipe, PitchMethod, Recipe, Role, SeparatorKind, Source};
+use crate::track::{Denoise, Geometry, LevelRule, Mode, OnsetTrack, PitchTrack};
 use crate::EngineError;
 
 /// The engine's default sample rate; inputs are resampled to it.
@@ -41,6 +42,17 @@ pub enum SeparatorChoice {
     Spleeter(std::path::PathBuf),
     /// Hybrid Transformer Demucs exported to ONNX (`models/export_htdemucs.py`).
     HtDemucs(std::path::PathBuf),
+}
+
+impl SeparatorChoice {
+    /// The kind of separator, for the stems' recipes ([`crate::recipe`]).
+    pub fn kind(&self) -> SeparatorKind {
+        match self {
+            SeparatorChoice::Spectral => SeparatorKind::Spectral,
+            SeparatorChoice::None => SeparatorKind::None,
+            SeparatorChoice::Spleeter(_) | SeparatorChoice::HtDemucs(_) => SeparatorKind::Onnx,
+        }
+    }
 }
 
 /// Everything the engine needs to know up front.
@@ -146,7 +158,7 @@ struct StemChain {
     /// The spectral separator's harmonic sum (bass + vocals + other) beside the stem, and
     /// its denoiser (the stem's): the backing of a drum transcriber that reads it
     /// ([`ClassTrack::wants_backing`]), or the harmonic view of the lead's learned pair
-    /// ([`PitchTrack::new_harmonic_view`]).
+    /// ([`crate::recipe::Recipe::harmonic_view`]).
     backing: Option<(Denoise, Vec<f32>)>,
     samples: usize,
     t_denoise: Duration,
@@ -156,65 +168,38 @@ struct StemChain {
 }
 
 impl StemChain {
-    #[allow(clippy::too_many_arguments)] // one chain's whole configuration, named at the call
+    /// The chain of `stem`: its pitch track and note onsets as `recipe` says (a melodic
+    /// stem; the pitch track when `pitch`, note onsets by `notes`), its drum `bands` or
+    /// classes by `drums`.
     fn new(
         stem: Stem,
         geo: Geometry,
-        pitch: Option<PitchMethod>,
+        recipe: Option<&Recipe>,
+        pitch: bool,
         notes: Option<NoteRule>,
         bands: &[Band],
         drums: &DrumMethod,
-        mixture: bool,
-        harmonic_view: bool,
     ) -> Result<Self, EngineError> {
         let hp = if matches!(stem, Stem::Bass | Stem::Drums) {
             30.0
         } else {
             60.0
         };
-        let pitch = match (pitch, profile::pitch_range_hz(geo.profile, stem)) {
-            (Some(m), Some((lo, hi))) => {
-                let mut t = if harmonic_view {
-                    PitchTrack::new_harmonic_view(geo, lo, hi)?
-                } else {
-                    PitchTrack::new(geo, lo, hi, m, mixture)?
-                };
-                // The bass and the lead: the streaming range leans on the instrument's
-                // register (README, "Streaming levels from a register prior"); the
-                // polyphonic rest keeps the span prior.
-                let register = match stem {
-                    Stem::Bass => Some(crate::track::BASS_REGISTER_HZ),
-                    Stem::Vocals => Some(crate::track::LEAD_REGISTER_HZ),
-                    _ => None,
-                };
-                if let (LevelRule::Follow, Some(r)) = (geo.level_rule, register) {
-                    t.set_register_prior(r)?;
-                }
-                Some(t)
-            }
+        let pitch = match recipe {
+            Some(r) if pitch => Some(PitchTrack::new(geo, r)?),
             _ => None,
         };
-        let notes = match (notes, &pitch) {
-            (None, _) => None,
-            (Some(rule), Some(p)) => {
-                // A bass band of the mix: a change of note without an attack is mostly a
-                // chord tone (README, "Note onsets from the attack").
-                let plucked_mix = mixture && stem == Stem::Bass;
-                // A lead on its own stem: onsets at the foot of the attack, and pitch onsets
-                // a little earlier (README, "Note onsets of a clean lead").
-                let clean_lead = !mixture && stem == Stem::Vocals;
-                Some(NoteTrack::Pitch(PitchNotes::new(
-                    geo,
-                    p.hop(),
-                    rule,
-                    NoteRole {
-                        plucked_mix,
-                        clean_lead,
-                    },
-                )?))
-            }
-            (Some(_), None) => Some(NoteTrack::Flux(OnsetTrack::new(geo, None)?)),
+        let notes = match (notes, &pitch, recipe) {
+            (Some(rule), Some(p), Some(r)) => Some(NoteTrack::Pitch(PitchNotes::new(
+                geo,
+                p.hop(),
+                rule,
+                r.notes,
+            )?)),
+            (Some(_), _, _) => Some(NoteTrack::Flux(OnsetTrack::new(geo, None)?)),
+            (None, _, _) => None,
         };
+        let harmonic_view = recipe.is_some_and(|r| r.harmonic_view);
         let mut chains = Vec::new();
         let (classes, class_bands) = match drums {
             DrumMethod::Classes if !bands.is_empty() => {
@@ -544,8 +529,7 @@ pub struct Engine {
     t_separate: Duration,
     /// A separated block (with copies of the supplied stems) waiting for the chains.
     pending: Option<PendingBlock>,
-    /// The live profile's drums listen to the mono mix (`profile::DRUMS_ON_MIX`): its
-    /// samples of the current block.
+    /// The live profile's drums listen to the mono mix: its samples of the current block.
     mix: Vec<f32>,
     /// Whether the drum chain takes the mix rather than a separated stem.
     drums_on_mix: bool,
@@ -577,89 +561,28 @@ impl Engine {
         let mut chains = Vec::new();
         let mut separated = StemSet::default();
         for stem in cfg.map.stems() {
-            let pitch = needs
-                .pitch
-                .contains(&stem)
-                .then_some(match (cfg.pitch, stem) {
-                    // The live profile: plain YIN on short frames (pYIN's HMM needs more
-                    // than its 2-hop lag to trust a new note: 89 ms against 60 ms median
-                    // in benches/live_latency.py; the harmonic-sum tracker's 200 ms
-                    // frames do not fit at all).
-                    (PitchMethod::Auto | PitchMethod::AutoShs, _)
-                        if cfg.profile == Profile::Live =>
-                    {
-                        PitchMethod::Yin
-                    }
-                    // The spectral separator's bass stem: the learned salience times the
-                    // harmonic sum (trained on that stem; benches/trials/RULE_bassnet_blend.md);
-                    // supplied stems and other separators: the harmonic sum.
-                    (PitchMethod::Auto, Stem::Bass)
-                        if cfg.separator == SeparatorChoice::Spectral
-                            && !cfg.supplied.contains(stem) =>
-                    {
-                        PitchMethod::Learned
-                    }
-                    // The spectral separator's lead: the harmonic sum decides whether, the
-                    // learned lead salience which pitch (benches/trials/RULE_lead_pair_notes.md).
-                    (PitchMethod::Auto, Stem::Vocals)
-                        if cfg.separator == SeparatorChoice::Spectral
-                            && !cfg.supplied.contains(stem) =>
-                    {
-                        PitchMethod::Learned
-                    }
-                    (PitchMethod::Auto | PitchMethod::AutoShs, Stem::Bass | Stem::Vocals) => {
-                        PitchMethod::Shs
-                    }
-                    (PitchMethod::Auto | PitchMethod::AutoShs, _) => PitchMethod::Pyin,
-                    (m, _) => m,
-                });
+            let source = Source::of(cfg.supplied.contains(stem), cfg.separator.kind());
+            let stem_recipe = Role::of(stem)
+                .map(|role| recipe(role, source, cfg.profile, cfg.separator.kind(), cfg.pitch));
             let notes = needs.note_onsets.contains(&stem).then_some(cfg.note_rule);
             let bands: Vec<Band> = if stem == Stem::Drums {
                 needs.bands.clone()
             } else {
                 Vec::new()
             };
-            // A band of the mix rather than a source: the spectral separator's stems, or the
-            // mix itself with no separator.
-            let mixture = !cfg.supplied.contains(stem)
-                && matches!(
-                    cfg.separator,
-                    SeparatorChoice::Spectral | SeparatorChoice::None
-                );
-            // The spectral separator's lead and bass through the learned trackers: their
-            // networks read the separator's harmonic sum (README, "The learned lead reads
-            // the harmonic sum", "The bass reads the harmonic sum").
-            let harmonic_view = match stem {
-                Stem::Vocals => crate::track::LEARNED_LEAD_HARMONIC,
-                Stem::Bass => crate::track::LEARNED_BASS_HARMONIC,
-                _ => false,
-            } && pitch == Some(PitchMethod::Learned)
-                && !cfg.supplied.contains(stem)
-                && cfg.separator == SeparatorChoice::Spectral;
-            let mut chain = StemChain::new(
+            let chain = StemChain::new(
                 stem,
                 geo,
-                pitch,
+                stem_recipe.as_ref(),
+                needs.pitch.contains(&stem),
                 notes,
                 &bands,
                 &cfg.drums,
-                mixture,
-                harmonic_view,
             )?;
-            if let Some(p) = chain.pitch.as_mut() {
-                // The spectral separator's stems lag their stated latency (track.rs).
-                if cfg.profile != Profile::Live
-                    && matches!(stem, Stem::Bass | Stem::Vocals)
-                    && !cfg.supplied.contains(stem)
-                    && cfg.separator == SeparatorChoice::Spectral
-                {
-                    p.set_advance_hops(crate::track::SPECTRAL_PITCH_ADVANCE_HOPS);
-                }
-            }
             let wants_backing = chain.wants_backing();
             chains.push(chain);
-            let on_mix =
-                stem == Stem::Drums && cfg.profile == Profile::Live && profile::DRUMS_ON_MIX;
+            // The live profile's drum chain listens to the mix: no separator latency.
+            let on_mix = stem == Stem::Drums && cfg.profile == Profile::Live;
             if !cfg.supplied.contains(stem) && !on_mix {
                 separated = separated.with(stem);
                 // The drum transcriber's backing view and the lead's harmonic view: the
@@ -704,7 +627,6 @@ impl Engine {
             })
         };
         let drums_on_mix = cfg.profile == Profile::Live
-            && profile::DRUMS_ON_MIX
             && !cfg.supplied.contains(Stem::Drums)
             && chains.iter().any(|c| c.stem == Stem::Drums);
         Ok(Engine {

@@ -22,6 +22,7 @@ use tactus_dsp::notes::{note_onsets_offline_guided, NoteConfig, NoteOnsets};
 use tactus_dsp::ConfigError;
 
 use crate::profile::Profile;
+pub use crate::recipe::NoteRole;
 use crate::track::{Beats, Geometry, Mode, OnsetTrack, PitchTrack};
 
 /// How note onsets are read from a pitch track. See the module docs.
@@ -41,31 +42,16 @@ pub enum NoteRule {
     Legato,
 }
 
-/// What the stem is, for the note-onset rule's stem-specific parts.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct NoteRole {
-    /// The bass of a mixture: a change of note must be attacked
-    /// ([`NoteConfig::pitch_needs_attack`]).
-    pub plucked_mix: bool,
-    /// The lead (vocals) on its own stem, not a band of a mixture: an onset at an attack
-    /// moves back to the foot of its rise ([`NoteConfig::backtrack_hops`],
-    /// [`CLEAN_LEAD_BACKTRACK_HOPS`]) and a pitch onset without an attack moves
-    /// [`CLEAN_LEAD_PITCH_BACK_HOPS`] back ([`NoteConfig::pitch_back_hops`]): a sung
-    /// syllable starts with its consonant before the vowel's rise, and a voice patch's
-    /// release holds the old pitch into the new note.
-    pub clean_lead: bool,
-}
-
 /// [`NoteConfig::backtrack_hops`] of a clean lead (README, "Note onsets of a clean lead").
-pub const CLEAN_LEAD_BACKTRACK_HOPS: usize = 3;
+const CLEAN_LEAD_BACKTRACK_HOPS: usize = 3;
 
 /// [`NoteConfig::pitch_back_hops`] of a clean lead (README, "Note onsets of a clean lead").
-pub const CLEAN_LEAD_PITCH_BACK_HOPS: usize = 2;
+const CLEAN_LEAD_PITCH_BACK_HOPS: usize = 2;
 
 /// [`NoteConfig::reattack_min_hops`] of a clean lead: a re-attack of the held pitch at least
 /// 250 ms after the previous onset (README, "A clean lead's re-attacks";
 /// `benches/trials/RULE_clean_lead_reattack_interval.md`).
-pub const CLEAN_LEAD_REATTACK_MIN_HOPS: usize = 25;
+const CLEAN_LEAD_REATTACK_MIN_HOPS: usize = 25;
 
 /// [`NoteConfig::guide_back_hops`] of a clean lead whose tracker reports an attack-aligned
 /// pitch beside the decoded one (`PitchTrack::note_guide`): 0, off. At 5 (a pitch onset
@@ -73,7 +59,7 @@ pub const CLEAN_LEAD_REATTACK_MIN_HOPS: usize = 25;
 /// most 50 ms) it raised isolated lead note F on the tuning songs (mean +0.013) and the
 /// Choir Aahs chorales of its held-out draw (+0.05–0.07 each), but the held-out mean only by
 /// 0.006, under its adoption rule's 0.01 (`benches/trials/RULE_guided_onsets.md`).
-pub const CLEAN_LEAD_GUIDE_BACK_HOPS: usize = 0;
+const CLEAN_LEAD_GUIDE_BACK_HOPS: usize = 0;
 
 impl NoteRule {
     /// The detector's configuration for `profile` and the stem's `role`. The clean lead's

@@ -27,6 +27,9 @@ use tactus_dsp::twoframe::TwoFrameYin;
 use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
 use tactus_dsp::{ConfigError, HopFilter, HopStage, SampleStage};
 
+pub use crate::recipe::PitchMethod;
+use crate::recipe::{LevelRecipe, Network, Recipe, ShsTuning, SureRule, TrackerRecipe};
+
 /// Statistics mode (docs/design.md "One engine, two drivers").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Mode {
@@ -37,34 +40,6 @@ pub enum Mode {
     Streaming,
 }
 
-/// Which pitch tracker a melodic track runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum PitchMethod {
-    /// Plain YIN, as in the paper.
-    Yin,
-    /// Probabilistic YIN with fixed-lag Viterbi tracking (fewer octave errors).
-    Pyin,
-    /// Harmonic-sum salience with fixed-lag Viterbi ([`tactus_dsp::shs`]), made for a bass
-    /// line or a lead melody in a mixture.
-    Shs,
-    /// The learned salience ([`tactus_dsp::bassnet`]), made for the spectral separator's
-    /// stems (the data it was trained on). On the bass range: the bass model times the
-    /// harmonic sum ([`LEARNED_BASS_BLEND`]), decoded like [`PitchMethod::Shs`]. Above it
-    /// (the lead): a [`tactus_dsp::pair::VoicingPitchPair`] whose harmonic-sum tracker
-    /// decides whether a hop is voiced (its own pitch, [`PitchTrack::voicing_f0`], marks
-    /// the hops the level range trusts) and whose lead-model tracker
-    /// ([`LEARNED_LEAD_BLEND`]) decides which pitch; note onsets read the pair's pitch.
-    Learned,
-    /// [`PitchMethod::Learned`] for the spectral separator's bass and lead (vocals) stems,
-    /// [`PitchMethod::Shs`] for other basses and leads (supplied stems, other separators),
-    /// pYIN for the polyphonic rest.
-    #[default]
-    Auto,
-    /// The default before the learned bass salience: [`PitchMethod::Shs`] for every bass and
-    /// the lead, pYIN for the polyphonic rest.
-    AutoShs,
-}
-
 /// How a pitch track turns voiced pitch into levels (issue 16, "levels that follow the truth").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum LevelRule {
@@ -72,288 +47,29 @@ pub enum LevelRule {
     /// level range = min and max of what the fences keep (streaming: the running min and max
     /// from the first note on).
     Paper,
-    /// Fences with the IQR floored ([`min_iqr_st`]: a bass line's real octave leaps are no
-    /// longer cut), the range from the 1st to the 99th percentile of the voiced hops that the
-    /// fences keep ([`FOLLOW_RANGE_QUANTILE`]: a few octave errors no longer stretch it);
+    /// Fences with the IQR floored ([`LevelRecipe::min_iqr_st`]: a bass line's real octave
+    /// leaps are no longer cut), the range from the 1st to the 99th percentile of the voiced
+    /// hops that the fences keep ([`LevelRecipe::quantile`]: a few octave errors no longer
+    /// stretch it);
     /// in streaming mode the same percentiles of every kept hop so far
     /// ([`tactus_dsp::discretize::PriorRange::with_quantile`]: an early octave error no longer shifts every later
     /// level), padded to a prior that fades, so the first notes do not sit on level 1 or 8:
-    /// the instrument's register for the bass and the lead ([`BASS_REGISTER_HZ`],
-    /// [`LEAD_REGISTER_HZ`]), a span ([`prior_span_st`]) for the rest. (Running percentiles of the fences' 10 s window were tried
+    /// the instrument's register for the bass and the lead ([`LevelRecipe::register_hz`]), a
+    /// span ([`LevelRecipe::prior_span_st`]) for the rest. (Running percentiles of the fences' 10 s window were tried
     /// first: vocals levels ±1 fell from 0.76 to 0.68 on the tuned songs; the running min
     /// and max were the streaming range until 2026-11-24.)
     #[default]
     Follow,
 }
 
-/// Quantile cut from each end of the voiced pitch for [`LevelRule::Follow`]'s range.
-pub const FOLLOW_RANGE_QUANTILE: f32 = 0.01;
-/// Voiced hops after which the streaming prior's padding has halved (30 s of voiced hops).
-pub const FOLLOW_PRIOR_FADE_HOPS: f32 = 3000.0;
-
-/// `--levels-rule follow` on a clean bass stem (not a band of a mixture): the range comes
-/// from hops inside held notes, this many hops on each side within [`HELD_TOL_ST`]
-/// (`tactus_dsp::discretize::HeldRange`; README, "Bass levels from held notes"). Chosen on
-/// the tuning songs: 8 hops lost the short lowest notes of a line (`timgm/brush40_s04`).
-pub const CLEAN_BASS_HELD_HOPS: usize = 5;
-
-/// Semitones a held note's hops stay within ([`CLEAN_BASS_HELD_HOPS`]).
-pub const HELD_TOL_ST: f32 = 1.0;
-
-/// `--levels-rule follow` on the bass band of a mixture (the spectral separator's bass):
-/// a hop whose octave above sounds within this many hops on either side is left out of the
-/// level range (`tactus_dsp::discretize::shadow_mask`; README, "The mix's bass range without
-/// octave shadows"). Chosen on the tuning mixes and 16 validation songs over 10 / 25 / 50 /
-/// 100 hops (`benches/trials/RULE_octave_shadow_range.md`).
-pub const MIX_BASS_SHADOW_HOPS: usize = 25;
-
-/// `--levels-rule follow` on a mixture's lead tracked by the pair (the spectral separator's
-/// vocals): a hop counts towards the level range when it sits inside a held note, this many
-/// hops on each side within [`HELD_TOL_ST`], or when the pair's voicing tracker agrees with
-/// its pitch within [`AGREE_TOL_ST`] (`tactus_dsp::discretize::range_quantiles_kept_or`;
-/// README, "The mix's lead range from held or agreed hops"). Chosen on the tuning mixes, 16
-/// validation songs and a spent held-out set (`benches/trials/RULE_mix_lead_agree.md`).
-pub const MIX_LEAD_HELD_HOPS: usize = 8;
-
-/// Semitones within which the pair's two trackers agree ([`MIX_LEAD_HELD_HOPS`]).
-pub const AGREE_TOL_ST: f32 = 1.0;
-
-/// A mixture's lead through the pair: the level range of the held or agreed hops is
-/// narrowed to at most [`MIX_LEAD_SURE_MARGIN_ST`] beyond the range ([`MIX_LEAD_SURE_QUANTILE`])
-/// of those of them where the learned tracker is sure of its pitch: its confidence (the
-/// network's probability within ⅔ semitone of it, `tactus_dsp::shs` module docs, "Learned
-/// salience") is at least this (`tactus_dsp::discretize::narrow_range`; README, "The mix's
-/// lead range narrowed to sure hops"). Chosen on 204 tuning mixes and checked on 96 spent ones
-/// (`benches/trials/RULE_lead_sure_margin.md`). Offline since 2026-11-28 07:08; streaming
-/// since 07:47, once the sure hops hold a range of their own
-/// (`tactus_dsp::discretize::HeldRange::holds`; `benches/trials/RULE_streaming_sure.md`).
-pub const MIX_LEAD_SURE: f32 = 0.7;
-
-/// Quantile cut from each end of the sure hops' range ([`MIX_LEAD_SURE`]).
-pub const MIX_LEAD_SURE_QUANTILE: f32 = 0.02;
-
-/// Semitones the lead's level range may reach beyond its sure hops' range ([`MIX_LEAD_SURE`]).
-pub const MIX_LEAD_SURE_MARGIN_ST: f32 = 1.0;
-
-/// The bass band of a mixture under the learned bass salience: the bottom of the
-/// level range (held notes without octave shadows, [`MIX_BASS_HELD_HOPS`]) is raised to at
-/// most [`MIX_BASS_SURE_MARGIN_ST`] under the bottom ([`FOLLOW_RANGE_QUANTILE`]) of those of
-/// its hops where the learned tracker's confidence in its pitch is at least this; the top is
-/// left alone (README, "The mix's bass range from sure hops, at the bottom"). The unsure
-/// hops under a bass line are mostly a kick's body or a chord's subharmonic; its unsure high
-/// notes are real. Chosen on 204 tuning mixes and checked on 96 spent ones
-/// (`benches/trials/RULE_bass_sure_bottom.md`). Streaming as [`MIX_LEAD_SURE`].
-pub const MIX_BASS_SURE: f32 = 0.95;
-
-/// Semitones the mix bass's level range may reach under its sure hops' bottom
-/// ([`MIX_BASS_SURE`]).
-pub const MIX_BASS_SURE_MARGIN_ST: f32 = 1.0;
-
-/// How a track's level range is narrowed to the hops its learned tracker is sure of
-/// (`tactus_dsp::discretize::narrow_range`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct SureRule {
-    /// Confidence at which a hop is sure.
-    min_conf: f32,
-    /// Quantile cut of the sure hops' range.
-    quantile: f32,
-    /// Semitones the range may reach under / over the sure range (∞: that end is kept).
-    below_st: f32,
-    above_st: f32,
-}
-
-/// [`MIX_LEAD_SURE`].
-const LEAD_SURE: SureRule = SureRule {
-    min_conf: MIX_LEAD_SURE,
-    quantile: MIX_LEAD_SURE_QUANTILE,
-    below_st: MIX_LEAD_SURE_MARGIN_ST,
-    above_st: MIX_LEAD_SURE_MARGIN_ST,
-};
-
-/// [`MIX_BASS_SURE`].
-const BASS_SURE: SureRule = SureRule {
-    min_conf: MIX_BASS_SURE,
-    quantile: FOLLOW_RANGE_QUANTILE,
-    below_st: MIX_BASS_SURE_MARGIN_ST,
-    above_st: f32::INFINITY,
-};
-
-/// `--levels-rule follow` on the bass band of a mixture: besides leaving out octave shadows
-/// ([`MIX_BASS_SHADOW_HOPS`]), a hop counts toward the level range only inside a held note,
-/// this many hops on each side within [`HELD_TOL_ST`] (README, "The mix's bass range from
-/// held notes"). Chosen over 3 / 5 / 8 hops and shadow windows of 25 / 50 / 100 / 200 on the
-/// tuning mixes, the validation songs and the spent held-out sets
-/// (`benches/trials/RULE_mix_bass_held.md`).
-pub const MIX_BASS_HELD_HOPS: usize = 3;
-
-/// Below this share of held hops among the voiced ones every voiced hop sets the range.
-pub const HELD_MIN_SHARE: f32 = 0.25;
-
-/// The held range is used once it holds this many hops (3 s of held notes); before, every
-/// voiced hop sets it. Chosen on the tuning songs' streaming rows (1 / 50 / 300 hops: chorale
-/// bass levels ±1 0.927 / 0.932 / 0.941, 0.941 without the held range; sung and `timgm`
-/// gain 0.033–0.037 with each).
-pub const HELD_MIN_HOPS: u64 = 300;
-
-/// A bass line (a tracker whose fmax ≤ 500 Hz) or a higher one.
-fn is_bass_range(fmax_hz: f32) -> bool {
-    fmax_hz <= 500.0
-}
-
-/// IQR floor of [`LevelRule::Follow`]'s fences, in semitones. A bass line: 12, so the fences
-/// (k = 1.5) stay 18 semitones beyond the quartiles and root–octave patterns survive; its
-/// octave errors are left to the percentile range. A higher line: 4 (6 semitones), which
-/// still cuts a singer's octave errors. Tuned on the chorale and drum corpora (tuned songs).
-pub fn min_iqr_st(fmax_hz: f32) -> f32 {
-    if is_bass_range(fmax_hz) {
-        12.0
-    } else {
-        4.0
-    }
-}
-
-/// Prior span of a melodic line for [`LevelRule::Follow`]'s streaming range, in semitones:
-/// a bass line 20, a higher line 16 (tuned on the chorale corpus, `benches/bass_eval.py`).
-pub fn prior_span_st(fmax_hz: f32) -> f32 {
-    if is_bass_range(fmax_hz) {
-        20.0
-    } else {
-        16.0
-    }
-}
-
-/// Register prior of the bass stem's streaming range ([`RangePrior::Register`]), Hz: E1
-/// (the lowest open string of a four-string bass) to D4, the top of a bass line's usual
-/// compass. Chosen on the tuning songs' isolated streaming rows (`benches/bass_eval.py`,
-/// README "Streaming levels from a register prior") over E1–G3, E1–C4, C1–C4, D1–C4; it
-/// also lifts the tuning mixes' streaming levels, so the mix's bass band uses it too.
-pub const BASS_REGISTER_HZ: (f32, f32) = (41.203, 293.66);
-
-/// Register prior of the lead (vocals) stem's streaming range, Hz: A3 to G5, where sung
-/// and played melodies mostly lie. Chosen like [`BASS_REGISTER_HZ`] (over G3–G5,
-/// C4–G5, C4–C6).
-pub const LEAD_REGISTER_HZ: (f32, f32) = (220.0, 783.99);
-
-/// Voiced hops after which a register prior's pull has halved (2 s of voiced hops): a short
-/// song's line shows most of its compass within its first phrases. Chosen with the registers
-/// (100 / 150 / 200 / 300 / 500 / 1000 hops).
-pub const REGISTER_FADE_HOPS: f32 = 200.0;
-
 /// Streaming gate reference decay (dB per second). Slow enough that a held note does not
 /// re-open the gate on its own tail, fast enough that a quiet verse after a loud chorus
 /// is heard within a few seconds.
-pub const GATE_DECAY_DB_PER_S: f32 = 3.0;
+pub(crate) const GATE_DECAY_DB_PER_S: f32 = 3.0;
 /// Window of the streaming Tukey fences, in hops (10 s at 10 ms hops).
-pub const TUKEY_WINDOW_HOPS: usize = 1000;
+const TUKEY_WINDOW_HOPS: usize = 1000;
 /// Voiced values the streaming fences need before they reject anything.
-pub const TUKEY_MIN_COUNT: usize = 20;
-/// Fixed Viterbi lag of streaming pYIN, in hops (100 ms at 10 ms hops).
-pub const PYIN_LAG_HOPS: usize = 10;
-
-/// [`tactus_dsp::shs::ShsConfig::fundamental_ratio`] for bass tracked on a mixture's low
-/// band. Chosen on the drum corpus's `timgm` family and the tuned chorales (mix bass RPA
-/// 0.758 → 0.769 and 0.835 → 0.836; 0.15–0.2 helped the drum corpus more but cost the
-/// chorales' organ basses up to 0.04); off on clean stems, where it cost isolated `timgm`
-/// bass 0.982 → 0.957 (weak fundamentals of low plucked notes pushed an octave up).
-pub const MIXTURE_FUNDAMENTAL_RATIO: f32 = 0.1;
-
-/// [`tactus_dsp::shs::ShsConfig::register_sigma_st`] for bass tracked on a mixture's low
-/// band: a bass line keeps to its register, while a kick's or a floor tom's body left in
-/// the low band pulls single notes an octave or a fifth under it. Chosen on the tuning
-/// songs' mixes (`benches/bass_eval.py --inputs mix`, offline; sung / chorales / `timgm`):
-/// bass RPA 0.804 / 0.852 / 0.891 → 0.823 / 0.885 / 0.896 and levels ±1 0.638 / 0.823 /
-/// 0.872 → 0.627 / 0.896 / 0.924 at σ = 12 (σ = 9: RPA 0.831 / 0.862 / 0.895; σ = 15:
-/// 0.815 / 0.877 / 0.895; time constants of 5 and 30 s within 0.005 of 10 s). Off on clean
-/// stems and for the lead (a lead's register prior cost `timgm` mix vocals RPA 0.717 →
-/// 0.684).
-pub const MIXTURE_BASS_REGISTER_ST: f32 = 12.0;
-
-/// [`tactus_dsp::shs::ShsConfig::learned_blend`] of the learned lead salience's pitch
-/// tracker ([`tactus_dsp::pair::VoicingPitchPair`]): 0, the network alone. On the tuning
-/// mixes and the validation songs the harmonic sum's 0.3 (the bass's blend) gave the same
-/// RPA (sung / chorales / `timgm` / validation 0.691 / 0.858 / 0.789 / 0.717 against 0.705 /
-/// 0.848 / 0.793 / 0.729 alone) for another harmonic sum per hop.
-pub const LEARNED_LEAD_BLEND: f32 = 0.0;
-
-/// [`tactus_dsp::shs::ShsConfig::learned_voicing_nats`] of the learned lead salience's
-/// tracker, whose voicing vetoes the harmonic sum's ([`tactus_dsp::pair::VoicingPitchPair::with_veto`];
-/// README, "The learned lead's voicing veto"). Chosen on the tuning mixes and the validation
-/// songs over 0 / 2 / 3 / 4 / 6 (`benches/trials/RULE_lead_pair_voicing.md`).
-pub const LEARNED_LEAD_VOICING_NATS: f32 = 3.0;
-
-/// The spectral separator's lead: the learned pair's pitch tracker reads the separator's
-/// harmonic sum (vocals + bass + other) with the harmonic-view lead models
-/// ([`PitchTrack::new_harmonic_view`]; [`tactus_dsp::shs::ShsConfig::learned_harmonic`];
-/// README, "The learned lead reads the harmonic sum").
-pub const LEARNED_LEAD_HARMONIC: bool = true;
-
-/// The spectral separator's bass: whether the learned bass salience's network reads the
-/// separator's harmonic sum (vocals + bass + other) with the harmonic-view bass model, the
-/// harmonic sum it is blended with still the bass stem ([`PitchTrack::new_harmonic_view`]).
-/// On since 2026-11-28 10:47: the bass stem keeps only what lies under the separator's
-/// 250 Hz crossover, so a note of 100–175 Hz reached the network as one partial and was
-/// read an octave low. Its first trial missed its rule by 0.0008 of mean RPA
-/// (`benches/trials/RULE_bass_harmonic_view.md`). The second raised the held-out mix bass
-/// RPA by 0.016–0.035 per group (`benches/trials/RULE_bass_harmonic_view_2.md`; README,
-/// "The bass reads the harmonic sum").
-pub const LEARNED_BASS_HARMONIC: bool = true;
-
-/// [`tactus_dsp::shs::ShsConfig::learned_ensemble`] of the learned lead salience's tracker:
-/// the mean of the committed lead model and the one trained with 80 more sung songs (README,
-/// "The lead ensemble"; `benches/trials/RULE_lead_ensemble.md`).
-pub const LEARNED_LEAD_ENSEMBLE: bool = true;
-
-/// [`tactus_dsp::shs::ShsConfig::learned_blend`] of the learned bass salience: the weight
-/// of the harmonic sum's observation log-probabilities added to the network's. Chosen on the
-/// tuning halves' mixes (`benches/bass_eval.py --inputs mix`, offline, sung / chorales /
-/// `timgm`; `benches/trials/RULE_bassnet_blend.md`): bass RPA 0.875 / 0.908 / 0.900 for the
-/// network alone, 0.895 / 0.930 / 0.925 at 0.2, 0.901 / 0.939 / 0.933 at 0.3, 0.904 / 0.943 /
-/// 0.939 at 0.4 (sung levels ±1 0.677 → 0.596), 0.906 / 0.945 / 0.947 at 0.6 (chorale note F
-/// 0.687 → 0.652).
-pub const LEARNED_BASS_BLEND: f32 = 0.3;
-
-/// Contour voicing of the lead on a band of the mix ([`tactus_dsp::shs::ShsConfig::contour_gate_db`]):
-/// a decoded contour more than this many dB below the running mean level of the voiced hops
-/// is reported unvoiced (the chords that the separator leaves in the vocals band while the
-/// lead rests). Chosen on the tuning halves (`timgm`, the 4 tuning chorales, the even sung
-/// songs): 3 dB cost 0.01–0.02 RPA, 8 dB kept most false alarms. Off on clean stems, where
-/// it only removed quiet sung notes (isolated sung vocals RPA 0.926 → 0.898).
-pub const MIXTURE_MELODY_CONTOUR_GATE_DB: f32 = 6.0;
-
-/// Harmonics summed by the harmonic-sum tracker on a lead that comes as its own stem (the
-/// melody defaults sum 8). With 8, a low voice's candidate (130 Hz: up to 1.04 kHz) sees less
-/// of the spectrum than its octave or twelfth (up to 2.1 or 3.1 kHz, where the formants
-/// are), and low male voices were tracked an octave or a twelfth up. Chosen on the tuning
-/// halves (`benches/trials/RULE_clean_lead_harmonics.md`): isolated vocals RPA sung /
-/// chorales / `timgm` 0.926 / 0.881 / 0.927 → 0.960 / 0.881 / 0.927. Only harmonics below
-/// the melody's 5 kHz are summed, so a lead above about 420 Hz is unchanged. A lead on a
-/// band of the mix keeps 8 (12 gave 0.543 / 0.749 / 0.717 → 0.545 / 0.741 / 0.713 there).
-pub const CLEAN_LEAD_HARMONICS: usize = 12;
-
-/// The attack alignment of a lead that comes as its own stem (`tactus_dsp::shs` module
-/// docs, step 9; [`ShsConfig::attack_rise_db`]): a soundfont lead's or choir's decoded note
-/// change moves back to the foot of the band level's rise that starts the new note, within
-/// the Viterbi's lag. The levels and the pattern read the aligned pitch; the note onsets
-/// read the decoded one ([`PitchTrack::note_f0`]), since their own attack search was tuned
-/// on it (README, "The clean lead's note changes at the attack").
-pub const CLEAN_LEAD_ATTACK_RISE_DB: f32 = 0.5;
-
-/// The attack alignment of a clean lead also follows the new note's own salience
-/// ([`ShsConfig::attack_salience_ratio`]; `tactus_dsp::shs` module docs, step 9): a cross-fade
-/// between two sung notes (a choir patch's slow attack over the old note's release) does
-/// not raise the band level. Chosen over 0.1–1.0 on 204 tuning songs
-/// (`benches/trials/RULE_attack_salience.md`).
-pub const CLEAN_LEAD_ATTACK_SALIENCE_RATIO: f32 = 0.3;
-
-/// How many hops a pitch track on the spectral separator's bass or vocals stem is moved
-/// earlier ([`PitchTrack::set_advance_hops`]): the separator's harmonic time median spans more
-/// past frames than look-ahead ones (5 + 2, the bass 8 + 2, of 23 ms), so a new note reaches
-/// these stems later than its stated latency says. Render profile only.
-pub const SPECTRAL_PITCH_ADVANCE_HOPS: usize = 3;
-
-/// Pitch ranges up to this top (Hz) are a bass line for [`PitchMethod::Shs`]; above, a melody.
-const BASS_MAX_HZ: f32 = 500.0;
-
+const TUKEY_MIN_COUNT: usize = 20;
 /// Shared geometry of every track in one engine.
 #[derive(Debug, Clone, Copy)]
 pub struct Geometry {
@@ -565,23 +281,49 @@ impl LevelChain {
 }
 
 /// The streaming level range of a track: `prior` (and its fade) padding the quantile-`p`
-/// range of the hops held `k` hops on each side, octave shadows within `w` hops left out.
+/// range of the hops held as `levels` says, octave shadows within its window left out.
 fn held_range(
+    levels: &LevelRecipe,
     prior: (RangePrior, f32),
     p: f32,
-    k: usize,
-    w: usize,
 ) -> Result<HeldRange, ConfigError> {
     HeldRange::with_prior(
         prior.0,
         prior.1,
         p,
-        k,
-        HELD_TOL_ST,
-        HELD_MIN_SHARE,
-        HELD_MIN_HOPS,
+        levels.held_hops,
+        levels.held_tol_st,
+        levels.held_min_share,
+        levels.held_min_hops,
     )?
-    .with_shadow(w)
+    .with_shadow(levels.shadow_hops)
+}
+
+/// The harmonic-sum tracker's configuration for `tuning` over the range and hops of `yc`:
+/// the bass or the melody defaults of `tactus_dsp::shs`, then the tuning's settings.
+fn shs_config(tuning: &ShsTuning, yc: &YinConfig, lag_hops: usize) -> ShsConfig {
+    let (rate, fmin_hz, fmax_hz) = (yc.sample_rate, yc.fmin_hz, yc.fmax_hz);
+    let mut sc = if tuning.melody {
+        ShsConfig::melody(rate, fmin_hz, fmax_hz)
+    } else {
+        ShsConfig::new(rate, fmin_hz, fmax_hz)
+    };
+    sc.hop = yc.hop;
+    sc.lag_hops = lag_hops;
+    if let Some(h) = tuning.harmonics {
+        sc.harmonics = h;
+    }
+    sc.fundamental_ratio = tuning.fundamental_ratio;
+    sc.contour_gate_db = tuning.contour_gate_db;
+    sc.register_sigma_st = tuning.register_sigma_st;
+    sc.attack_rise_db = tuning.attack_rise_db;
+    sc.attack_salience_ratio = tuning.attack_salience_ratio;
+    sc.learned = tuning.network != Network::None;
+    sc.learned_harmonic = tuning.network.harmonic();
+    sc.learned_ensemble = tuning.network.ensemble();
+    sc.learned_blend = tuning.learned_blend;
+    sc.learned_voicing_nats = tuning.learned_voicing_nats;
+    sc
 }
 
 /// [`HopFilter::reset`] for a chain whose stages have different value types.
@@ -609,6 +351,27 @@ enum Tracker {
 }
 
 impl Tracker {
+    /// The tracker `recipe` names, over the range and hops of `yc` (the decimated rate),
+    /// with a fixed Viterbi lag of `lag_hops` for pYIN and the harmonic-sum trackers.
+    fn new(recipe: &TrackerRecipe, yc: &YinConfig, lag_hops: usize) -> Result<Self, ConfigError> {
+        let shs = |t: &ShsTuning| Shs::new(shs_config(t, yc, lag_hops));
+        Ok(match recipe {
+            TrackerRecipe::Yin => Tracker::One(Box::new(Yin::new(yc.clone())?)),
+            TrackerRecipe::Pyin => {
+                let mut pc = PyinConfig::new(yc.sample_rate, yc.fmin_hz, yc.fmax_hz);
+                pc.yin = yc.clone();
+                pc.lag_hops = lag_hops;
+                Tracker::One(Box::new(Pyin::new(pc)?))
+            }
+            TrackerRecipe::Shs(t) => Tracker::One(Box::new(shs(t)?)),
+            TrackerRecipe::Aligned(t) => Tracker::Aligned(Box::new(shs(t)?)),
+            TrackerRecipe::View(t) => Tracker::View(Box::new(shs(t)?)),
+            TrackerRecipe::Pair { voicing, pitch } => Tracker::Pair(Box::new(
+                VoicingPitchPair::new(Box::new(shs(voicing)?), Box::new(shs(pitch)?))?.with_veto(),
+            )),
+        })
+    }
+
     /// Feeds a block; `emit(f0, side_f0, confidence)` per hop (`side_f0` for a pair or an
     /// aligned tracker; `confidence` = 1 − the estimate's aperiodicity, for a pair the
     /// learned tracker's confidence in its pitch). `view`: the same span of the harmonic view, which a pair's pitch tracker
@@ -692,14 +455,10 @@ pub struct PitchTrack {
     /// Streaming: the next hop for the chain.
     next: usize,
     chain: LevelChain,
+    /// IQR floor of the fences (0 under the paper's rule).
     min_iqr_st: f32,
-    /// Hops on each side a pitch must hold to count towards the range (0 = every voiced hop).
-    held_hops: usize,
-    /// Octave-shadow window of the range ([`MIX_BASS_SHADOW_HOPS`]; 0 = off).
-    shadow_hops: usize,
-    /// A hop whose pitch the pair's voicing tracker agrees with counts as held
-    /// ([`AGREE_TOL_ST`]; a mixture's lead).
-    agree: bool,
+    /// How the level range is chosen (held hops, octave shadows, agreement, ...).
+    levels: LevelRecipe,
     /// The tracker's confidence in its pitch per hop (`1 −` aperiodicity; kept like
     /// `raw_f0`, only for a track with a [`SureRule`], [`PitchTrack::sure_rule`]).
     raw_conf: Vec<f32>,
@@ -721,167 +480,56 @@ pub struct PitchTrack {
 }
 
 impl PitchTrack {
-    /// A pitch track searching `[fmin_hz, fmax_hz]`. `mixture` says that the stem is not a
-    /// clean source but a band of the mix (the spectral separator's output, or the mix
-    /// itself): chord tones share its low band, so the harmonic-sum tracker also asks for
-    /// a sounding fundamental ([`MIXTURE_FUNDAMENTAL_RATIO`]).
-    pub fn new(
-        geo: Geometry,
-        fmin_hz: f32,
-        fmax_hz: f32,
-        method: PitchMethod,
-        mixture: bool,
-    ) -> Result<Self, ConfigError> {
-        Self::build(geo, fmin_hz, fmax_hz, method, mixture, false)
-    }
-
-    /// A mixture's stem through the learned tracker whose network reads the harmonic view:
-    /// the separator's harmonic sum (vocals + bass + other), fed beside the stem through
-    /// [`PitchTrack::process_view`] and decimated the same way. The lead
-    /// ([`LEARNED_LEAD_HARMONIC`]): the pair's pitch tracker reads the view, the harmonic sum
-    /// on the stem still decides voicing. The bass ([`LEARNED_BASS_HARMONIC`]): the network
-    /// reads the view, the harmonic sum it is blended with the stem. Same latency as
-    /// [`PitchTrack::new`] with [`PitchMethod::Learned`] on a mixture.
-    pub fn new_harmonic_view(
-        geo: Geometry,
-        fmin_hz: f32,
-        fmax_hz: f32,
-    ) -> Result<Self, ConfigError> {
-        Self::build(geo, fmin_hz, fmax_hz, PitchMethod::Learned, true, true)
-    }
-
-    fn build(
-        geo: Geometry,
-        fmin_hz: f32,
-        fmax_hz: f32,
-        method: PitchMethod,
-        mixture: bool,
-        harmonic_view: bool,
-    ) -> Result<Self, ConfigError> {
+    /// A pitch track as `recipe` says: its search range, tracker, level range and advance
+    /// ([`crate::recipe`]). A track whose recipe reads the harmonic view
+    /// ([`Recipe::harmonic_view`]: the separator's harmonic sum, vocals + bass + other) is fed
+    /// it beside the stem through [`PitchTrack::process_view`], decimated the same way;
+    /// [`PitchTrack::process`] feeds the stem as its own view.
+    pub fn new(geo: Geometry, recipe: &Recipe) -> Result<Self, ConfigError> {
+        let (fmin_hz, fmax_hz) = recipe.range_hz;
         let factor = Decimator::factor_for(geo.sample_rate, fmax_hz);
         let rate = geo.sample_rate / factor as u32;
         let mut yc = YinConfig::new(rate, fmin_hz, fmax_hz);
-        // The live profile: two periods of fmin per frame and a short Viterbi lag.
+        // The live profile: two periods of fmin per frame (and, from the recipe, a short
+        // Viterbi lag).
         let live = geo.profile == crate::profile::Profile::Live;
-        let lag_hops = if live {
+        if live {
             yc.frame = crate::profile::pitch_frame(rate, fmin_hz);
-            crate::profile::PITCH_LAG_HOPS
-        } else {
-            PYIN_LAG_HOPS
-        };
+        }
         // The tracker and the RMS run at the decimated rate; the binner and the time
         // stamps use engine-rate samples (`hop = yc.hop * factor`).
         let hop = yc.hop * factor;
         // Live YIN over more than an octave: a short frame for all but the lowest octave
         // (`tactus_dsp::twoframe`); its frame also sets the level's window below.
         let split_hz = crate::profile::TWO_FRAME_SPLIT * fmin_hz;
-        let two_frame = live && method == PitchMethod::Yin && split_hz < fmax_hz;
+        let two_frame = live && recipe.tracker == TrackerRecipe::Yin && split_hz < fmax_hz;
         let short_frame = crate::profile::pitch_frame(rate, split_hz);
         let frame = if two_frame { short_frame } else { yc.frame };
-        let tracker: Tracker = match method {
-            PitchMethod::Yin if two_frame => Tracker::One(Box::new(TwoFrameYin::new(
+        let tracker = if two_frame {
+            Tracker::One(Box::new(TwoFrameYin::new(
                 yc.clone(),
                 split_hz,
                 short_frame,
-            )?)),
-            PitchMethod::Yin => Tracker::One(Box::new(Yin::new(yc.clone())?)),
-            PitchMethod::Pyin | PitchMethod::Auto | PitchMethod::AutoShs => {
-                let mut pc = PyinConfig::new(rate, fmin_hz, fmax_hz);
-                pc.yin = yc.clone();
-                pc.lag_hops = lag_hops;
-                Tracker::One(Box::new(Pyin::new(pc)?))
-            }
-            PitchMethod::Shs | PitchMethod::Learned => {
-                // The bass range gets the bass defaults; a higher range (the lead) the
-                // melody defaults (`tactus_dsp::shs` module docs).
-                let mut sc = if fmax_hz <= BASS_MAX_HZ {
-                    ShsConfig::new(rate, fmin_hz, fmax_hz)
-                } else {
-                    ShsConfig::melody(rate, fmin_hz, fmax_hz)
-                };
-                sc.hop = yc.hop;
-                sc.lag_hops = lag_hops;
-                if mixture {
-                    sc.fundamental_ratio = MIXTURE_FUNDAMENTAL_RATIO;
-                    if fmax_hz > BASS_MAX_HZ {
-                        sc.contour_gate_db = MIXTURE_MELODY_CONTOUR_GATE_DB;
-                    } else {
-                        sc.register_sigma_st = MIXTURE_BASS_REGISTER_ST;
-                    }
-                }
-                let clean_lead = !mixture && fmax_hz > BASS_MAX_HZ;
-                if clean_lead {
-                    sc.harmonics = CLEAN_LEAD_HARMONICS;
-                    sc.attack_rise_db = CLEAN_LEAD_ATTACK_RISE_DB;
-                    sc.attack_salience_ratio = CLEAN_LEAD_ATTACK_SALIENCE_RATIO;
-                }
-                sc.learned = method == PitchMethod::Learned && fmax_hz <= BASS_MAX_HZ;
-                if sc.learned {
-                    sc.learned_blend = LEARNED_BASS_BLEND;
-                    sc.learned_harmonic = harmonic_view;
-                }
-                if method == PitchMethod::Learned && fmax_hz > BASS_MAX_HZ {
-                    // A mixture's lead: the harmonic sum decides whether, the learned
-                    // lead salience which pitch (README, "The learned lead's pitch inside
-                    // the harmonic sum's voicing").
-                    let mut lc = sc.clone();
-                    lc.learned = true;
-                    lc.learned_blend = LEARNED_LEAD_BLEND;
-                    lc.learned_voicing_nats = LEARNED_LEAD_VOICING_NATS;
-                    lc.learned_ensemble = LEARNED_LEAD_ENSEMBLE;
-                    lc.learned_harmonic = harmonic_view;
-                    lc.contour_gate_db = 0.0;
-                    Tracker::Pair(Box::new(
-                        VoicingPitchPair::new(Box::new(Shs::new(sc)?), Box::new(Shs::new(lc)?))?
-                            .with_veto(),
-                    ))
-                } else if clean_lead && method == PitchMethod::Shs {
-                    Tracker::Aligned(Box::new(Shs::new(sc)?))
-                } else if sc.learned && harmonic_view {
-                    Tracker::View(Box::new(Shs::new(sc)?))
-                } else {
-                    Tracker::One(Box::new(Shs::new(sc)?))
-                }
-            }
+            )?))
+        } else {
+            Tracker::new(&recipe.tracker, &yc, recipe.lag_hops)?
         };
         let hop_s = hop as f32 / geo.sample_rate as f32;
-        let span = (
-            RangePrior::Span(prior_span_st(fmax_hz)),
-            FOLLOW_PRIOR_FADE_HOPS,
-        );
-        // A clean bass stem: the range from held notes (README, "Bass levels from held notes").
-        // A mixture's lead through the pair: from held notes or hops both trackers agree on
-        // (README, "The mix's lead range from held or agreed hops"); narrowed to the
-        // hops where the learned tracker is sure of its pitch ([`MIX_LEAD_SURE`]).
-        let agree = mixture && matches!(tracker, Tracker::Pair(_));
-        // Narrowed to the hops the learned tracker is sure of: both ends for the
-        // lead, the bottom for the mix's learned bass (README, "The mix's lead range narrowed
-        // to sure hops", "The mix's bass range from sure hops, at the bottom").
-        let sure = if agree {
-            Some(LEAD_SURE)
-        } else if mixture && fmax_hz <= BASS_MAX_HZ && method == PitchMethod::Learned {
-            Some(BASS_SURE)
-        } else {
-            None
-        };
-        let held_hops = if !mixture && fmax_hz <= BASS_MAX_HZ {
-            CLEAN_BASS_HELD_HOPS
-        } else if mixture && fmax_hz <= BASS_MAX_HZ {
-            MIX_BASS_HELD_HOPS
-        } else if agree {
-            MIX_LEAD_HELD_HOPS
-        } else {
-            0
-        };
-        // The bass band of a mixture: the range without octave shadows.
-        let shadow_hops = if mixture && fmax_hz <= BASS_MAX_HZ {
-            MIX_BASS_SHADOW_HOPS
-        } else {
-            0
+        let levels = recipe.levels.clone();
+        // The streaming range's prior: under the follow rule the instrument's register where
+        // it has one, otherwise a span around the first notes.
+        let prior = match (geo.level_rule, levels.register_hz) {
+            (LevelRule::Follow, Some((lo, hi))) => {
+                (RangePrior::Register(lo, hi), levels.register_fade_hops)
+            }
+            _ => (
+                RangePrior::Span(levels.prior_span_st),
+                levels.prior_fade_hops,
+            ),
         };
         let min_iqr_st = match geo.level_rule {
             LevelRule::Paper => 0.0,
-            LevelRule::Follow => min_iqr_st(fmax_hz),
+            LevelRule::Follow => levels.min_iqr_st,
         };
         let note_side = match tracker {
             Tracker::Pair(_) | Tracker::Aligned(_) => Some(NoteSide {
@@ -895,7 +543,7 @@ impl PitchTrack {
         };
         Ok(PitchTrack {
             decimator: Decimator::new(geo.sample_rate, factor)?,
-            view: if harmonic_view {
+            view: if recipe.harmonic_view {
                 Some(Decimator::new(geo.sample_rate, factor)?)
             } else {
                 None
@@ -913,12 +561,9 @@ impl PitchTrack {
                 tukey: SlidingTukey::new(TUKEY_WINDOW_HOPS, TUKEY_K, TUKEY_MIN_COUNT)?
                     .with_min_iqr(min_iqr_st),
                 range: RunningRange::new(),
-                prior_range: held_range(span, FOLLOW_RANGE_QUANTILE, held_hops, shadow_hops)?,
-                sure_range: match sure {
-                    Some(rule) => Some((
-                        held_range(span, rule.quantile, held_hops, shadow_hops)?,
-                        rule,
-                    )),
+                prior_range: held_range(&levels, prior, levels.quantile)?,
+                sure_range: match levels.sure {
+                    Some(rule) => Some((held_range(&levels, prior, rule.quantile)?, rule)),
                     None => None,
                 },
                 rule: geo.level_rule,
@@ -926,16 +571,14 @@ impl PitchTrack {
                 binner: LevelBinner::new(hop, geo.bin_samples)?,
             },
             min_iqr_st,
-            held_hops,
-            shadow_hops,
-            agree,
+            levels,
             raw_conf: Vec::new(),
             skipped_conf: 0,
             f0: Vec::new(),
             level_db: Vec::new(),
             hop_levels: Vec::new(),
             bins: Vec::new(),
-            advance: 0,
+            advance: recipe.advance_hops,
             skipped_f0: 0,
             skipped_rms: 0,
         })
@@ -943,16 +586,16 @@ impl PitchTrack {
 
     /// Leans the streaming range ([`LevelRule::Follow`]) on an instrument's register
     /// `(lo_hz, hi_hz)` instead of the prior span ([`RangePrior::Register`], fading over
-    /// [`REGISTER_FADE_HOPS`]). Offline output is unchanged. Call before the first block.
+    /// [`LevelRecipe::register_fade_hops`]). Offline output is unchanged. Call before the
+    /// first block. (The engine's tracks get their register from their recipe.)
     pub fn set_register_prior(&mut self, register_hz: (f32, f32)) -> Result<(), ConfigError> {
         let prior = (
             RangePrior::Register(register_hz.0, register_hz.1),
-            REGISTER_FADE_HOPS,
+            self.levels.register_fade_hops,
         );
-        let (k, w) = (self.held_hops, self.shadow_hops);
-        self.chain.prior_range = held_range(prior, FOLLOW_RANGE_QUANTILE, k, w)?;
+        self.chain.prior_range = held_range(&self.levels, prior, self.levels.quantile)?;
         if let Some((sr, rule)) = &mut self.chain.sure_range {
-            *sr = held_range(prior, rule.quantile, k, w)?;
+            *sr = held_range(&self.levels, prior, rule.quantile)?;
         }
         Ok(())
     }
@@ -1085,7 +728,10 @@ impl PitchTrack {
                 let nf = s.raw.get(j).copied().unwrap_or(0.0);
                 let nf = s.tukey.process(if open { nf } else { 0.0 });
                 s.f0.push(nf);
-                trusted = self.agree && pitches_agree(f0, nf, AGREE_TOL_ST);
+                trusted = self
+                    .levels
+                    .agree_tol_st
+                    .is_some_and(|tol| pitches_agree(f0, nf, tol));
             }
             let sure = self
                 .sure_rule()
@@ -1127,8 +773,8 @@ impl PitchTrack {
             reject_outliers_offline_min_iqr(&mut nf, TUKEY_K, self.min_iqr_st);
             s.f0 = nf;
         }
-        let trusted = match &self.note_side {
-            Some(s) if self.agree => agree_mask(&f0, &s.f0, AGREE_TOL_ST),
+        let trusted = match (&self.note_side, self.levels.agree_tol_st) {
+            (Some(s), Some(tol)) => agree_mask(&f0, &s.f0, tol),
             _ => Vec::new(),
         };
         let kept = |sure: &[bool], p: f32| {
@@ -1137,11 +783,11 @@ impl PitchTrack {
                 &trusted,
                 sure,
                 p,
-                self.held_hops,
-                HELD_TOL_ST,
-                self.shadow_hops,
-                HELD_MIN_SHARE,
-                HELD_MIN_HOPS,
+                self.levels.held_hops,
+                self.levels.held_tol_st,
+                self.levels.shadow_hops,
+                self.levels.held_min_share,
+                self.levels.held_min_hops,
             )
         };
         let r = match (self.geo.level_rule, self.sure_rule()) {
@@ -1153,13 +799,13 @@ impl PitchTrack {
                     .map(|i| self.raw_conf.get(i).copied().unwrap_or(0.0) >= rule.min_conf)
                     .collect();
                 narrow_range(
-                    kept(&[], FOLLOW_RANGE_QUANTILE),
+                    kept(&[], self.levels.quantile),
                     kept(&sure, rule.quantile),
                     rule.below_st,
                     rule.above_st,
                 )
             }
-            (LevelRule::Follow, None) => kept(&[], FOLLOW_RANGE_QUANTILE),
+            (LevelRule::Follow, None) => kept(&[], self.levels.quantile),
         };
         let levels: Vec<u8> = match r {
             Some(r) => f0.iter().map(|&f| self.chain.disc.level(f, r)).collect(),
@@ -1489,10 +1135,10 @@ impl Beats {
 }
 
 /// Hops the live profile's onset rise test looks back (4 × 5 ms).
-pub const RISE_HOPS: usize = 4;
+const RISE_HOPS: usize = 4;
 /// Level rise (dB) over the quietest of the last [`RISE_HOPS`] hops that the live
 /// profile's onsets need.
-pub const RISE_DB: f32 = 3.0;
+const RISE_DB: f32 = 3.0;
 
 /// The times, in seconds, of the hops flagged in `onsets` (hops of `hop` samples at `rate`).
 pub(crate) fn onset_times(onsets: &[bool], hop: usize, rate: u32) -> Vec<f64> {

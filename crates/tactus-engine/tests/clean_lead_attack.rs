@@ -7,6 +7,7 @@
 
 use tactus_engine::notes::{NoteRole, PitchNotes};
 use tactus_engine::profile::Profile;
+use tactus_engine::recipe::Role;
 use tactus_engine::track::PitchTrack;
 use tactus_engine::{Mode, NoteRule, PitchMethod};
 
@@ -43,7 +44,7 @@ fn choir_lead(midi: &[f64], note_s: f64) -> (Vec<f32>, Vec<f64>) {
 fn track(mode: Mode, mixture: bool, x: &[f32], chunk: usize) -> (PitchTrack, Vec<bool>) {
     let (lo, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
     let geo = common::geo(mode, Profile::Full);
-    let mut t = PitchTrack::new(geo, lo, hi, PitchMethod::Shs, mixture).unwrap();
+    let mut t = common::pitch_track(geo, Role::Lead, mixture, PitchMethod::Shs, (lo, hi));
     let role = NoteRole {
         plucked_mix: false,
         clean_lead: !mixture,

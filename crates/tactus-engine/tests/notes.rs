@@ -4,7 +4,7 @@
 
 use tactus_engine::notes::{NoteRole, NoteRule, NoteTrack, PitchNotes};
 use tactus_engine::profile::Profile;
-use tactus_engine::track::PitchTrack;
+use tactus_engine::recipe::Role;
 use tactus_engine::{Mode, PitchMethod};
 
 mod common;
@@ -36,7 +36,7 @@ fn plucked_line() -> (Vec<f32>, Vec<f64>) {
 /// The bass chain's pitch track and note onsets over `x` in blocks of `chunk`.
 fn onsets(mode: Mode, profile: Profile, rule: NoteRule, x: &[f32], chunk: usize) -> Vec<f64> {
     let g = geo(mode, profile);
-    let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
+    let mut p = common::pitch_track(g, Role::Bass, false, PitchMethod::Shs, (35.0, 400.0));
     let mut n = PitchNotes::new(g, p.hop(), rule, NoteRole::default()).unwrap();
     for b in x.chunks(chunk) {
         p.process(b);
@@ -76,7 +76,7 @@ fn sung_line() -> (Vec<f32>, Vec<f64>) {
 /// The vocals chain on a clean stem (the melody tracker) and its note onsets.
 fn lead_onsets(mode: Mode, role: NoteRole, x: &[f32], chunk: usize) -> Vec<f64> {
     let g = geo(mode, Profile::Full);
-    let mut p = PitchTrack::new(g, 80.0, 1000.0, PitchMethod::Shs, false).unwrap();
+    let mut p = common::pitch_track(g, Role::Lead, false, PitchMethod::Shs, (80.0, 1000.0));
     let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, role).unwrap();
     for b in x.chunks(chunk) {
         p.process(b);
@@ -166,7 +166,7 @@ fn repeated_plucks_are_notes_offline_and_streaming_in_any_chunking() {
 #[test]
 fn the_stated_latency_of_each_rule() {
     let g = geo(Mode::Streaming, Profile::Full);
-    let p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
+    let p = common::pitch_track(g, Role::Bass, false, PitchMethod::Shs, (35.0, 400.0));
     let hop = p.hop();
     let lat = |profile, rule| {
         let plucked = NoteRole {
@@ -201,7 +201,7 @@ fn streaming_decides_no_onset_before_its_stated_latency() {
     // t + the pitch track's latency + the detector's has been fed.
     let (x, starts) = plucked_line();
     let g = geo(Mode::Streaming, Profile::Full);
-    let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
+    let mut p = common::pitch_track(g, Role::Bass, false, PitchMethod::Shs, (35.0, 400.0));
     let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, NoteRole::default()).unwrap();
     let lat = p.latency_samples() + n.latency_samples();
     let dec = p.decimation();
