@@ -24,7 +24,10 @@ use tactus_dsp::melbank::MelConfig;
 use tactus_dsp::rms::{gate_offline, Rms, StreamingGate, GATE_BELOW_DB};
 use tactus_dsp::{Band, ConfigError, HopStage};
 
-use crate::track::{Geometry, Mode, GATE_DECAY_DB_PER_S};
+use tactus_dsp::Stem;
+use tactus_glove::BinFeatures;
+
+use crate::track::{held, Feature, Geometry, Mode, Track, TrackInput, GATE_DECAY_DB_PER_S};
 
 /// RMS hops after an onset hop whose level its gate also reads (see the module docs).
 pub const GATE_REACH_HOPS: usize = 1;
@@ -212,6 +215,8 @@ pub struct ClassTrack {
     pub onsets: Vec<(usize, Band, f32)>,
     /// Beat per bin, per class ([`Band::ALL`] order).
     pub bins: [Vec<bool>; CLASSES],
+    /// The classes a frame shows ([`ClassTrack::show`]; all four unless told).
+    shown: Vec<Band>,
 }
 
 impl ClassTrack {
@@ -308,6 +313,7 @@ impl ClassTrack {
             binners: [binner.clone(), binner.clone(), binner.clone(), binner],
             onsets: Vec::new(),
             bins: Default::default(),
+            shown: Band::ALL.to_vec(),
         })
     }
 
@@ -453,12 +459,15 @@ impl ClassTrack {
             + self.raw_rms.len()
     }
 
-    /// Streaming: forgets the first `d` bins of every class and the onsets already binned.
-    pub fn discard(&mut self, d: usize) {
-        for b in &mut self.bins {
-            b.drain(..d.min(b.len()));
-        }
-        self.onsets.clear();
+    /// Shows only `bands` in a frame ([`Track::read_bin`]): the classes the map has. The
+    /// transcriber computes all four either way.
+    pub fn show(&mut self, bands: &[Band]) {
+        self.shown = bands.to_vec();
+    }
+
+    /// The classes a frame shows.
+    pub fn shown(&self) -> &[Band] {
+        &self.shown
     }
 
     /// Back to the initial state.
@@ -477,6 +486,51 @@ impl ClassTrack {
         for b in &mut self.bins {
             b.clear();
         }
+    }
+}
+
+impl Track for ClassTrack {
+    fn process(&mut self, input: &TrackInput<'_>) {
+        ClassTrack::process(self, input.stem, input.side);
+    }
+
+    fn finish(&mut self, _: &TrackInput<'_>) {
+        ClassTrack::finish(self);
+    }
+
+    fn reset(&mut self) {
+        ClassTrack::reset(self);
+    }
+
+    fn latency_samples(&self) -> usize {
+        ClassTrack::latency_samples(self)
+    }
+
+    /// Forgets the first `bins` of every class and the onsets already binned.
+    fn discard_before(&mut self, bins: usize) {
+        for b in &mut self.bins {
+            b.drain(..bins.min(b.len()));
+        }
+        self.onsets.clear();
+    }
+
+    fn feature(&self) -> Feature {
+        Feature::Beats
+    }
+
+    /// Bins whose beats are final for every class.
+    fn ready_bins(&self) -> usize {
+        ClassTrack::ready_bins(self)
+    }
+
+    fn read_bin(&self, bin: usize, hold: usize, _stem: Stem, frame: &mut BinFeatures) {
+        for &band in &self.shown {
+            frame.band_beat[band as usize] = held(self.bins_of(band), bin, hold);
+        }
+    }
+
+    fn retained(&self) -> usize {
+        ClassTrack::retained(self)
     }
 }
 

@@ -20,7 +20,9 @@ use crate::drums::{ClassTrack, DrumMethod};
 use crate::notes::{NoteRule, NoteTrack, PitchNotes};
 use crate::profile::{self, Profile};
 use crate::recipe::{recipe, PitchMethod, Recipe, Role, SeparatorKind, Source};
-use crate::track::{Denoise, Geometry, LevelRule, Mode, OnsetTrack, PitchTrack};
+use crate::track::{
+    held, Denoise, Feature, Geometry, LevelRule, Mode, OnsetTrack, PitchTrack, Track, TrackInput,
+};
 use crate::EngineError;
 
 /// The engine's default sample rate; inputs are resampled to it.
@@ -134,7 +136,7 @@ pub struct StageTimes {
 }
 
 /// One drum band: band-pass filter then onset track.
-struct BandChain {
+struct BandTrack {
     band: Band,
     filter: SosFilter,
     track: OnsetTrack,
@@ -143,18 +145,64 @@ struct BandChain {
     t_onsets: Duration,
 }
 
-/// Everything computed from one stem.
+impl Track for BandTrack {
+    fn process(&mut self, input: &TrackInput<'_>) {
+        let t = Instant::now();
+        self.scratch.clear();
+        self.scratch.extend_from_slice(input.stem);
+        self.filter.process_inplace(&mut self.scratch);
+        let t2 = Instant::now();
+        self.track.process(&self.scratch);
+        self.t_filter += t2 - t;
+        self.t_onsets += t2.elapsed();
+    }
+
+    fn finish(&mut self, _: &TrackInput<'_>) {
+        let t = Instant::now();
+        self.track.finish();
+        self.t_onsets += t.elapsed();
+    }
+
+    fn reset(&mut self) {
+        self.filter.reset();
+        self.track.reset();
+    }
+
+    fn latency_samples(&self) -> usize {
+        self.track.latency_samples()
+    }
+
+    fn discard_before(&mut self, bins: usize) {
+        self.track.discard(bins);
+    }
+
+    fn feature(&self) -> Feature {
+        Feature::Beats
+    }
+
+    fn ready_bins(&self) -> usize {
+        self.track.beats.bins.len()
+    }
+
+    fn read_bin(&self, bin: usize, hold: usize, _stem: Stem, frame: &mut BinFeatures) {
+        frame.band_beat[self.band as usize] = held(&self.track.beats.bins, bin, hold);
+    }
+
+    fn retained(&self) -> usize {
+        self.track.retained()
+    }
+}
+
+/// Everything computed from one stem: its denoiser, then its tracks ([`Track`]).
 struct StemChain {
     stem: Stem,
     denoise: Denoise,
     buf: Vec<f32>,
     pitch: Option<PitchTrack>,
     notes: Option<NoteTrack>,
-    bands: Vec<BandChain>,
+    bands: Vec<BandTrack>,
     /// The per-instrument transcriber (drums with [`DrumMethod::Classes`]).
     classes: Option<ClassTrack>,
-    /// Classes the map shows (the transcriber computes all four).
-    class_bands: Vec<Band>,
     /// The spectral separator's harmonic sum (bass + vocals + other) beside the stem, and
     /// its denoiser (the stem's): the backing of a drum transcriber that reads it
     /// ([`ClassTrack::wants_backing`]), or the harmonic view of the lead's learned pair
@@ -165,6 +213,51 @@ struct StemChain {
     t_pitch: Duration,
     t_notes: Duration,
     t_classes: Duration,
+}
+
+/// The per-instrument drum transcriber `drums` asks for, when a map shows any of `bands`.
+fn class_track(
+    geo: Geometry,
+    bands: &[Band],
+    drums: &DrumMethod,
+) -> Result<Option<ClassTrack>, EngineError> {
+    let mut track = match drums {
+        _ if bands.is_empty() => return Ok(None),
+        DrumMethod::Classes => ClassTrack::new(geo)?,
+        DrumMethod::ClassesLive => ClassTrack::live(geo)?,
+        DrumMethod::ClassesFile(path) => ClassTrack::from_file(geo, path)?,
+        #[cfg(feature = "onnx")]
+        DrumMethod::AdtLib(model) => ClassTrack::adtlib(geo, model, 0)?,
+        #[cfg(not(feature = "onnx"))]
+        DrumMethod::AdtLib(_) => {
+            return Err(EngineError::Config(
+                "--drums adtlib needs a tactus built with `--features onnx` (see README, \"ONNX models\")".into(),
+            ))
+        }
+        DrumMethod::Bands => return Ok(None),
+    };
+    track.show(bands);
+    Ok(Some(track))
+}
+
+/// The band tracks of `bands` (a band above Nyquist, e.g. cymbals at 8 kHz, is skipped; it
+/// stays silent).
+fn band_tracks(geo: Geometry, bands: &[Band]) -> Result<Vec<BandTrack>, EngineError> {
+    let mut out = Vec::new();
+    for &band in bands {
+        let edges = tactus_dsp::sos::band_edges(band, geo.sample_rate);
+        if let (Ok(filter), Some((lo, hi))) = (SosFilter::band(band, geo.sample_rate), edges) {
+            out.push(BandTrack {
+                band,
+                filter,
+                track: OnsetTrack::new(geo, Some((lo as f32, hi as f32)))?,
+                scratch: Vec::with_capacity(PARALLEL_MIN_BLOCK * 4),
+                t_filter: Duration::ZERO,
+                t_onsets: Duration::ZERO,
+            });
+        }
+    }
+    Ok(out)
 }
 
 impl StemChain {
@@ -190,39 +283,14 @@ impl StemChain {
             _ => None,
         };
         let notes = match (notes, &pitch, recipe) {
-            (Some(rule), Some(p), Some(r)) => Some(NoteTrack::Pitch(PitchNotes::new(
-                geo,
-                p.hop(),
-                rule,
-                r.notes,
-            )?)),
+            (Some(rule), Some(p), Some(r)) => {
+                Some(NoteTrack::Pitch(PitchNotes::new(geo, p, rule, r.notes)?))
+            }
             (Some(_), _, _) => Some(NoteTrack::Flux(OnsetTrack::new(geo, None)?)),
             (None, _, _) => None,
         };
         let harmonic_view = recipe.is_some_and(|r| r.harmonic_view);
-        let mut chains = Vec::new();
-        let (classes, class_bands) = match drums {
-            DrumMethod::Classes if !bands.is_empty() => {
-                (Some(ClassTrack::new(geo)?), bands.to_vec())
-            }
-            DrumMethod::ClassesLive if !bands.is_empty() => {
-                (Some(ClassTrack::live(geo)?), bands.to_vec())
-            }
-            DrumMethod::ClassesFile(path) if !bands.is_empty() => {
-                (Some(ClassTrack::from_file(geo, path)?), bands.to_vec())
-            }
-            #[cfg(feature = "onnx")]
-            DrumMethod::AdtLib(model) if !bands.is_empty() => {
-                (Some(ClassTrack::adtlib(geo, model, 0)?), bands.to_vec())
-            }
-            #[cfg(not(feature = "onnx"))]
-            DrumMethod::AdtLib(_) if !bands.is_empty() => {
-                return Err(EngineError::Config(
-                    "--drums adtlib needs a tactus built with `--features onnx` (see README, \"ONNX models\")".into(),
-                ))
-            }
-            _ => (None, Vec::new()),
-        };
+        let classes = class_track(geo, bands, drums)?;
         let bands = if classes.is_some() { &[][..] } else { bands };
         let reads_backing = classes.as_ref().is_some_and(|c| c.wants_backing());
         let backing = if reads_backing || (harmonic_view && pitch.is_some()) {
@@ -230,30 +298,14 @@ impl StemChain {
         } else {
             None
         };
-        for &band in bands {
-            let edges = tactus_dsp::sos::band_edges(band, geo.sample_rate);
-            match (SosFilter::band(band, geo.sample_rate), edges) {
-                (Ok(filter), Some((lo, hi))) => chains.push(BandChain {
-                    band,
-                    filter,
-                    track: OnsetTrack::new(geo, Some((lo as f32, hi as f32)))?,
-                    scratch: Vec::with_capacity(PARALLEL_MIN_BLOCK * 4),
-                    t_filter: Duration::ZERO,
-                    t_onsets: Duration::ZERO,
-                }),
-                // A band above Nyquist (e.g. cymbals at 8 kHz) is skipped; it stays silent.
-                _ => continue,
-            }
-        }
         Ok(StemChain {
             stem,
             denoise: Denoise::new(hp, geo.sample_rate)?,
             buf: Vec::with_capacity(PARALLEL_MIN_BLOCK * 4),
             pitch,
             notes,
-            bands: chains,
+            bands: band_tracks(geo, bands)?,
             classes,
-            class_bands,
             backing,
             samples: 0,
             t_denoise: Duration::ZERO,
@@ -261,6 +313,24 @@ impl StemChain {
             t_notes: Duration::ZERO,
             t_classes: Duration::ZERO,
         })
+    }
+
+    /// The chain's tracks, in the order they run: pitch, note onsets, drum classes, bands.
+    fn tracks(&self) -> impl Iterator<Item = &dyn Track> {
+        let pitch = self.pitch.iter().map(|t| t as &dyn Track);
+        let notes = self.notes.iter().map(|t| t as &dyn Track);
+        let classes = self.classes.iter().map(|t| t as &dyn Track);
+        let bands = self.bands.iter().map(|t| t as &dyn Track);
+        pitch.chain(notes).chain(classes).chain(bands)
+    }
+
+    /// [`StemChain::tracks`], to change.
+    fn tracks_mut(&mut self) -> impl Iterator<Item = &mut dyn Track> {
+        let pitch = self.pitch.iter_mut().map(|t| t as &mut dyn Track);
+        let notes = self.notes.iter_mut().map(|t| t as &mut dyn Track);
+        let classes = self.classes.iter_mut().map(|t| t as &mut dyn Track);
+        let bands = self.bands.iter_mut().map(|t| t as &mut dyn Track);
+        pitch.chain(notes).chain(classes).chain(bands)
     }
 
     /// Whether this chain reads the separator's harmonic sum beside its stem (a drum
@@ -277,7 +347,7 @@ impl StemChain {
         self.buf.clear();
         self.buf.extend_from_slice(block);
         self.denoise.process_inplace(&mut self.buf);
-        let backing = match (backing, &mut self.backing) {
+        let side = match (backing, &mut self.backing) {
             (Some([b, v, o]), Some((denoise, buf))) => {
                 buf.clear();
                 buf.extend(b.iter().zip(v).zip(o).map(|((b, v), o)| b + v + o));
@@ -287,115 +357,79 @@ impl StemChain {
             _ => None,
         };
         self.t_denoise += t.elapsed();
+        let input = TrackInput {
+            stem: &self.buf,
+            side,
+            pitch: None,
+        };
         if let Some(p) = &mut self.pitch {
             let t = Instant::now();
-            p.process_view(&self.buf, backing.unwrap_or(&self.buf));
+            Track::process(p, &input);
             self.t_pitch += t.elapsed();
         }
+        // Note onsets read the pitch track that has just taken the block.
+        let input = TrackInput {
+            pitch: self.pitch.as_ref(),
+            ..input
+        };
         if let Some(n) = &mut self.notes {
             let t = Instant::now();
-            match (n, &self.pitch) {
-                (NoteTrack::Pitch(n), Some(p)) => n.update(p),
-                (NoteTrack::Flux(n), _) => n.process(&self.buf),
-                (NoteTrack::Pitch(_), None) => {}
-            }
+            n.process(&input);
             self.t_notes += t.elapsed();
         }
         if let Some(c) = &mut self.classes {
             let t = Instant::now();
-            c.process(&self.buf, backing);
+            Track::process(c, &input);
             self.t_classes += t.elapsed();
         }
         for b in &mut self.bands {
-            let t = Instant::now();
-            b.scratch.clear();
-            b.scratch.extend_from_slice(&self.buf);
-            b.filter.process_inplace(&mut b.scratch);
-            let t2 = Instant::now();
-            b.track.process(&b.scratch);
-            b.t_filter += t2 - t;
-            b.t_onsets += t2.elapsed();
+            b.process(&input);
         }
     }
 
     fn finish(&mut self) {
         let t = Instant::now();
+        let none = TrackInput::stem(&[]);
         if let Some(p) = &mut self.pitch {
-            p.finish();
+            Track::finish(p, &none);
         }
         self.t_pitch += t.elapsed();
+        let input = TrackInput {
+            pitch: self.pitch.as_ref(),
+            ..none
+        };
         if let Some(n) = &mut self.notes {
-            match (n, &self.pitch) {
-                (NoteTrack::Pitch(n), Some(p)) => n.finish(p),
-                (NoteTrack::Flux(n), _) => n.finish(),
-                (NoteTrack::Pitch(_), None) => {}
-            }
+            n.finish(&input);
         }
         if let Some(c) = &mut self.classes {
             let t = Instant::now();
-            c.finish();
+            Track::finish(c, &input);
             self.t_classes += t.elapsed();
         }
         for b in &mut self.bands {
-            let t = Instant::now();
-            b.track.finish();
-            b.t_onsets += t.elapsed();
+            b.finish(&input);
         }
     }
 
+    /// Input samples after which every feature of the chain is final: its slowest track's
+    /// latency after the denoiser's.
     fn latency_samples(&self) -> usize {
-        let mut l = 0;
-        if let Some(p) = &self.pitch {
-            l = l.max(p.latency_samples());
-        }
-        match &self.notes {
-            // Pitch notes look ahead of the pitch track's own decision.
-            Some(n @ NoteTrack::Pitch(_)) => {
-                l = l.max(
-                    self.pitch.as_ref().map_or(0, |p| p.latency_samples()) + n.latency_samples(),
-                )
-            }
-            Some(n) => l = l.max(n.latency_samples()),
-            None => {}
-        }
-        for b in &self.bands {
-            l = l.max(b.track.latency_samples());
-        }
-        if let Some(c) = &self.classes {
-            l = l.max(c.latency_samples());
-        }
-        l + self.denoise.latency_samples()
+        self.tracks()
+            .map(|t| t.latency_samples())
+            .max()
+            .unwrap_or(0)
+            + self.denoise.latency_samples()
     }
 
     /// Per-hop and per-bin values the chain holds.
     fn retained(&self) -> usize {
-        let mut n = self.pitch.as_ref().map_or(0, |p| p.retained());
-        n += match &self.notes {
-            Some(NoteTrack::Pitch(t)) => t.retained(),
-            Some(NoteTrack::Flux(t)) => t.retained(),
-            None => 0,
-        };
-        n += self.classes.as_ref().map_or(0, |c| c.retained());
-        n + self.bands.iter().map(|b| b.track.retained()).sum::<usize>()
+        self.tracks().map(|t| t.retained()).sum()
     }
 
     /// Forgets the first `d` bins of every track and the per-hop records already binned
     /// (see [`Engine::discard_before`]).
     fn discard(&mut self, d: usize) {
-        if let Some(p) = &mut self.pitch {
-            p.discard(d);
-        }
-        match &mut self.notes {
-            Some(NoteTrack::Pitch(n)) => n.discard(d),
-            Some(NoteTrack::Flux(n)) => n.discard(d),
-            None => {}
-        }
-        if let Some(c) = &mut self.classes {
-            c.discard(d);
-        }
-        for b in &mut self.bands {
-            b.track.discard(d);
-        }
+        self.tracks_mut().for_each(|t| t.discard_before(d));
     }
 
     fn reset(&mut self) {
@@ -404,19 +438,7 @@ impl StemChain {
             d.reset();
         }
         self.samples = 0;
-        if let Some(p) = &mut self.pitch {
-            p.reset();
-        }
-        if let Some(n) = &mut self.notes {
-            n.reset();
-        }
-        if let Some(c) = &mut self.classes {
-            c.reset();
-        }
-        for b in &mut self.bands {
-            b.filter.reset();
-            b.track.reset();
-        }
+        self.tracks_mut().for_each(|t| t.reset());
     }
 }
 
@@ -498,21 +520,6 @@ fn feed(
             c.process(x, b);
         }
     }
-}
-
-/// What a chain contributes to a frame ([`Engine::live_frame`] shifts each on its own).
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Feature {
-    /// Pitch level (cell 0 of a melodic finger).
-    Level,
-    /// Note onsets (cell 1 of a melodic finger).
-    Notes,
-    /// Drum beats (bands or classes).
-    Beats,
-}
-
-impl Feature {
-    const ALL: [Feature; 3] = [Feature::Level, Feature::Notes, Feature::Beats];
 }
 
 /// A separated block and copies of the supplied stems' same span, waiting for the chains.
@@ -799,25 +806,23 @@ impl Engine {
 
     /// Bins for which every feature the map uses is final (streaming mode).
     pub fn ready_bins(&self) -> usize {
-        let mut ready = usize::MAX;
-        for c in &self.chains {
-            if let Some(p) = &c.pitch {
-                ready = ready.min(p.bins.len());
-            }
-            if let Some(n) = &c.notes {
-                ready = ready.min(n.bins().len());
-            }
-            for b in &c.bands {
-                ready = ready.min(b.track.beats.bins.len());
-            }
-            if let Some(t) = &c.classes {
-                ready = ready.min(t.ready_bins());
-            }
-        }
-        if ready == usize::MAX {
-            self.n_in / self.geo.bin_samples
-        } else {
-            self.bin_base + ready
+        self.ready_shifted(&|_, _| 0)
+    }
+
+    /// Bins ready when each feature of chain `c` is read `shift(c, feature)` bins late: the
+    /// fewest over the tracks of the bins each has finished plus its shift.
+    fn ready_shifted(&self, shift: &dyn Fn(&StemChain, Feature) -> usize) -> usize {
+        let ready = self
+            .chains
+            .iter()
+            .flat_map(|c| {
+                c.tracks()
+                    .map(move |t| t.ready_bins() + shift(c, t.feature()))
+            })
+            .min();
+        match ready {
+            Some(ready) => self.bin_base + ready,
+            None => self.n_in / self.geo.bin_samples,
         }
     }
 
@@ -836,31 +841,14 @@ impl Engine {
         shift: &dyn Fn(&StemChain, Feature) -> usize,
     ) -> BinFeatures {
         let hold = self.cfg.profile.pulse_bins(self.cfg.bin_ms);
-        // Any beat among the `hold` bins ending at `kb`.
-        let held = |bins: &[bool], kb: usize| {
-            (kb.saturating_sub(hold - 1)..=kb).any(|j| bins.get(j).copied().unwrap_or(false))
-        };
         let mut f = BinFeatures::default();
         let Some(k) = k.checked_sub(self.bin_base) else {
             return f;
         };
         for c in &self.chains {
-            let si = c.stem as usize;
-            if let (Some(p), Some(kb)) = (&c.pitch, k.checked_sub(shift(c, Feature::Level))) {
-                f.level[si] = p.bins.get(kb).copied().unwrap_or(0);
-            }
-            if let (Some(n), Some(kb)) = (&c.notes, k.checked_sub(shift(c, Feature::Notes))) {
-                f.note_onset[si] = held(n.bins(), kb);
-            }
-            let Some(kb) = k.checked_sub(shift(c, Feature::Beats)) else {
-                continue;
-            };
-            for b in &c.bands {
-                f.band_beat[b.band as usize] = held(&b.track.beats.bins, kb);
-            }
-            if let Some(t) = &c.classes {
-                for &band in &c.class_bands {
-                    f.band_beat[band as usize] = held(t.bins_of(band), kb);
+            for t in c.tracks() {
+                if let Some(kb) = k.checked_sub(shift(c, t.feature())) {
+                    t.read_bin(kb, hold, c.stem, &mut f);
                 }
             }
         }
@@ -883,20 +871,11 @@ impl Engine {
             _ => 0,
         };
         let d = c.denoise.latency_samples() + sep;
-        let pitch = c.pitch.as_ref().map(|p| p.latency_samples());
-        match what {
-            Feature::Level => pitch.map(|l| l + d),
-            Feature::Notes => match &c.notes {
-                Some(n @ NoteTrack::Pitch(_)) => Some(pitch.unwrap_or(0) + n.latency_samples() + d),
-                Some(n) => Some(n.latency_samples() + d),
-                None => None,
-            },
-            Feature::Beats => {
-                let bands = c.bands.iter().map(|b| b.track.latency_samples()).max();
-                let classes = c.classes.as_ref().map(|t| t.latency_samples());
-                bands.max(classes).map(|l| l + d)
-            }
-        }
+        c.tracks()
+            .filter(|t| t.feature() == what)
+            .map(|t| t.latency_samples())
+            .max()
+            .map(|l| l + d)
     }
 
     /// The smallest latency of any feature the engine computes, samples.
@@ -921,27 +900,7 @@ impl Engine {
     /// finished bin `k` and every slower chain bin `k − shift`.
     pub fn live_ready_bins(&self) -> usize {
         let fastest = self.fastest_latency();
-        let mut ready = usize::MAX;
-        for c in &self.chains {
-            let shift = |w| self.live_shift(c, w, fastest);
-            if let Some(p) = &c.pitch {
-                ready = ready.min(p.bins.len() + shift(Feature::Level));
-            }
-            if let Some(t) = &c.notes {
-                ready = ready.min(t.bins().len() + shift(Feature::Notes));
-            }
-            for b in &c.bands {
-                ready = ready.min(b.track.beats.bins.len() + shift(Feature::Beats));
-            }
-            if let Some(t) = &c.classes {
-                ready = ready.min(t.ready_bins() + shift(Feature::Beats));
-            }
-        }
-        if ready == usize::MAX {
-            self.n_in / self.geo.bin_samples
-        } else {
-            self.bin_base + ready
-        }
+        self.ready_shifted(&|c, w| self.live_shift(c, w, fastest))
     }
 
     /// The frame the live glove shows when bin `k` of the fastest chain is final: every
@@ -1094,7 +1053,7 @@ impl Engine {
                 out.beats.insert(bn, beats);
             }
             if let Some(t) = &c.classes {
-                for &band in &c.class_bands {
+                for &band in t.shown() {
                     let bn = band.name().to_string();
                     out.onsets_s.insert(bn.clone(), t.onset_times(band));
                     let mut beats: Vec<u8> = t.bins_of(band).iter().map(|&x| x as u8).collect();

@@ -23,7 +23,12 @@ use tactus_dsp::ConfigError;
 
 use crate::profile::Profile;
 pub use crate::recipe::NoteRole;
-use crate::track::{Beats, Geometry, Mode, OnsetTrack, PitchTrack};
+use tactus_dsp::Stem;
+use tactus_glove::BinFeatures;
+
+use crate::track::{
+    held, Beats, Feature, Geometry, Mode, OnsetTrack, PitchTrack, Track, TrackInput,
+};
 
 /// How note onsets are read from a pitch track. See the module docs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -101,6 +106,8 @@ pub struct PitchNotes {
     cfg: NoteConfig,
     geo: Geometry,
     hop: usize,
+    /// The pitch track's latency, before this detector's own.
+    pitch_latency: usize,
     /// Pitch hops consumed so far (streaming).
     consumed: usize,
     /// Onset flag per pitch hop, note onset per bin.
@@ -108,20 +115,22 @@ pub struct PitchNotes {
 }
 
 impl PitchNotes {
-    /// A detector for a pitch track with `hop` engine samples between hops.
-    /// `role`: see [`NoteRule::config`].
+    /// A detector reading `pitch` (its hops and its latency; the track itself is handed to
+    /// [`PitchNotes::update`] and [`PitchNotes::finish`]). `role`: see [`NoteRule::config`].
     pub fn new(
         geo: Geometry,
-        hop: usize,
+        pitch: &PitchTrack,
         rule: NoteRule,
         role: NoteRole,
     ) -> Result<Self, ConfigError> {
         let cfg = rule.config(geo.profile, role);
+        let hop = pitch.hop();
         Ok(PitchNotes {
             det: NoteOnsets::new(cfg)?,
             cfg,
             geo,
             hop,
+            pitch_latency: pitch.latency_samples(),
             consumed: 0,
             beats: Beats::new(hop, geo.bin_samples)?,
         })
@@ -161,8 +170,13 @@ impl PitchNotes {
         }
     }
 
-    /// Input samples of look-ahead beyond the pitch track's.
+    /// Input samples of look-ahead: the pitch track's, then the detector's own.
     pub fn latency_samples(&self) -> usize {
+        self.pitch_latency + self.own_latency_samples()
+    }
+
+    /// Input samples of look-ahead of the detector beyond the pitch track's.
+    pub fn own_latency_samples(&self) -> usize {
         self.det.latency_hops() * self.hop
     }
 
@@ -174,13 +188,6 @@ impl PitchNotes {
     /// Per-hop and per-bin values held.
     pub fn retained(&self) -> usize {
         self.beats.retained()
-    }
-
-    /// Streaming: forgets the first `d` bins and the onsets already binned; the pitch
-    /// track forgets its consumed hops at the same time, so counting starts again at 0.
-    pub fn discard(&mut self, d: usize) {
-        self.beats.discard(d);
-        self.consumed = 0;
     }
 
     /// Back to the initial state.
@@ -216,20 +223,74 @@ impl NoteTrack {
             NoteTrack::Pitch(p) => p.onset_times(),
         }
     }
+}
 
-    /// Input samples of look-ahead (beyond the pitch track's, for [`NoteTrack::Pitch`]).
-    pub fn latency_samples(&self) -> usize {
+impl Track for NoteTrack {
+    fn process(&mut self, input: &TrackInput<'_>) {
+        match self {
+            NoteTrack::Pitch(n) => {
+                if let Some(p) = input.pitch {
+                    n.update(p);
+                }
+            }
+            NoteTrack::Flux(n) => n.process(input.stem),
+        }
+    }
+
+    fn finish(&mut self, input: &TrackInput<'_>) {
+        match self {
+            NoteTrack::Pitch(n) => {
+                if let Some(p) = input.pitch {
+                    n.finish(p);
+                }
+            }
+            NoteTrack::Flux(n) => n.finish(),
+        }
+    }
+
+    fn reset(&mut self) {
+        match self {
+            NoteTrack::Pitch(p) => p.reset(),
+            NoteTrack::Flux(f) => f.reset(),
+        }
+    }
+
+    /// For [`NoteTrack::Pitch`] the pitch track's latency and the detector's own.
+    fn latency_samples(&self) -> usize {
         match self {
             NoteTrack::Pitch(p) => p.latency_samples(),
             NoteTrack::Flux(f) => f.latency_samples(),
         }
     }
 
-    /// Back to the initial state.
-    pub fn reset(&mut self) {
+    /// The pitch track forgets its consumed hops at the same time, so a pitch detector
+    /// counts them from 0 again.
+    fn discard_before(&mut self, bins: usize) {
         match self {
-            NoteTrack::Pitch(p) => p.reset(),
-            NoteTrack::Flux(f) => f.reset(),
+            NoteTrack::Pitch(p) => {
+                p.beats.discard(bins);
+                p.consumed = 0;
+            }
+            NoteTrack::Flux(f) => f.discard(bins),
+        }
+    }
+
+    fn feature(&self) -> Feature {
+        Feature::Notes
+    }
+
+    fn ready_bins(&self) -> usize {
+        self.bins().len()
+    }
+
+    fn read_bin(&self, bin: usize, hold: usize, stem: Stem, frame: &mut BinFeatures) {
+        frame.note_onset[stem as usize] = held(self.bins(), bin, hold);
+    }
+
+    fn retained(&self) -> usize {
+        match self {
+            NoteTrack::Pitch(t) => t.retained(),
+            NoteTrack::Flux(t) => t.retained(),
         }
     }
 }

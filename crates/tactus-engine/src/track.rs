@@ -25,7 +25,8 @@ use tactus_dsp::sos::{Response, SosFilter};
 use tactus_dsp::tukey::{reject_outliers_offline_min_iqr, SlidingTukey, TUKEY_K};
 use tactus_dsp::twoframe::TwoFrameYin;
 use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
-use tactus_dsp::{ConfigError, HopFilter, HopStage, SampleStage};
+use tactus_dsp::{ConfigError, HopFilter, HopStage, SampleStage, Stem};
+use tactus_glove::BinFeatures;
 
 pub use crate::recipe::PitchMethod;
 use crate::recipe::{LevelRecipe, Network, Recipe, ShsTuning, SureRule, TrackerRecipe};
@@ -85,6 +86,91 @@ pub struct Geometry {
     pub level_rule: LevelRule,
     /// Latency profile ([`crate::profile`]).
     pub profile: crate::profile::Profile,
+}
+
+/// What a track contributes to a frame: the live glove shows each as soon as it is final
+/// ([`crate::Engine::live_frame`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Feature {
+    /// Pitch level (cell 0 of a melodic finger).
+    Level,
+    /// Note onsets (cell 1 of a melodic finger).
+    Notes,
+    /// Drum beats (bands or classes).
+    Beats,
+}
+
+impl Feature {
+    /// Every feature.
+    pub const ALL: [Feature; 3] = [Feature::Level, Feature::Notes, Feature::Beats];
+}
+
+/// One block of what a stem's chain hands its tracks: every track reads the part it needs.
+#[derive(Clone, Copy)]
+pub struct TrackInput<'a> {
+    /// The denoised stem (empty at [`Track::finish`]).
+    pub stem: &'a [f32],
+    /// The same span of the separator's harmonic sum (vocals + bass + other), denoised like
+    /// the stem, when the chain has it: a drum transcriber's backing, a pitch track's
+    /// harmonic view.
+    pub side: Option<&'a [f32]>,
+    /// The stem's pitch track, after it took this block: what note onsets read.
+    pub pitch: Option<&'a PitchTrack>,
+}
+
+impl<'a> TrackInput<'a> {
+    /// A block of the stem alone.
+    pub fn stem(stem: &'a [f32]) -> Self {
+        TrackInput {
+            stem,
+            side: None,
+            pitch: None,
+        }
+    }
+}
+
+/// The shape of every feature track the engine runs ([`PitchTrack`],
+/// [`crate::notes::NoteTrack`], [`crate::drums::ClassTrack`] and the drum bands): a stream of
+/// blocks in, one value per bin out. The engine drives and reads its tracks through it
+/// alone; each track also keeps typed methods for callers that hold it.
+pub trait Track: Send {
+    /// Feeds one block (blocks of any size; the output does not depend on how the stream
+    /// is cut).
+    fn process(&mut self, input: &TrackInput<'_>);
+
+    /// Ends the stream: flushes what the track holds back and, offline, computes the
+    /// whole-track statistics. `input.stem` is empty.
+    fn finish(&mut self, input: &TrackInput<'_>);
+
+    /// Back to the just-constructed state.
+    fn reset(&mut self);
+
+    /// Input samples (engine rate) after which a bin's value is final, counted from the
+    /// stem the chain feeds (for note onsets read from pitch, the pitch track's included).
+    fn latency_samples(&self) -> usize;
+
+    /// Streaming: forgets the first `bins` of the bins it holds and the per-hop values
+    /// behind them ([`crate::Engine::discard_before`]); bin numbers then count from there.
+    fn discard_before(&mut self, bins: usize);
+
+    /// Which cell of a frame it fills.
+    fn feature(&self) -> Feature;
+
+    /// Bins whose value is final (counted from the first bin held).
+    fn ready_bins(&self) -> usize;
+
+    /// Writes its value of bin `bin` (counted like [`Track::ready_bins`]; a bin not held
+    /// reads as silent) into `frame`, as the feature of `stem`; a beat or onset stays on for
+    /// `hold` bins.
+    fn read_bin(&self, bin: usize, hold: usize, stem: Stem, frame: &mut BinFeatures);
+
+    /// Per-hop and per-bin values held ([`crate::Engine::retained_values`]).
+    fn retained(&self) -> usize;
+}
+
+/// Whether any of the `hold` bins ending at `bin` is a beat (bins not held are silent).
+pub(crate) fn held(bins: &[bool], bin: usize, hold: usize) -> bool {
+    (bin.saturating_sub(hold - 1)..=bin).any(|j| bins.get(j).copied().unwrap_or(false))
 }
 
 /// Denoising front end of a stem (docs/design.md: Butterworth high-pass order 4, then a
@@ -882,18 +968,6 @@ impl PitchTrack {
         }
     }
 
-    /// Streaming: forgets the first `d` bins and the per-hop values already binned
-    /// ([`crate::Engine::discard_before`]).
-    pub fn discard(&mut self, d: usize) {
-        self.bins.drain(..d.min(self.bins.len()));
-        self.f0.clear();
-        if let Some(s) = &mut self.note_side {
-            s.f0.clear();
-        }
-        self.level_db.clear();
-        self.hop_levels.clear();
-    }
-
     /// Back to the initial state.
     pub fn reset(&mut self) {
         self.decimator.reset();
@@ -918,6 +992,50 @@ impl PitchTrack {
             s.tukey.reset();
             s.f0.clear();
         }
+    }
+}
+
+impl Track for PitchTrack {
+    fn process(&mut self, input: &TrackInput<'_>) {
+        self.process_view(input.stem, input.side.unwrap_or(input.stem));
+    }
+
+    fn finish(&mut self, _: &TrackInput<'_>) {
+        PitchTrack::finish(self);
+    }
+
+    fn reset(&mut self) {
+        PitchTrack::reset(self);
+    }
+
+    fn latency_samples(&self) -> usize {
+        PitchTrack::latency_samples(self)
+    }
+
+    fn discard_before(&mut self, bins: usize) {
+        self.bins.drain(..bins.min(self.bins.len()));
+        self.f0.clear();
+        if let Some(s) = &mut self.note_side {
+            s.f0.clear();
+        }
+        self.level_db.clear();
+        self.hop_levels.clear();
+    }
+
+    fn feature(&self) -> Feature {
+        Feature::Level
+    }
+
+    fn ready_bins(&self) -> usize {
+        self.bins.len()
+    }
+
+    fn read_bin(&self, bin: usize, _hold: usize, stem: Stem, frame: &mut BinFeatures) {
+        frame.level[stem as usize] = self.bins.get(bin).copied().unwrap_or(0);
+    }
+
+    fn retained(&self) -> usize {
+        PitchTrack::retained(self)
     }
 }
 

@@ -49,7 +49,7 @@ fn track(mode: Mode, mixture: bool, x: &[f32], chunk: usize) -> (PitchTrack, Vec
         plucked_mix: false,
         clean_lead: !mixture,
     };
-    let mut notes = PitchNotes::new(geo, t.hop(), NoteRule::Attack, role).unwrap();
+    let mut notes = PitchNotes::new(geo, &t, NoteRule::Attack, role).unwrap();
     for b in x.chunks(chunk) {
         t.process(b);
         notes.update(&t);

@@ -146,7 +146,7 @@ fn track(method: PitchMethod, mode: Mode, x: &[f32], chunk: usize) -> (PitchTrac
     let (lo, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
     let geo = common::geo(mode, Profile::Full);
     let mut t = common::pitch_track(geo, Role::Lead, true, method, (lo, hi));
-    let mut notes = PitchNotes::new(geo, t.hop(), NoteRule::Attack, NoteRole::default()).unwrap();
+    let mut notes = PitchNotes::new(geo, &t, NoteRule::Attack, NoteRole::default()).unwrap();
     for b in x.chunks(chunk) {
         t.process(b);
         notes.update(&t);

@@ -37,7 +37,7 @@ fn plucked_line() -> (Vec<f32>, Vec<f64>) {
 fn onsets(mode: Mode, profile: Profile, rule: NoteRule, x: &[f32], chunk: usize) -> Vec<f64> {
     let g = geo(mode, profile);
     let mut p = common::pitch_track(g, Role::Bass, false, PitchMethod::Shs, (35.0, 400.0));
-    let mut n = PitchNotes::new(g, p.hop(), rule, NoteRole::default()).unwrap();
+    let mut n = PitchNotes::new(g, &p, rule, NoteRole::default()).unwrap();
     for b in x.chunks(chunk) {
         p.process(b);
         n.update(&p);
@@ -77,7 +77,7 @@ fn sung_line() -> (Vec<f32>, Vec<f64>) {
 fn lead_onsets(mode: Mode, role: NoteRole, x: &[f32], chunk: usize) -> Vec<f64> {
     let g = geo(mode, Profile::Full);
     let mut p = common::pitch_track(g, Role::Lead, false, PitchMethod::Shs, (80.0, 1000.0));
-    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, role).unwrap();
+    let mut n = PitchNotes::new(g, &p, NoteRule::Attack, role).unwrap();
     for b in x.chunks(chunk) {
         p.process(b);
         n.update(&p);
@@ -177,13 +177,13 @@ fn the_stated_latency_of_each_rule() {
             plucked_mix: false,
             clean_lead: true,
         };
-        let a = PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, plucked)
+        let a = PitchNotes::new(geo(Mode::Streaming, profile), &p, rule, plucked)
             .unwrap()
-            .latency_samples();
+            .own_latency_samples();
         // A clean lead's moves stay inside the attack search: the same latency.
-        let b = PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, lead)
+        let b = PitchNotes::new(geo(Mode::Streaming, profile), &p, rule, lead)
             .unwrap()
-            .latency_samples();
+            .own_latency_samples();
         assert_eq!(a, b);
         a
     };
@@ -202,8 +202,9 @@ fn streaming_decides_no_onset_before_its_stated_latency() {
     let (x, starts) = plucked_line();
     let g = geo(Mode::Streaming, Profile::Full);
     let mut p = common::pitch_track(g, Role::Bass, false, PitchMethod::Shs, (35.0, 400.0));
-    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, NoteRole::default()).unwrap();
-    let lat = p.latency_samples() + n.latency_samples();
+    let mut n = PitchNotes::new(g, &p, NoteRule::Attack, NoteRole::default()).unwrap();
+    let lat = n.latency_samples();
+    assert_eq!(lat, p.latency_samples() + n.own_latency_samples());
     let dec = p.decimation();
     let mut fed = 0usize;
     let mut seen = 0usize;
