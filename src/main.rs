@@ -21,7 +21,11 @@ use args::{EngineArgs, ModeArg};
 #[command(
     name = "tactus",
     version,
-    about = "Turns music into touch: songs to haptic glove patterns"
+    about = "Turns music into touch: songs to haptic glove patterns",
+    // `tactus` alone prints the command list; `help` is a command of ours, so that
+    // `tactus help --help` works too.
+    arg_required_else_help = true,
+    disable_help_subcommand = true
 )]
 struct Cli {
     #[command(subcommand)]
@@ -101,6 +105,21 @@ enum Cmd {
         #[arg(long)]
         json: Option<PathBuf>,
     },
+    /// Print this message or the help of the given subcommand(s)
+    Help {
+        /// The command to explain (default: the list of commands).
+        command: Option<String>,
+    },
+}
+
+/// `tactus help [COMMAND]`: the text of `tactus [COMMAND] --help`.
+fn help(command: Option<&str>) -> Result<()> {
+    let argv = ["tactus"].into_iter().chain(command).chain(["--help"]);
+    match Cli::try_parse_from(argv) {
+        Err(e) if !e.use_stderr() => e.exit(),
+        Err(e) => bail!("{}", one_line(&e)),
+        Ok(_) => Ok(()),
+    }
 }
 
 /// The longest duration any option accepts: 10⁷ s (116 days).
@@ -142,6 +161,10 @@ fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) if !e.use_stderr() => e.exit(), // --help, --version
+        // No command: the command list (on stderr, exit status 2).
+        Err(e) if e.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand => {
+            e.exit()
+        }
         Err(e) => {
             eprintln!("tactus: error: {} (see tactus --help)", one_line(&e));
             return ExitCode::from(2);
@@ -193,7 +216,7 @@ fn run(cli: Cli) -> Result<()> {
             #[cfg(not(feature = "audio"))]
             {
                 let _ = (input, glove, seconds, tui, engine);
-                bail!("this tactus was built without audio input: rebuild with `--features audio` (needs libasound2-dev)")
+                bail!("this tactus was built without audio input: rebuild with `--features audio` (needs libasound2-dev; see docs/install.md, \"Live setup\")")
             }
         }
         Cmd::Emulate {
@@ -249,5 +272,6 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Cmd::Render(args) => render::run(args),
+        Cmd::Help { command } => help(command.as_deref()),
     }
 }

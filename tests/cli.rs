@@ -668,3 +668,34 @@ fn stem_at_another_rate_is_resampled_and_a_longer_one_trimmed() {
     assert!(voiced >= 100, "only {voiced} hops voiced in both");
     assert!(cents < 10.0, "median {cents} cents apart");
 }
+
+/// A new user's first commands: `tactus` alone lists the commands (on stderr, exit status 2:
+/// nothing ran), `tactus help` is `tactus --help`, `tactus help render` is `tactus render
+/// --help`, and `tactus help --help` explains `help`.
+#[test]
+fn no_arguments_list_the_commands_and_help_takes_help() {
+    let o = tactus(&[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    for command in ["Commands:", "render", "play", "live", "help"] {
+        assert!(err.contains(command), "{command} missing from:\n{err}");
+    }
+    let o = tactus(&["help", "--help"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("Usage: tactus help [COMMAND]"), "{out}");
+    for (a, b) in [
+        (&["help"][..], &["--help"][..]),
+        (&["help", "render"], &["render", "--help"]),
+    ] {
+        let (a, b) = (tactus(a), tactus(b));
+        assert!(a.status.success() && b.status.success());
+        assert_eq!(
+            String::from_utf8_lossy(&a.stdout),
+            String::from_utf8_lossy(&b.stdout)
+        );
+    }
+    let o = tactus(&["help", "no-such-command"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no-such-command"), "{}", stderr(&o));
+}

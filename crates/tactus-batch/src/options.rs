@@ -159,7 +159,7 @@ impl RenderOptions {
         let model = |name: &str| -> Result<PathBuf, BatchError> {
             self.model.clone().ok_or_else(|| {
                 err(format!(
-                    "--separator {name} needs --model PATH (see README, \"ONNX models\")"
+                    "--separator {name} needs --model PATH (see docs/install.md, \"ONNX models\")"
                 ))
             })
         };
@@ -240,7 +240,7 @@ impl RenderOptions {
             }
             ("bands", None) => DrumMethod::Bands,
             ("adtlib", model) => DrumMethod::AdtLib(model.ok_or_else(|| {
-                err("--drums adtlib needs --drum-model PATH (see README, \"ONNX models\")".into())
+                err("--drums adtlib needs --drum-model PATH (see docs/install.md, \"ONNX models\")".into())
             })?),
             // A model file of models/drums/train.py or train_cnn.py in place of the embedded
             // one; its own context decides its latency.

@@ -111,7 +111,7 @@ fn class_track(
         #[cfg(not(feature = "onnx"))]
         DrumMethod::AdtLib(_) => {
             return Err(EngineError::Config(
-                "--drums adtlib needs a tactus built with `--features onnx` (see README, \"ONNX models\")".into(),
+                "--drums adtlib needs a tactus built with `--features onnx` (see docs/install.md, \"ONNX models\")".into(),
             ))
         }
         DrumMethod::Bands => return Ok(None),

@@ -40,7 +40,7 @@ fn onnx_separator(
     {
         let _ = (demucs, model, rate, stems, threads);
         Err(EngineError::Config(
-            "this tactus was built without ONNX support: rebuild with `--features onnx` (see README, \"ONNX models\")".into(),
+            "this tactus was built without ONNX support: rebuild with `--features onnx` (see docs/install.md, \"ONNX models\")".into(),
         ))
     }
 }
