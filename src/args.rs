@@ -50,7 +50,7 @@ pub(crate) enum PitchArg {
     Shs,
 }
 
-/// Latency profile (issue 13; `tactus_engine::profile`).
+/// Latency profile (`tactus_engine::profile`; `docs/decisions/0006-live-latency-profile.md`).
 #[derive(Clone, Copy, ValueEnum)]
 pub(crate) enum ProfileArg {
     /// Quality first: every stage as documented (render and play).
@@ -130,7 +130,7 @@ pub(crate) struct EngineArgs {
     #[arg(long, value_enum, default_value = "attack")]
     pub(crate) note_onsets: NoteOnsetsArg,
     /// The spectral separator's learned kit mask: on (kick and tom bodies leave the bass
-    /// stem for the drums) or off (the median filter alone, as before 2026-11-24).
+    /// stem for the drums) or off (the median filter alone).
     #[arg(long, value_enum, default_value = "on")]
     pub(crate) kit_mask: KitMaskArg,
     /// Latency profile: full (quality first) or live (under 40 ms to the rhythm pins;

@@ -249,7 +249,7 @@ fn play_pattern(
     Ok(())
 }
 
-/// `--tui` (issue 13): the terminal to draw the glove view on, stdout when it is a terminal;
+/// `--tui`: the terminal to draw the glove view on, stdout when it is a terminal;
 /// otherwise one line saying so, and the session runs without the view.
 fn tui_out(tui: bool) -> Option<std::io::Stdout> {
     if !tui {
@@ -319,7 +319,7 @@ pub fn live(
     let opts = LiveOptions {
         seconds,
         lead_ms: lead_ms(&spec, 0),
-        // Issue 13: fallen behind by more than this, drop audio to catch up.
+        // Fallen behind by more than this, drop audio to catch up.
         max_backlog: Some(tactus_session::MAX_BACKLOG),
         ..LiveOptions::default()
     };
@@ -346,7 +346,7 @@ pub fn live(
         })
     });
     let r = result?;
-    // Issue 13: the capture device's own buffering on its own line, then one budget per
+    // The capture device's own buffering on its own line, then one budget per
     // finger group (stages in samples at the engine rate and in ms).
     let period = dev.period_frames();
     eprintln!(

@@ -1,4 +1,5 @@
-//! End-to-end: the `tactus` binary on real files, including every bad input of issue 3.
+//! End-to-end: the `tactus` binary on real files, including every kind of bad input (missing,
+//! empty, random bytes, truncated, unsupported codecs, unwritable outputs, bad stems).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -103,7 +104,8 @@ fn renders_pattern_features_and_plot() {
 
 /// The song's "kick" is a bare 60 Hz sine burst. The paper's band-pass finds every one; the
 /// default per-instrument transcriber, trained on sampled kits, does not call such a pure
-/// synthetic thump a kick (README, "Known weaknesses"), which is why this checks the band
+/// synthetic thump a kick (`docs/limitations.md`, "Plain tones, sine basses and synth
+/// sounds"), which is why this checks the band
 /// method; `tests/drums.rs` scores the default on real kits.
 #[test]
 fn band_method_finds_synthetic_thumps() {

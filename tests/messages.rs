@@ -1,4 +1,4 @@
-//! Issue 11's small ones, through the binary: built-in maps by name, errors on one line
+//! Small messages through the binary: built-in maps by name, errors on one line
 //! without repetition, devices advice in user terms, eval's hint when the log is not the
 //! pattern's.
 

@@ -48,8 +48,8 @@ pub struct RenderOptions {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub note_onsets: Option<String>,
     /// The spectral separator's learned kit mask, which moves kick and tom bodies out of
-    /// the bass stem: `on` (default) or `off` (the median filter alone, as before
-    /// 2026-11-24).
+    /// the bass stem: `on` (default) or `off` (the median filter alone; see
+    /// `docs/decisions/0020-kit-mask.md`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kit_mask: Option<String>,
     /// `offline` (default) or `streaming`.
@@ -224,9 +224,9 @@ impl RenderOptions {
         let drums_name = choice(
             "drums",
             self.drums.as_deref(),
-            // Issues 10 and 13: live uses the per-instrument transcriber's 1-hop model
-            // (retrained 2026-11-24 with the synth kits: held-out mix kick F 0.80 against
-            // the bands' 0.29; rhythm p95 29.1 ms end to end, 12 of 12 hits of tests/live.rs).
+            // Live uses the per-instrument transcriber's 1-hop model (held-out mix kick F 0.80
+            // against the bands' 0.29; rhythm p95 29.1 ms end to end, 12 of 12 hits of
+            // tests/live.rs; docs/decisions/0015-live-drums-by-the-one-hop-model.md).
             if live { "classes-live" } else { "classes" },
             &["classes", "classes-live", "bands", "adtlib"],
         )?;
@@ -240,7 +240,10 @@ impl RenderOptions {
             }
             ("bands", None) => DrumMethod::Bands,
             ("adtlib", model) => DrumMethod::AdtLib(model.ok_or_else(|| {
-                err("--drums adtlib needs --drum-model PATH (see docs/install.md, \"ONNX models\")".into())
+                err(
+                    "--drums adtlib needs --drum-model PATH (see docs/install.md, \"ONNX models\")"
+                        .into(),
+                )
             })?),
             // A model file of models/drums/train.py or train_cnn.py in place of the embedded
             // one; its own context decides its latency.

@@ -12,11 +12,10 @@
 //! room). The frame centred on the onset hop holds half a hop of the quiet before the
 //! attack, and quiet hits after a loud passage read below the gate there but not in the
 //! frame that starts at the hit: of 1,286 ghost snares in 24 songs of unheard kits, 180 read
-//! more than 35 dB below the loudest frame in the centred frame, 62 in the next one
-//! (`models/drums/README.md`). Adopted on 48 new
-//! held-out songs by `models/drums/trials/RULE_gate_reach_3.md` (two earlier trials with a
-//! reach of 2 were not). The reach adds no latency: the transcriber decides hop `i` later
-//! than the RMS of hop `i + reach` exists.
+//! more than 35 dB below the loudest frame in the centred frame, 62 in the next one. Adopted
+//! on 48 new held-out songs (`docs/decisions/0048-drum-gate-reads-the-hit-frame.md`; a reach
+//! of 2 was not). The reach adds no latency: the transcriber decides hop `i` later than the
+//! RMS of hop `i + reach` exists.
 
 use tactus_dsp::binner::{bin_beats, BeatBinner};
 use tactus_dsp::drums::{DrumFrame, DrumModel, DrumTranscriber, CLASSES};

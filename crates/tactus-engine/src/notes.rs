@@ -15,8 +15,9 @@
 //! offline): bass note-onset F 0.40 with flux, 0.94 from pitch; merging the flux onsets that
 //! lie more than 80 ms from every pitch onset (to catch repeated notes) added at most 0.02 F
 //! there, so the pitch rule stood alone. Repeated notes on pop bass lines and sung leads
-//! needed the level instead (README, "Note onsets from the attack": held-out isolated bass
-//! note F 0.73 → 0.97 on the sung and drum corpora).
+//! needed the level instead (held-out isolated bass note F 0.73 → 0.97 on the sung and drum
+//! corpora; `docs/decisions/0004-note-onsets-from-the-pitch-track.md`,
+//! `docs/decisions/0017-note-onsets-from-the-attack.md`).
 
 use tactus_dsp::notes::{note_onsets_offline_guided, NoteConfig, NoteOnsets};
 use tactus_dsp::ConfigError;
@@ -47,15 +48,15 @@ pub enum NoteRule {
     Legato,
 }
 
-/// [`NoteConfig::backtrack_hops`] of a clean lead (README, "Note onsets of a clean lead").
+/// [`NoteConfig::backtrack_hops`] of a clean lead
+/// (`docs/decisions/0018-clean-lead-onsets-at-the-foot-of-the-attack.md`).
 const CLEAN_LEAD_BACKTRACK_HOPS: usize = 3;
 
-/// [`NoteConfig::pitch_back_hops`] of a clean lead (README, "Note onsets of a clean lead").
+/// [`NoteConfig::pitch_back_hops`] of a clean lead (the same record).
 const CLEAN_LEAD_PITCH_BACK_HOPS: usize = 2;
 
 /// [`NoteConfig::reattack_min_hops`] of a clean lead: a re-attack of the held pitch at least
-/// 250 ms after the previous onset (README, "A clean lead's re-attacks";
-/// `benches/trials/RULE_clean_lead_reattack_interval.md`).
+/// 250 ms after the previous onset (`docs/decisions/0036-clean-lead-reattack-interval.md`).
 const CLEAN_LEAD_REATTACK_MIN_HOPS: usize = 25;
 
 /// [`NoteConfig::guide_back_hops`] of a clean lead whose tracker reports an attack-aligned
@@ -63,7 +64,7 @@ const CLEAN_LEAD_REATTACK_MIN_HOPS: usize = 25;
 /// without an attack moves back to where the aligned pitch already holds the new note, at
 /// most 50 ms) it raised isolated lead note F on the tuning songs (mean +0.013) and the
 /// Choir Aahs chorales of its held-out draw (+0.05–0.07 each), but the held-out mean only by
-/// 0.006, under its adoption rule's 0.01 (`benches/trials/RULE_guided_onsets.md`).
+/// 0.006, under the 0.01 a default must gain there to be adopted.
 const CLEAN_LEAD_GUIDE_BACK_HOPS: usize = 0;
 
 impl NoteRule {

@@ -1,4 +1,4 @@
-//! Latency profiles (issue 13, "Live means live").
+//! Latency profiles (`docs/decisions/0006-live-latency-profile.md`).
 //!
 //! The same engine serves the offline renderer and the live glove; a [`Profile`] picks how
 //! much look-ahead each stage may spend on quality.
@@ -29,8 +29,8 @@
 //! 511 + 1 + 819 + 441 = 1,772 samples (40.2 ms; 2,213 = 50.2 ms for a bass note below
 //! 54.7 Hz, which only the long frame hears); `tests/profile.rs` feeds a
 //! drum hit and tone steps in 64-sample blocks and checks that the frame showing them
-//! exists within that (plus one detector hop and one block). Measured from outside,
-//! sound to frame at the glove: README, "Live: sound to pin".
+//! exists within that (plus one detector hop and one block). Measured from outside, sound to
+//! frame at the glove: `tests/live_latency.rs` and `docs/decisions/0006-live-latency-profile.md`.
 //!
 //! The glove shows each feature as soon as it is final: the rhythm cells of frame `k` are
 //! those of bin `k`, a pitch cell shows the bin that its slower chain had finished when the

@@ -1,6 +1,6 @@
-//! The lead on its own stem sums [`CLEAN_LEAD_HARMONICS`] harmonics (README, "A low voice
-//! on its own stem"): a low vowel whose energy sits at its formants is tracked at its
-//! fundamental, offline and streaming alike.
+//! The lead on its own stem sums 12 harmonics (the clean lead's recipe;
+//! `docs/decisions/0025-twelve-harmonics-for-a-clean-lead.md`): a low vowel whose energy sits
+//! at its formants is tracked at its fundamental, offline and streaming alike.
 
 use tactus_engine::profile::Profile;
 use tactus_engine::recipe::Role;

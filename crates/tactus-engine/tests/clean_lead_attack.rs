@@ -1,4 +1,4 @@
-//! A lead on its own stem (README, "The clean lead's note changes at the attack"): the
+//! A lead on its own stem (`docs/decisions/0035-clean-lead-note-changes-at-the-attack.md`): the
 //! harmonic-sum tracker reports a late note change from the foot of the attack
 //! (`tactus_dsp::shs` step 9, `CLEAN_LEAD_ATTACK_RISE_DB`), the levels and the pattern read
 //! that pitch, and the note onsets read the decoded pitch before the alignment
@@ -106,7 +106,7 @@ fn a_clean_leads_late_changes_move_to_the_attack_and_its_onsets_read_the_decoded
             "{mode:?}: the aligned pitch gives other onsets here"
         );
         // The aligned pitch is the guide of rule 6 (`NoteConfig::guide_back_hops`, off in
-        // the engine: `benches/trials/RULE_guided_onsets.md`); turned on by hand, it moves
+        // the engine: its held-out gain stayed under the adoption bar); turned on by hand, it moves
         // this cross-fading lead's onsets towards the notes' starts.
         assert_eq!(t.note_guide(), &f0[..]);
         let guided = tactus_dsp::notes::NoteConfig {

@@ -1,13 +1,14 @@
-//! The mix's lead under the learned method (README, "The learned lead's pitch inside the
-//! harmonic sum's voicing", "The learned lead's voicing veto"): a voicing/pitch pair voiced
-//! only where the harmonic-sum melody tracker is (the learned tracker may veto), whose pitch
-//! is the learned lead salience's where both are voiced, and whose note onsets read that
-//! pitch (since 2026-11-28; before, the harmonic sum's own), offline and streaming, for any
-//! chunking. Its level range comes
-//! from held notes or hops both trackers agree on (README, "The mix's lead range from held or
-//! agreed hops"), offline narrowed to the hops where the learned tracker is sure of its pitch
-//! (README, "The mix's lead range narrowed to sure hops"), against `tactus_dsp`'s range
-//! functions replayed on the track's two pitches and its confidence.
+//! The mix's lead under the learned method
+//! (`docs/decisions/0027-learned-lead-pitch-inside-harmonic-sum-voicing.md`,
+//! `docs/decisions/0028-learned-lead-voicing-veto.md`): a voicing/pitch pair voiced only where
+//! the harmonic-sum melody tracker is (the learned tracker may veto), whose pitch is the
+//! learned lead salience's where both are voiced, and whose note onsets read that pitch
+//! (`docs/decisions/0034-mix-lead-note-onsets-from-the-pair.md`), offline and streaming, for
+//! any chunking. Its level range comes from held notes or hops both trackers agree on
+//! (`docs/decisions/0029-mix-lead-range-from-held-or-agreed-hops.md`), offline narrowed to
+//! the hops where the learned tracker is sure of its pitch
+//! (`docs/decisions/0038-mix-lead-range-narrowed-to-sure-hops.md`), against `tactus_dsp`'s
+//! range functions replayed on the track's two pitches and its confidence.
 
 use tactus_dsp::discretize::{
     agree_mask, narrow_range, pitches_agree, range_quantiles_kept_or, range_quantiles_kept_or_sure,
@@ -532,8 +533,8 @@ fn assert_bits_eq(got: &[f32], want: &[f32]) {
     }
 }
 
-/// The spectral separator's lead through the engine (README, "The learned lead reads the
-/// harmonic sum"): the ring finger's pitch is a track of the engine's recipe for it fed by
+/// The spectral separator's lead through the engine
+/// (`docs/decisions/0037-learned-lead-reads-the-harmonic-sum.md`): the ring finger's pitch is a track of the engine's recipe for it fed by
 /// hand with the separator's vocals stem and its harmonic sum (vocals + bass + other), each
 /// through the vocals chain's 60 Hz denoiser; the same track fed the stem as its own view
 /// reports other pitches.
@@ -554,8 +555,8 @@ fn the_engines_mix_lead_reads_the_separators_harmonic_sum() {
     assert!(differ >= 10, "the view changes the pitch: {differ} hops");
 }
 
-/// The spectral separator's bass through the engine (README, "The bass reads the harmonic
-/// sum"): the thumb's pitch is a track of the engine's recipe for it (the harmonic-view bass
+/// The spectral separator's bass through the engine
+/// (`docs/decisions/0042-bass-reads-the-harmonic-sum.md`): the thumb's pitch is a track of the engine's recipe for it (the harmonic-view bass
 /// model) fed by hand with the separator's bass stem and its harmonic sum, each through the
 /// bass chain's 30 Hz denoiser, bit for bit; the plain learned bass model on the stem
 /// (otherwise the same recipe) differs.

@@ -1,10 +1,9 @@
 //! The mix's learned bass: the bottom of its level range comes from the hops the learned
-//! tracker is sure of ([`MIX_BASS_SURE`], README "The mix's bass range from sure hops, at the
-//! bottom"), through the real learned tracker on audio, against `tactus_dsp`'s range
+//! tracker is sure of (`docs/decisions/0039-mix-bass-range-bottom-from-sure-hops.md`), through the real learned tracker on audio, against `tactus_dsp`'s range
 //! functions replayed on the track's pitch and confidence. A kick-like thump in the line's
 //! gaps is tracked as a held low pitch the tracker is unsure of: the held-note range reaches
 //! it, the narrowed one stops a semitone under the line. Streaming narrows the same way once
-//! the sure hops hold a range (README, "Streaming ranges narrowed to sure hops"), and the
+//! the sure hops hold a range (`docs/decisions/0040-streaming-ranges-narrowed-to-sure-hops.md`), and the
 //! harmonic-sum bass has no confidence rule.
 
 use tactus_dsp::discretize::{

@@ -1,8 +1,8 @@
-//! The mix's bass level range without octave shadows ([`MIX_BASS_SHADOW_HOPS`], README "The
-//! mix's bass range without octave shadows"), through the real bass tracker on audio: a
-//! mixture's bass track places its levels in the range of its own pitch without the hops
-//! whose octave above sounds within 25 hops and outside held notes ([`MIX_BASS_HELD_HOPS`]
-//! on each side; README, "The mix's bass range from held notes") (offline and streaming,
+//! The mix's bass level range without octave shadows
+//! (`docs/decisions/0026-mix-bass-range-without-octave-shadows.md`), through the real bass
+//! tracker on audio: a mixture's bass track places its levels in the range of its own pitch
+//! without the hops whose octave above sounds within 25 hops and outside held notes (the mix
+//! bass recipe's held hops on each side; `docs/decisions/0030-mix-bass-range-from-held-notes.md`) (offline and streaming,
 //! against `tactus_dsp`'s range functions replayed on the track's pitch), the short low notes
 //! in the test line do move the range without that rule, and a clean bass stem keeps the
 //! held-note rule.

@@ -1,5 +1,5 @@
 //! The register prior of a bass or lead stem's streaming range ([`PitchTrack::set_register_prior`],
-//! README "Streaming levels from a register prior"), through the real bass tracker on audio:
+//! `docs/decisions/0022-streaming-levels-from-a-register-prior.md`), through the real bass tracker on audio:
 //! the streaming levels are the discretizer's levels of the track's own pitch within
 //! `tactus_dsp`'s register-padded held range (the oracle, hop by hop), they differ from the
 //! span prior's on a line that opens on its lowest note, they are chunk-invariant, and the

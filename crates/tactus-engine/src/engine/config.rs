@@ -44,7 +44,7 @@ impl SeparatorChoice {
 /// Everything the engine needs to know up front.
 #[derive(Debug, Clone)]
 pub struct EngineConfig {
-    /// Sample rate of the blocks given to [`Engine::process`].
+    /// Sample rate of the blocks given to [`super::Engine::process`].
     pub sample_rate: u32,
     /// Bin length in milliseconds (100 offline, as in the paper).
     pub bin_ms: u32,

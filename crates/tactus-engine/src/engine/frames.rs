@@ -34,7 +34,7 @@ impl Engine {
 
     /// The features of bin `k` (missing values, and bins forgotten by
     /// [`Engine::discard_before`], count as silent). In the live profile a beat or onset
-    /// stays on for [`Profile::pulse_bins`] bins (the minimum pin pulse).
+    /// stays on for [`crate::Profile::pulse_bins`] bins (the minimum pin pulse).
     pub fn bin_features(&self, k: usize) -> BinFeatures {
         self.features_shifted(k, &|_, _| 0)
     }

@@ -36,7 +36,7 @@ pub enum PitchMethod {
     Shs,
     /// The learned salience ([`tactus_dsp::bassnet`]), made for the spectral separator's
     /// stems (the data it was trained on). On the bass: the bass model times the harmonic
-    /// sum ([`LEARNED_BASS_BLEND`]), decoded like [`PitchMethod::Shs`]. On the lead (and any
+    /// sum (blended as [`ShsTuning::learned_blend`] says), decoded like [`PitchMethod::Shs`]. On the lead (and any
     /// stem but the bass): a [`tactus_dsp::pair::VoicingPitchPair`] whose harmonic-sum
     /// tracker decides whether a hop is voiced (its own pitch,
     /// [`crate::track::PitchTrack::voicing_f0`], marks the hops the level range trusts) and
@@ -207,7 +207,9 @@ pub struct Recipe {
     /// other) beside the stem: the harmonic-view models ([`Network::BassHarmonic`],
     /// [`Network::LeadHarmonic`]).
     pub harmonic_view: bool,
-    /// Hops the whole track is moved earlier ([`SPECTRAL_PITCH_ADVANCE_HOPS`]).
+    /// Hops the whole track is moved earlier: the spectral separator's stems lag their stated
+    /// latency (3 hops on its bass and lead in the full profile,
+    /// `docs/decisions/0012-spectral-pitch-tracks-30-ms-earlier.md`).
     pub advance_hops: usize,
     /// How the level range is chosen.
     pub levels: LevelRecipe,
@@ -283,13 +285,16 @@ pub enum Network {
     /// The harmonic-view bass model: it reads the separator's harmonic sum (vocals + bass +
     /// other), the harmonic sum it is blended with still the bass stem. The bass stem keeps
     /// only what lies under the separator's 250 Hz crossover, so a note of 100–175 Hz reached
-    /// the plain model as one partial and was read an octave low.
+    /// the plain model as one partial and was read an octave low
+    /// (`docs/decisions/0042-bass-reads-the-harmonic-sum.md`).
     BassHarmonic,
     /// The mean of the three lead models on the stem (the committed one, one trained with 80
-    /// more sung songs, one with another seed on other songs).
+    /// more sung songs, one with another seed on other songs;
+    /// `docs/decisions/0031-lead-ensemble.md`,
+    /// `docs/decisions/0033-third-lead-ensemble-member.md`).
     Lead,
     /// The mean of the three harmonic-view lead models (seeds 7, 11 and 13), reading the
-    /// separator's harmonic sum.
+    /// separator's harmonic sum (`docs/decisions/0037-learned-lead-reads-the-harmonic-sum.md`).
     LeadHarmonic,
 }
 
@@ -485,7 +490,8 @@ fn shs_tracker(bass: bool, mix: bool, learned: bool, harmonic_view: bool) -> Tra
             }
         }
         // A higher line: the harmonic sum decides whether, the learned lead salience which
-        // pitch (the network alone, without the harmonic sum's blend).
+        // pitch (the network alone, without the harmonic sum's blend;
+        // docs/decisions/0027-learned-lead-pitch-inside-harmonic-sum-voicing.md).
         (false, true) => TrackerRecipe::Pair {
             pitch: ShsTuning {
                 network: if harmonic_view {

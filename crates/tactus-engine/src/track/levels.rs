@@ -19,7 +19,7 @@ pub(super) struct LevelChain {
     pub(super) range: RunningRange,
     pub(super) prior_range: HeldRange,
     /// The same range of the sure hops only, and the rule that narrows `prior_range` to it
-    /// (a track with a [`SureRule`]; README, "The mix's lead range narrowed to sure hops").
+    /// (a track with a [`SureRule`]; `docs/decisions/0040-streaming-ranges-narrowed-to-sure-hops.md`).
     pub(super) sure_range: Option<(HeldRange, SureRule)>,
     pub(super) rule: LevelRule,
     pub(super) disc: Discretizer,

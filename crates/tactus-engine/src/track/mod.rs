@@ -35,24 +35,25 @@ pub enum Mode {
     Streaming,
 }
 
-/// How a pitch track turns voiced pitch into levels (issue 16, "levels that follow the truth").
+/// How a pitch track turns voiced pitch into levels (`docs/decisions/0003-levels-follow-the-line.md`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum LevelRule {
     /// The paper's rule as first implemented: Tukey fences with k = 1.5 on the raw IQR, the
     /// level range = min and max of what the fences keep (streaming: the running min and max
     /// from the first note on).
     Paper,
-    /// Fences with the IQR floored ([`LevelRecipe::min_iqr_st`]: a bass line's real octave
+    /// Fences with the IQR floored ([`crate::recipe::LevelRecipe::min_iqr_st`]: a bass line's real octave
     /// leaps are no longer cut), the range from the 1st to the 99th percentile of the voiced
-    /// hops that the fences keep ([`LevelRecipe::quantile`]: a few octave errors no longer
+    /// hops that the fences keep ([`crate::recipe::LevelRecipe::quantile`]: a few octave errors no longer
     /// stretch it);
-    /// in streaming mode the same percentiles of every kept hop so far
-    /// ([`tactus_dsp::discretize::PriorRange::with_quantile`]: an early octave error no longer shifts every later
-    /// level), padded to a prior that fades, so the first notes do not sit on level 1 or 8:
-    /// the instrument's register for the bass and the lead ([`LevelRecipe::register_hz`]), a
-    /// span ([`LevelRecipe::prior_span_st`]) for the rest. (Running percentiles of the fences' 10 s window were tried
-    /// first: vocals levels ±1 fell from 0.76 to 0.68 on the tuned songs; the running min
-    /// and max were the streaming range until 2026-11-24.)
+    /// in streaming mode the same percentiles of every kept hop so far (an early octave error
+    /// no longer shifts every later level), padded to a prior that fades, so the first notes
+    /// do not sit on level 1 or 8: the instrument's register for the bass and the lead
+    /// ([`crate::recipe::LevelRecipe::register_hz`]), a span ([`crate::recipe::LevelRecipe::prior_span_st`]) for the rest.
+    /// Running percentiles of the fences' 10 s window were tried first: vocals levels ±1 fell
+    /// from 0.76 to 0.68 on the tuned songs
+    /// (`docs/decisions/0016-streaming-range-from-running-percentiles.md`,
+    /// `docs/decisions/0022-streaming-levels-from-a-register-prior.md`).
     #[default]
     Follow,
 }

@@ -189,7 +189,7 @@ impl PitchTrack {
 
     /// Moves the whole track `hops` hops earlier: what the tracker reports for hop
     /// `i + hops` is hop `i` (the last `hops` hops are unvoiced). For a stem whose separator
-    /// delays notes more than its stated latency ([`SPECTRAL_PITCH_ADVANCE_HOPS`]); the
+    /// delays notes more than its stated latency ([`Recipe::advance_hops`]); the
     /// track's latency grows by as much. Call before the first block.
     pub fn set_advance_hops(&mut self, hops: usize) {
         self.advance = hops;
@@ -227,7 +227,7 @@ impl PitchTrack {
     }
 
     /// Feeds a block of the (denoised) stem. A harmonic-view track
-    /// ([`PitchTrack::new_harmonic_view`]) fed this way reads the stem as its view too.
+    /// ([`Recipe::harmonic_view`]) fed this way reads the stem as its view too.
     pub fn process(&mut self, block: &[f32]) {
         self.process_view(block, block);
     }
@@ -379,8 +379,7 @@ impl PitchTrack {
         };
         let r = match (self.geo.level_rule, self.sure_rule()) {
             (LevelRule::Paper, _) => range_offline(&f0),
-            // Narrowed to the hops the learned tracker is sure of ([`MIX_LEAD_SURE`],
-            // [`MIX_BASS_SURE`]).
+            // Narrowed to the hops the learned tracker is sure of (the recipe's sure rule).
             (LevelRule::Follow, Some(rule)) => {
                 let sure: Vec<bool> = (0..n)
                     .map(|i| self.raw_conf.get(i).copied().unwrap_or(0.0) >= rule.min_conf)
@@ -404,8 +403,8 @@ impl PitchTrack {
         self.hop_levels = levels;
     }
 
-    /// The rule that narrows this track's level range to its sure hops ([`MIX_LEAD_SURE`],
-    /// [`MIX_BASS_SURE`]), kept with the streaming range it narrows to.
+    /// The rule that narrows this track's level range to its sure hops
+    /// ([`crate::recipe::LevelRecipe::sure`]), kept with the streaming range it narrows to.
     fn sure_rule(&self) -> Option<SureRule> {
         self.chain.sure_range.as_ref().map(|&(_, r)| r)
     }
@@ -428,8 +427,9 @@ impl PitchTrack {
     /// For a voicing/pitch pair its voicing tracker's own pitch, per hop (after gate and
     /// fences), which the lead's level range compares with [`PitchTrack::f0`] ("agreed
     /// hops"); for any other tracker, [`PitchTrack::f0`]. Note onsets read
-    /// [`PitchTrack::note_f0`]: the pair's pitch (since 2026-11-28,
-    /// `benches/trials/RULE_lead_onsets_pair.md`), or an aligned tracker's decoded pitch.
+    /// [`PitchTrack::note_f0`]: the pair's pitch
+    /// (`docs/decisions/0034-mix-lead-note-onsets-from-the-pair.md`), or an aligned tracker's
+    /// decoded pitch.
     pub fn voicing_f0(&self) -> &[f32] {
         match (&self.tracker, &self.note_side) {
             (Tracker::Pair(_), Some(s)) => &s.f0,
@@ -438,7 +438,7 @@ impl PitchTrack {
     }
 
     /// For a track whose level range is narrowed to sure hops (a mixture's lead
-    /// through the pair, [`MIX_LEAD_SURE`]; a mixture's learned bass, [`MIX_BASS_SURE`]),
+    /// through the pair, a mixture's learned bass: [`crate::recipe::LevelRecipe::sure`]),
     /// the learned tracker's confidence in its pitch per hop (`1 −` the estimate's
     /// aperiodicity, `tactus_dsp::shs` module docs, "Learned salience"; for the pair the
     /// merged estimate's, which is the pitch tracker's), as the tracker gave it, before gate

@@ -2,7 +2,7 @@
 //!
 //! A capture ring's reading end ([`tactus_audio::ring::CaptureReader`], filled by a device
 //! callback or by anything else that writes it) hands stereo samples to the calling thread,
-//! which resamples them to 44.1 kHz ([`StreamResampler`]), feeds the streaming engine in
+//! which resamples them to 44.1 kHz ([`tactus_audio::resample::StreamResampler`]), feeds the streaming engine in
 //! whatever blocks arrive, and sends each frame as soon as it is final. After sending, the
 //! engine forgets the bins it sent ([`Engine::discard_before`]), so memory stays flat
 //! however long the session runs.
@@ -10,7 +10,7 @@
 //! The session ends when `stop` is set, when `seconds` of audio have been captured, or when
 //! the ring's writer is gone and the ring is empty (a file fed through the ring).
 //!
-//! Real-time hygiene (issue 13): the loop records how long it takes per 256-sample block
+//! Real-time hygiene: the loop records how long it takes per 256-sample block
 //! ([`BlockTimes`], printed at exit) and, at each read, the backlog: the audio that waited
 //! in the ring plus how much longer than usual the newest block waited in the device (its
 //! `callback − capture` delay over the smallest of the last few seconds: a stopped or starved
@@ -25,7 +25,7 @@
 //! latency that no reading speed wins back, and dropping would only lose audio. Some sound
 //! servers hand a stalled process's queue over in many small reads and do not count it in
 //! the device delay (seen on CI's machine: 11 frames up to 1.6 s late after a 3 s stop), so
-//! the capture clock is watched as well ([`ClockLag`]: wall time against audio received):
+//! the capture clock is watched as well (`ClockLag`: wall time against audio received):
 //! from a jump past the bound, and for as long as that lag keeps falling, every read is
 //! dropped. Dropped
 //! audio is counted ([`LiveReport::caught_up`]); frame times include it, so a frame's
@@ -34,7 +34,7 @@
 //! overruns also count in frame times and in the capture clock, like dropped audio (they
 //! passed; leaving them out made every later frame look that much late).
 //!
-//! Latency: the device period, the resampler ([`StreamResampler::latency_samples`]), the
+//! Latency: the device period, the resampler ([`tactus_audio::resample::StreamResampler::latency_samples`]), the
 //! engine's look-ahead and the bin, then the link and the 50 ms pin rise; the report carries
 //! the budget and the measured delay from the end of a bin's audio (as captured) to its
 //! frame's send.
@@ -155,7 +155,7 @@ pub struct LiveReport {
     pub input_delay_ms: f64,
     /// Latency budget, (stage, ms), in pipeline order.
     pub budget: Vec<(String, f64)>,
-    /// Issue 13: the budget per finger group, (group, [(stage, samples at the engine
+    /// The budget per finger group, (group, [(stage, samples at the engine
     /// rate)]), resampler first when there is one ([`Engine::latency_paths`]).
     pub paths: Vec<(String, Vec<(String, usize)>)>,
     /// Measured end of a bin's audio (as captured) to its frame's send, ms: (median, p95,
@@ -178,7 +178,7 @@ impl LiveReport {
                 "measured bin end (captured) -> frame sent: median {median:.1} ms, p95 {p95:.1} ms, max {max:.1} ms"
             );
         }
-        // Issue 13: real-time hygiene. Time per 256-sample block of the read -> process ->
+        // Real-time hygiene: time per 256-sample block of the read -> process ->
         // send loop (wall clock: preemption included), the backlog, what was dropped to
         // catch up.
         let _ = writeln!(
