@@ -181,7 +181,7 @@ fn play_pattern(
         }
         None
     };
-    let sink = open_sink(&spec, &SinkOptions::default())?;
+    let sink = open_sink(spec, &SinkOptions::default())?;
     let tty = std::io::stderr().is_terminal() && !tui;
     let lead = lead(opts.lead_ms);
     let drawing = view.is_some();
@@ -196,7 +196,7 @@ fn play_pattern(
             song.as_deref(),
             sink,
             &WallClock::new(),
-            &opts,
+            opts,
             stop,
             &mut |s| {
                 if drawing {
@@ -244,7 +244,7 @@ fn play_pattern(
             if r.stopped { " (stopped)" } else { "" }
         );
     } else {
-        print_play(&report, &spec, &stats);
+        print_play(&report, spec, &stats);
     }
     Ok(())
 }
