@@ -3,7 +3,9 @@
 //! queue, the scheduler, the speakers, the live loop) live in `tactus-session`.
 
 use std::io::IsTerminal;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
@@ -15,24 +17,70 @@ use tactus_session::view::{with_view, ViewExtra};
 use tactus_session::{PlayOptions, PlayReport};
 use tactus_transport::{lead_ms, open_sink, SinkOptions, SinkSpec, WallClock};
 
-use crate::{stop_flag, EngineArgs, ModeArg};
+use crate::args::{EngineArgs, ModeArg};
+use crate::stop_flag;
 
 /// What the sink's "dropped" counter means, printed next to it.
 const DROPPED: &str = "frames replaced by a newer one before the link could send them; \
                        each frame carries the whole glove state, so nothing is lost but time";
 
-// Eight arguments: each is one `play` option as parsed; bundling them would only rename them.
-#[allow(clippy::too_many_arguments)]
-pub fn run(
-    input: &Path,
-    glove: &str,
-    offset_ms: i64,
-    no_audio: bool,
-    audio: Option<&Path>,
-    tui: bool,
-    whole: bool,
-    engine: &EngineArgs,
-) -> Result<()> {
+// The arguments of `tactus play` (its help text is the subcommand's, in main.rs).
+#[derive(clap::Args)]
+pub(crate) struct PlayArgs {
+    /// A song, or a pattern file (.json) from `tactus render`.
+    pub(crate) input: PathBuf,
+    /// Where the frames go: serial:PATH[@BAUD] | ble[:NAME|ADDRESS] | file:LOG.jsonl | emulator[:LOG.jsonl] | null
+    #[arg(long)]
+    pub(crate) glove: String,
+    /// Send frames this much earlier (positive) or later (negative), on top of the
+    /// 50 ms pin rise and the link latency.
+    #[arg(long, default_value_t = 0, allow_hyphen_values = true,
+          value_parser = clap::value_parser!(i64).range(-60_000..=60_000))]
+    pub(crate) offset_ms: i64,
+    /// Play no sound and time frames on the wall clock. Without it, a build with the
+    /// `audio` feature plays the song on the default output device and times frames on
+    /// the audio clock.
+    #[arg(long)]
+    pub(crate) no_audio: bool,
+    /// The song of a pattern file, when it is not at the pattern's recorded path; it
+    /// must match the pattern's SHA-256.
+    #[arg(long, value_name = "FILE", conflicts_with = "no_audio")]
+    pub(crate) audio: Option<PathBuf>,
+    /// Draw the glove in the terminal as it plays: five fingers, two cells of eight
+    /// dots each, the link and the lead (stdout must be a terminal).
+    #[arg(long)]
+    pub(crate) tui: bool,
+    /// A song: render it whole (offline) before playing, so every level range is the
+    /// song's own from its first note, at the cost of a wait before the sound starts
+    /// (about 1 % of the song's duration). Without it the song is rendered as it plays
+    /// (streaming), and its first seconds are the least accurate.
+    #[arg(long, conflicts_with = "audio")]
+    pub(crate) whole: bool,
+    #[command(flatten)]
+    pub(crate) engine: EngineArgs,
+}
+
+/// `tactus play`: a pattern file as rendered, or a song rendered as it plays (or whole,
+/// first, with `--whole`).
+pub(crate) fn run(args: &PlayArgs) -> Result<()> {
+    let PlayArgs {
+        input,
+        glove,
+        offset_ms,
+        no_audio,
+        audio,
+        tui,
+        whole,
+        engine,
+    } = args;
+    let (input, offset_ms, no_audio, audio, tui, whole) = (
+        input.as_path(),
+        *offset_ms,
+        *no_audio,
+        audio.as_deref(),
+        *tui,
+        *whole,
+    );
     let spec: SinkSpec = glove.parse().with_context(|| format!("--glove {glove}"))?;
     let stop = stop_flag();
     let mut view = tui_out(tui);
@@ -46,99 +94,7 @@ pub fn run(
         ..PlayOptions::default()
     };
     if is_pattern {
-        if whole {
-            bail!(
-                "{}: --whole is for a song; a pattern file is already rendered whole",
-                input.display()
-            );
-        }
-        let given = engine.given();
-        if !given.is_empty() {
-            bail!(
-                "{}: a pattern file is played as rendered, so {} cannot apply: render it again \
-                 with them (tactus render SONG -o PATTERN.json ...), or play the song itself",
-                input.display(),
-                given.join(", ")
-            );
-        }
-        let pattern = Pattern::from_path(input)?;
-        let song = if !no_audio && cfg!(feature = "audio") {
-            Some(tactus_session::pattern_song(input, &pattern, audio)?)
-        } else {
-            if !no_audio {
-                eprintln!("tactus: note: built without the `audio` feature: no sound; timing frames on the wall clock");
-            }
-            if audio.is_some() {
-                bail!("--audio needs a build with the `audio` feature");
-            }
-            None
-        };
-        let sink = open_sink(&spec, &SinkOptions::default())?;
-        let tty = std::io::stderr().is_terminal() && !tui;
-        let lead = lead(opts.lead_ms);
-        let drawing = view.is_some();
-        let (played, stats) = with_view(sink, "play", as_view(&mut view), |sink, feed| {
-            feed.set(ViewExtra {
-                latency: Some(lead.clone()),
-                ..ViewExtra::default()
-            });
-            tactus_session::play_pattern(
-                &pattern.frames,
-                pattern.bin_ms,
-                song.as_deref(),
-                sink,
-                &WallClock::new(),
-                &opts,
-                &stop,
-                &mut |s| {
-                    if drawing {
-                        feed.set(ViewExtra {
-                            latency: Some(lead.clone()),
-                            counters: format!(
-                                "frame {}/{}  late {:+.1} ms",
-                                s.frame_index + 1,
-                                s.frames,
-                                s.late_ms
-                            ),
-                            ..ViewExtra::default()
-                        });
-                    }
-                    if tty {
-                        eprint!(
-                            "\r{:>7.1} s  frame {}/{}  late {:+.1} ms  link {}   ",
-                            s.clock_ms / 1000.0,
-                            s.frame_index + 1,
-                            s.frames,
-                            s.late_ms,
-                            if s.link_up { "up" } else { "DOWN" }
-                        );
-                    }
-                },
-            )
-        });
-        let report = played?;
-        // Without the speakers the frames followed the wall clock: say how closely.
-        let wall_clock = report.sound.is_none();
-        if tty && wall_clock {
-            eprintln!();
-        }
-        if wall_clock {
-            let r = &report.timing;
-            eprintln!(
-                "tactus: played {} frames to {}: jitter p95 {:.2} ms, max {:.2} ms; sent {}, dropped {} ({DROPPED}), reconnects {}{}",
-                r.frames_sent,
-                spec,
-                r.jitter_p95_ms,
-                r.jitter_max_ms,
-                stats.sent,
-                stats.dropped,
-                stats.reconnects,
-                if r.stopped { " (stopped)" } else { "" }
-            );
-        } else {
-            print_play(&report, &spec, &stats);
-        }
-        return Ok(());
+        return play_pattern(args, &spec, &opts, &stop, &mut view);
     }
     if audio.is_some() {
         bail!("--audio is for a pattern file's song; a song plays itself");
@@ -178,7 +134,122 @@ pub fn run(
     Ok(())
 }
 
-/// `--tui` (issue 13): the terminal to draw the glove view on, stdout when it is a terminal;
+/// `tactus play PATTERN.json`: the frames as rendered, with the song's sound when the build
+/// has the `audio` feature.
+fn play_pattern(
+    args: &PlayArgs,
+    spec: &SinkSpec,
+    opts: &PlayOptions,
+    stop: &Arc<AtomicBool>,
+    view: &mut Option<std::io::Stdout>,
+) -> Result<()> {
+    let PlayArgs {
+        input,
+        no_audio,
+        audio,
+        tui,
+        whole,
+        engine,
+        ..
+    } = args;
+    let (input, no_audio, audio, tui, whole) =
+        (input.as_path(), *no_audio, audio.as_deref(), *tui, *whole);
+    if whole {
+        bail!(
+            "{}: --whole is for a song; a pattern file is already rendered whole",
+            input.display()
+        );
+    }
+    let given = engine.given();
+    if !given.is_empty() {
+        bail!(
+            "{}: a pattern file is played as rendered, so {} cannot apply: render it again \
+             with them (tactus render SONG -o PATTERN.json ...), or play the song itself",
+            input.display(),
+            given.join(", ")
+        );
+    }
+    let pattern = Pattern::from_path(input)?;
+    let song = if !no_audio && cfg!(feature = "audio") {
+        Some(tactus_session::pattern_song(input, &pattern, audio)?)
+    } else {
+        if !no_audio {
+            eprintln!("tactus: note: built without the `audio` feature: no sound; timing frames on the wall clock");
+        }
+        if audio.is_some() {
+            bail!("--audio needs a build with the `audio` feature");
+        }
+        None
+    };
+    let sink = open_sink(spec, &SinkOptions::default())?;
+    let tty = std::io::stderr().is_terminal() && !tui;
+    let lead = lead(opts.lead_ms);
+    let drawing = view.is_some();
+    let (played, stats) = with_view(sink, "play", as_view(view), |sink, feed| {
+        feed.set(ViewExtra {
+            latency: Some(lead.clone()),
+            ..ViewExtra::default()
+        });
+        tactus_session::play_pattern(
+            &pattern.frames,
+            pattern.bin_ms,
+            song.as_deref(),
+            sink,
+            &WallClock::new(),
+            opts,
+            stop,
+            &mut |s| {
+                if drawing {
+                    feed.set(ViewExtra {
+                        latency: Some(lead.clone()),
+                        counters: format!(
+                            "frame {}/{}  late {:+.1} ms",
+                            s.frame_index + 1,
+                            s.frames,
+                            s.late_ms
+                        ),
+                        ..ViewExtra::default()
+                    });
+                }
+                if tty {
+                    eprint!(
+                        "\r{:>7.1} s  frame {}/{}  late {:+.1} ms  link {}   ",
+                        s.clock_ms / 1000.0,
+                        s.frame_index + 1,
+                        s.frames,
+                        s.late_ms,
+                        if s.link_up { "up" } else { "DOWN" }
+                    );
+                }
+            },
+        )
+    });
+    let report = played?;
+    // Without the speakers the frames followed the wall clock: say how closely.
+    let wall_clock = report.sound.is_none();
+    if tty && wall_clock {
+        eprintln!();
+    }
+    if wall_clock {
+        let r = &report.timing;
+        eprintln!(
+            "tactus: played {} frames to {}: jitter p95 {:.2} ms, max {:.2} ms; sent {}, dropped {} ({DROPPED}), reconnects {}{}",
+            r.frames_sent,
+            spec,
+            r.jitter_p95_ms,
+            r.jitter_max_ms,
+            stats.sent,
+            stats.dropped,
+            stats.reconnects,
+            if r.stopped { " (stopped)" } else { "" }
+        );
+    } else {
+        print_play(&report, spec, &stats);
+    }
+    Ok(())
+}
+
+/// `--tui`: the terminal to draw the glove view on, stdout when it is a terminal;
 /// otherwise one line saying so, and the session runs without the view.
 fn tui_out(tui: bool) -> Option<std::io::Stdout> {
     if !tui {
@@ -248,7 +319,7 @@ pub fn live(
     let opts = LiveOptions {
         seconds,
         lead_ms: lead_ms(&spec, 0),
-        // Issue 13: fallen behind by more than this, drop audio to catch up.
+        // Fallen behind by more than this, drop audio to catch up.
         max_backlog: Some(tactus_session::MAX_BACKLOG),
         ..LiveOptions::default()
     };
@@ -275,7 +346,7 @@ pub fn live(
         })
     });
     let r = result?;
-    // Issue 13: the capture device's own buffering on its own line, then one budget per
+    // The capture device's own buffering on its own line, then one budget per
     // finger group (stages in samples at the engine rate and in ms).
     let period = dev.period_frames();
     eprintln!(

@@ -1,4 +1,5 @@
-//! End-to-end: the `tactus` binary on real files, including every bad input of issue 3.
+//! End-to-end: the `tactus` binary on real files, including every kind of bad input (missing,
+//! empty, random bytes, truncated, unsupported codecs, unwritable outputs, bad stems).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -103,7 +104,8 @@ fn renders_pattern_features_and_plot() {
 
 /// The song's "kick" is a bare 60 Hz sine burst. The paper's band-pass finds every one; the
 /// default per-instrument transcriber, trained on sampled kits, does not call such a pure
-/// synthetic thump a kick (README, "Known weaknesses"), which is why this checks the band
+/// synthetic thump a kick (`docs/limitations.md`, "Plain tones, sine basses and synth
+/// sounds"), which is why this checks the band
 /// method; `tests/drums.rs` scores the default on real kits.
 #[test]
 fn band_method_finds_synthetic_thumps() {
@@ -667,4 +669,35 @@ fn stem_at_another_rate_is_resampled_and_a_longer_one_trimmed() {
     let (cents, voiced) = median_cents(&pitch[0], &pitch[1]);
     assert!(voiced >= 100, "only {voiced} hops voiced in both");
     assert!(cents < 10.0, "median {cents} cents apart");
+}
+
+/// A new user's first commands: `tactus` alone lists the commands (on stderr, exit status 2:
+/// nothing ran), `tactus help` is `tactus --help`, `tactus help render` is `tactus render
+/// --help`, and `tactus help --help` explains `help`.
+#[test]
+fn no_arguments_list_the_commands_and_help_takes_help() {
+    let o = tactus(&[]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    for command in ["Commands:", "render", "play", "live", "help"] {
+        assert!(err.contains(command), "{command} missing from:\n{err}");
+    }
+    let o = tactus(&["help", "--help"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("Usage: tactus help [COMMAND]"), "{out}");
+    for (a, b) in [
+        (&["help"][..], &["--help"][..]),
+        (&["help", "render"], &["render", "--help"]),
+    ] {
+        let (a, b) = (tactus(a), tactus(b));
+        assert!(a.status.success() && b.status.success());
+        assert_eq!(
+            String::from_utf8_lossy(&a.stdout),
+            String::from_utf8_lossy(&b.stdout)
+        );
+    }
+    let o = tactus(&["help", "no-such-command"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no-such-command"), "{}", stderr(&o));
 }

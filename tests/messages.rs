@@ -1,4 +1,4 @@
-//! Issue 11's small ones, through the binary: built-in maps by name, errors on one line
+//! Small messages through the binary: built-in maps by name, errors on one line
 //! without repetition, devices advice in user terms, eval's hint when the log is not the
 //! pattern's.
 
@@ -176,4 +176,58 @@ fn eval_warns_when_the_log_is_not_the_pattern_played() {
         err.contains("the log covers") && err.contains("first frame is at 1000 ms"),
         "{err}"
     );
+}
+
+/// Every hint that sends the user to the documentation names a section that exists:
+/// `see docs/install.md, "TITLE"` with a `## TITLE` in docs/install.md, never a README title.
+#[test]
+fn hints_name_sections_that_exist() {
+    let d = tempfile::tempdir().unwrap();
+    write_song(&d.path().join("song.wav"));
+    let install =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/install.md"))
+            .unwrap();
+    let mut cases: Vec<Vec<&str>> = vec![
+        vec!["render", "song.wav", "--separator", "htdemucs"],
+        vec!["render", "song.wav", "--separator", "spleeter"],
+        vec!["render", "song.wav", "--drums", "adtlib"],
+    ];
+    if !cfg!(feature = "onnx") {
+        cases.push(vec![
+            "render",
+            "song.wav",
+            "--separator",
+            "htdemucs",
+            "--model",
+            "m.onnx",
+        ]);
+        cases.push(vec![
+            "render",
+            "song.wav",
+            "--drums",
+            "adtlib",
+            "--drum-model",
+            "m.onnx",
+        ]);
+    }
+    if !cfg!(feature = "audio") {
+        cases.push(vec!["live", "--glove", "null"]);
+    }
+    for args in cases {
+        let o = tactus(d.path(), &args);
+        let err = assert_one_clean_line(&o);
+        assert!(!err.contains("README"), "{args:?}: {err}");
+        let hints: Vec<&str> = err
+            .split("see docs/install.md, \"")
+            .skip(1)
+            .map(|rest| rest.split('"').next().unwrap())
+            .collect();
+        assert!(!hints.is_empty(), "{args:?}: no hint in {err}");
+        for title in hints {
+            assert!(
+                install.lines().any(|l| l == format!("## {title}")),
+                "{args:?}: docs/install.md has no section {title:?}"
+            );
+        }
+    }
 }

@@ -11,7 +11,8 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 use tactus_dsp::Stem;
 use tactus_engine::{
-    DrumMethod, EngineConfig, LevelRule, Mode, NoteRule, PitchMethod, Profile, SeparatorChoice,
+    recipe, DrumMethod, EngineConfig, LevelRule, Mode, NoteRule, PitchMethod, Profile,
+    SeparatorChoice,
 };
 use tactus_glove::GloveMap;
 
@@ -47,8 +48,8 @@ pub struct RenderOptions {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub note_onsets: Option<String>,
     /// The spectral separator's learned kit mask, which moves kick and tom bodies out of
-    /// the bass stem: `on` (default) or `off` (the median filter alone, as before
-    /// 2026-11-24).
+    /// the bass stem: `on` (default) or `off` (the median filter alone; see
+    /// `docs/decisions/0020-kit-mask.md`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kit_mask: Option<String>,
     /// `offline` (default) or `streaming`.
@@ -64,6 +65,15 @@ pub struct RenderOptions {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub profile: Option<String>,
 }
+
+/// The pitch trackers a user may name (`--pitch`), in the CLI's order.
+const PITCH_CHOICES: [PitchMethod; 5] = [
+    PitchMethod::Auto,
+    PitchMethod::Yin,
+    PitchMethod::Pyin,
+    PitchMethod::Shs,
+    PitchMethod::AutoShs,
+];
 
 /// The command the options are for: `live` and `play` have other defaults than `render`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -149,7 +159,7 @@ impl RenderOptions {
         let model = |name: &str| -> Result<PathBuf, BatchError> {
             self.model.clone().ok_or_else(|| {
                 err(format!(
-                    "--separator {name} needs --model PATH (see README, \"ONNX models\")"
+                    "--separator {name} needs --model PATH (see docs/install.md, \"ONNX models\")"
                 ))
             })
         };
@@ -181,21 +191,13 @@ impl RenderOptions {
             (Profile::Full, _) => 25,
         });
         let bin_ms = in_range("--bin-ms <BIN_MS>", bin_ms, 1, 10_000)?;
+        // The user's choice; which tracker each stem then runs is the recipe table's
+        // (`tactus_engine::recipe`).
         let pitch = pick(
             "pitch",
             self.pitch.as_deref(),
-            if live && profile == Profile::Full {
-                "pyin"
-            } else {
-                "auto"
-            },
-            &[
-                ("auto", PitchMethod::Auto),
-                ("yin", PitchMethod::Yin),
-                ("pyin", PitchMethod::Pyin),
-                ("shs", PitchMethod::Shs),
-                ("auto-shs", PitchMethod::AutoShs),
-            ],
+            recipe::default_pitch(live, profile).name(),
+            &PITCH_CHOICES.map(|m| (m.name(), m)),
         )?;
         let level_rule = pick(
             "levels-rule",
@@ -222,9 +224,9 @@ impl RenderOptions {
         let drums_name = choice(
             "drums",
             self.drums.as_deref(),
-            // Issues 10 and 13: live uses the per-instrument transcriber's 1-hop model
-            // (retrained 2026-11-24 with the synth kits: held-out mix kick F 0.80 against
-            // the bands' 0.29; rhythm p95 29.1 ms end to end, 12 of 12 hits of tests/live.rs).
+            // Live uses the per-instrument transcriber's 1-hop model (held-out mix kick F 0.80
+            // against the bands' 0.29; rhythm p95 29.1 ms end to end, 12 of 12 hits of
+            // tests/live.rs; docs/decisions/0015-live-drums-by-the-one-hop-model.md).
             if live { "classes-live" } else { "classes" },
             &["classes", "classes-live", "bands", "adtlib"],
         )?;
@@ -238,7 +240,10 @@ impl RenderOptions {
             }
             ("bands", None) => DrumMethod::Bands,
             ("adtlib", model) => DrumMethod::AdtLib(model.ok_or_else(|| {
-                err("--drums adtlib needs --drum-model PATH (see README, \"ONNX models\")".into())
+                err(
+                    "--drums adtlib needs --drum-model PATH (see docs/install.md, \"ONNX models\")"
+                        .into(),
+                )
             })?),
             // A model file of models/drums/train.py or train_cnn.py in place of the embedded
             // one; its own context decides its latency.

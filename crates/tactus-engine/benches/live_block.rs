@@ -1,5 +1,6 @@
 //! Processing time of one 256-sample block (5.8 ms of audio at 44.1 kHz) through the
-//! streaming engine, as `tactus live` feeds it (issue 13: p99 ≤ 1 ms per block).
+//! streaming engine, as `tactus live` feeds it (the live loop's budget: p99 ≤ 1 ms per block;
+//! `docs/decisions/0006-live-latency-profile.md`).
 //!
 //! * criterion: mean time per 256-sample block, live profile (what `tactus live` runs:
 //!   drums by the bands on the mix, the 512-point separator, YIN) and full profile (the

@@ -41,6 +41,7 @@ pub mod drums;
 pub mod engine;
 pub mod notes;
 pub mod profile;
+pub mod recipe;
 pub mod render;
 pub mod track;
 
@@ -51,7 +52,8 @@ pub use drums::DrumMethod;
 pub use engine::{Engine, EngineConfig, SeparatorChoice, ENGINE_RATE};
 pub use notes::NoteRule;
 pub use profile::Profile;
-pub use track::{LevelRule, Mode, PitchMethod};
+pub use recipe::{PitchMethod, Role, Source};
+pub use track::{LevelRule, Mode};
 
 use std::path::PathBuf;
 

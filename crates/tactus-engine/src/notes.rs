@@ -15,14 +15,21 @@
 //! offline): bass note-onset F 0.40 with flux, 0.94 from pitch; merging the flux onsets that
 //! lie more than 80 ms from every pitch onset (to catch repeated notes) added at most 0.02 F
 //! there, so the pitch rule stood alone. Repeated notes on pop bass lines and sung leads
-//! needed the level instead (README, "Note onsets from the attack": held-out isolated bass
-//! note F 0.73 → 0.97 on the sung and drum corpora).
+//! needed the level instead (held-out isolated bass note F 0.73 → 0.97 on the sung and drum
+//! corpora; `docs/decisions/0004-note-onsets-from-the-pitch-track.md`,
+//! `docs/decisions/0017-note-onsets-from-the-attack.md`).
 
 use tactus_dsp::notes::{note_onsets_offline_guided, NoteConfig, NoteOnsets};
 use tactus_dsp::ConfigError;
 
 use crate::profile::Profile;
-use crate::track::{Beats, Geometry, Mode, OnsetTrack, PitchTrack};
+pub use crate::recipe::NoteRole;
+use tactus_dsp::Stem;
+use tactus_glove::BinFeatures;
+
+use crate::track::{
+    held, Beats, Feature, Geometry, Mode, OnsetTrack, PitchTrack, Track, TrackInput,
+};
 
 /// How note onsets are read from a pitch track. See the module docs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -41,39 +48,24 @@ pub enum NoteRule {
     Legato,
 }
 
-/// What the stem is, for the note-onset rule's stem-specific parts.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct NoteRole {
-    /// The bass of a mixture: a change of note must be attacked
-    /// ([`NoteConfig::pitch_needs_attack`]).
-    pub plucked_mix: bool,
-    /// The lead (vocals) on its own stem, not a band of a mixture: an onset at an attack
-    /// moves back to the foot of its rise ([`NoteConfig::backtrack_hops`],
-    /// [`CLEAN_LEAD_BACKTRACK_HOPS`]) and a pitch onset without an attack moves
-    /// [`CLEAN_LEAD_PITCH_BACK_HOPS`] back ([`NoteConfig::pitch_back_hops`]): a sung
-    /// syllable starts with its consonant before the vowel's rise, and a voice patch's
-    /// release holds the old pitch into the new note.
-    pub clean_lead: bool,
-}
+/// [`NoteConfig::backtrack_hops`] of a clean lead
+/// (`docs/decisions/0018-clean-lead-onsets-at-the-foot-of-the-attack.md`).
+const CLEAN_LEAD_BACKTRACK_HOPS: usize = 3;
 
-/// [`NoteConfig::backtrack_hops`] of a clean lead (README, "Note onsets of a clean lead").
-pub const CLEAN_LEAD_BACKTRACK_HOPS: usize = 3;
-
-/// [`NoteConfig::pitch_back_hops`] of a clean lead (README, "Note onsets of a clean lead").
-pub const CLEAN_LEAD_PITCH_BACK_HOPS: usize = 2;
+/// [`NoteConfig::pitch_back_hops`] of a clean lead (the same record).
+const CLEAN_LEAD_PITCH_BACK_HOPS: usize = 2;
 
 /// [`NoteConfig::reattack_min_hops`] of a clean lead: a re-attack of the held pitch at least
-/// 250 ms after the previous onset (README, "A clean lead's re-attacks";
-/// `benches/trials/RULE_clean_lead_reattack_interval.md`).
-pub const CLEAN_LEAD_REATTACK_MIN_HOPS: usize = 25;
+/// 250 ms after the previous onset (`docs/decisions/0036-clean-lead-reattack-interval.md`).
+const CLEAN_LEAD_REATTACK_MIN_HOPS: usize = 25;
 
 /// [`NoteConfig::guide_back_hops`] of a clean lead whose tracker reports an attack-aligned
 /// pitch beside the decoded one (`PitchTrack::note_guide`): 0, off. At 5 (a pitch onset
 /// without an attack moves back to where the aligned pitch already holds the new note, at
 /// most 50 ms) it raised isolated lead note F on the tuning songs (mean +0.013) and the
 /// Choir Aahs chorales of its held-out draw (+0.05–0.07 each), but the held-out mean only by
-/// 0.006, under its adoption rule's 0.01 (`benches/trials/RULE_guided_onsets.md`).
-pub const CLEAN_LEAD_GUIDE_BACK_HOPS: usize = 0;
+/// 0.006, under the 0.01 a default must gain there to be adopted.
+const CLEAN_LEAD_GUIDE_BACK_HOPS: usize = 0;
 
 impl NoteRule {
     /// The detector's configuration for `profile` and the stem's `role`. The clean lead's
@@ -115,6 +107,8 @@ pub struct PitchNotes {
     cfg: NoteConfig,
     geo: Geometry,
     hop: usize,
+    /// The pitch track's latency, before this detector's own.
+    pitch_latency: usize,
     /// Pitch hops consumed so far (streaming).
     consumed: usize,
     /// Onset flag per pitch hop, note onset per bin.
@@ -122,20 +116,22 @@ pub struct PitchNotes {
 }
 
 impl PitchNotes {
-    /// A detector for a pitch track with `hop` engine samples between hops.
-    /// `role`: see [`NoteRule::config`].
+    /// A detector reading `pitch` (its hops and its latency; the track itself is handed to
+    /// [`PitchNotes::update`] and [`PitchNotes::finish`]). `role`: see [`NoteRule::config`].
     pub fn new(
         geo: Geometry,
-        hop: usize,
+        pitch: &PitchTrack,
         rule: NoteRule,
         role: NoteRole,
     ) -> Result<Self, ConfigError> {
         let cfg = rule.config(geo.profile, role);
+        let hop = pitch.hop();
         Ok(PitchNotes {
             det: NoteOnsets::new(cfg)?,
             cfg,
             geo,
             hop,
+            pitch_latency: pitch.latency_samples(),
             consumed: 0,
             beats: Beats::new(hop, geo.bin_samples)?,
         })
@@ -175,8 +171,13 @@ impl PitchNotes {
         }
     }
 
-    /// Input samples of look-ahead beyond the pitch track's.
+    /// Input samples of look-ahead: the pitch track's, then the detector's own.
     pub fn latency_samples(&self) -> usize {
+        self.pitch_latency + self.own_latency_samples()
+    }
+
+    /// Input samples of look-ahead of the detector beyond the pitch track's.
+    pub fn own_latency_samples(&self) -> usize {
         self.det.latency_hops() * self.hop
     }
 
@@ -188,13 +189,6 @@ impl PitchNotes {
     /// Per-hop and per-bin values held.
     pub fn retained(&self) -> usize {
         self.beats.retained()
-    }
-
-    /// Streaming: forgets the first `d` bins and the onsets already binned; the pitch
-    /// track forgets its consumed hops at the same time, so counting starts again at 0.
-    pub fn discard(&mut self, d: usize) {
-        self.beats.discard(d);
-        self.consumed = 0;
     }
 
     /// Back to the initial state.
@@ -230,20 +224,74 @@ impl NoteTrack {
             NoteTrack::Pitch(p) => p.onset_times(),
         }
     }
+}
 
-    /// Input samples of look-ahead (beyond the pitch track's, for [`NoteTrack::Pitch`]).
-    pub fn latency_samples(&self) -> usize {
+impl Track for NoteTrack {
+    fn process(&mut self, input: &TrackInput<'_>) {
+        match self {
+            NoteTrack::Pitch(n) => {
+                if let Some(p) = input.pitch {
+                    n.update(p);
+                }
+            }
+            NoteTrack::Flux(n) => n.process(input.stem),
+        }
+    }
+
+    fn finish(&mut self, input: &TrackInput<'_>) {
+        match self {
+            NoteTrack::Pitch(n) => {
+                if let Some(p) = input.pitch {
+                    n.finish(p);
+                }
+            }
+            NoteTrack::Flux(n) => n.finish(),
+        }
+    }
+
+    fn reset(&mut self) {
+        match self {
+            NoteTrack::Pitch(p) => p.reset(),
+            NoteTrack::Flux(f) => f.reset(),
+        }
+    }
+
+    /// For [`NoteTrack::Pitch`] the pitch track's latency and the detector's own.
+    fn latency_samples(&self) -> usize {
         match self {
             NoteTrack::Pitch(p) => p.latency_samples(),
             NoteTrack::Flux(f) => f.latency_samples(),
         }
     }
 
-    /// Back to the initial state.
-    pub fn reset(&mut self) {
+    /// The pitch track forgets its consumed hops at the same time, so a pitch detector
+    /// counts them from 0 again.
+    fn discard_before(&mut self, bins: usize) {
         match self {
-            NoteTrack::Pitch(p) => p.reset(),
-            NoteTrack::Flux(f) => f.reset(),
+            NoteTrack::Pitch(p) => {
+                p.beats.discard(bins);
+                p.consumed = 0;
+            }
+            NoteTrack::Flux(f) => f.discard(bins),
+        }
+    }
+
+    fn feature(&self) -> Feature {
+        Feature::Notes
+    }
+
+    fn ready_bins(&self) -> usize {
+        self.bins().len()
+    }
+
+    fn read_bin(&self, bin: usize, hold: usize, stem: Stem, frame: &mut BinFeatures) {
+        frame.note_onset[stem as usize] = held(self.bins(), bin, hold);
+    }
+
+    fn retained(&self) -> usize {
+        match self {
+            NoteTrack::Pitch(t) => t.retained(),
+            NoteTrack::Flux(t) => t.retained(),
         }
     }
 }

@@ -1,4 +1,4 @@
-//! Latency profiles (issue 13, "Live means live").
+//! Latency profiles (`docs/decisions/0006-live-latency-profile.md`).
 //!
 //! The same engine serves the offline renderer and the live glove; a [`Profile`] picks how
 //! much look-ahead each stage may spend on quality.
@@ -14,7 +14,7 @@
 //! | stage | live profile | latency (samples @ 44.1 kHz) |
 //! |---|---|---|
 //! | capture (`tactus live`) | the engine's rate (no resampler), a 256-frame period asked for | the device's period (PulseAudio gave 170 frames, 3.9 ms) |
-//! | drums | no separator: the drum detector listens to the mix ([`DRUMS_ON_MIX`]) | 0 |
+//! | drums | no separator: the drum detector listens to the mix (no separator latency) | 0 |
 //! | denoise | Butterworth high-pass + 3-sample median | 1 |
 //! | drum onsets (`--drums classes-live`, `tactus live`'s default) | the per-instrument transcriber on the mix (its embedded 1-hop model) | 953 (21.6 ms) |
 //! | drum onsets (`--drums bands`) | Butterworth bands, spectral flux with 1024-point frames every 5 ms, causal rising-edge picking, the gate's level over two hops | 220 (5.0 ms) |
@@ -29,8 +29,8 @@
 //! 511 + 1 + 819 + 441 = 1,772 samples (40.2 ms; 2,213 = 50.2 ms for a bass note below
 //! 54.7 Hz, which only the long frame hears); `tests/profile.rs` feeds a
 //! drum hit and tone steps in 64-sample blocks and checks that the frame showing them
-//! exists within that (plus one detector hop and one block). Measured from outside,
-//! sound to frame at the glove: README, "Live: sound to pin".
+//! exists within that (plus one detector hop and one block). Measured from outside, sound to
+//! frame at the glove: `tests/live_latency.rs` and `docs/decisions/0006-live-latency-profile.md`.
 //!
 //! The glove shows each feature as soon as it is final: the rhythm cells of frame `k` are
 //! those of bin `k`, a pitch cell shows the bin that its slower chain had finished when the
@@ -76,8 +76,6 @@ pub const BIN_MS: u32 = 10;
 /// Shortest pin pulse of the live profile, ms: the glove's pins take 50 ms to rise
 /// (`tactus_glove::RISE_MS`), so a one-bin beat of 10 ms would be lowered before it is felt.
 pub const PULSE_MS: u32 = 50;
-/// The drum detector listens to the mix in the live profile (no separator latency).
-pub const DRUMS_ON_MIX: bool = true;
 /// Viterbi lag of the live profile's pYIN and harmonic-sum trackers (`--pitch pyin|shs`),
 /// hops of 10 ms. The default live tracker is plain YIN, which has none.
 pub const PITCH_LAG_HOPS: usize = 2;

@@ -396,7 +396,69 @@ fn render_inner(
         }
         Ok(())
     };
-    let (source, t_dec) = if req.config.parallel {
+    let (source, t_dec) = decode_through(source, req.config.parallel, &mut consume)?;
+    t_decode += t_dec;
+    engine.finish();
+    if let Some(e) = engine.take_separator_error() {
+        return Err(e);
+    }
+    progress(1.0);
+
+    let n = engine.samples_in();
+    end_warnings(
+        req,
+        &source,
+        frames_in,
+        info.sample_rate,
+        &supplied,
+        n,
+        &mut warnings,
+    );
+
+    let duration_s = n as f64 / rate as f64;
+    let frames = engine.frames();
+    for (k, f) in frames.iter().enumerate().skip(delivered) {
+        if !on_frame(k, *f) {
+            return Err(EngineError::Cancelled);
+        }
+    }
+    let source = SourceInfo {
+        path: req.input.display().to_string(),
+        sha256: tactus_glove::sha256_file(&req.input)
+            .map_err(|e| EngineError::Io(req.input.clone(), e))?,
+        duration_s,
+        sample_rate: info.sample_rate,
+    };
+    Ok(RenderOutput::from_engine(
+        &engine,
+        source,
+        frames,
+        &[("decode", t_decode), ("resample", t_resample)],
+        t_all,
+        warnings,
+    ))
+}
+
+fn feed(engine: &mut Engine, l: &[f32], r: &[f32], supplied: &mut [SuppliedStem]) {
+    for s in supplied.iter_mut() {
+        s.next(l.len());
+    }
+    let views: Vec<(Stem, &[f32])> = supplied
+        .iter()
+        .map(|s| (s.stem, s.buf.as_slice()))
+        .collect();
+    engine.process(l, r, &views);
+}
+
+/// Decodes `source` block by block and hands each block to `consume`: on a reader thread a
+/// few blocks ahead when `parallel`, otherwise on the calling thread. Returns the source
+/// (for its warnings) and the time spent decoding.
+fn decode_through(
+    source: AudioSource,
+    parallel: bool,
+    consume: &mut dyn FnMut(&DecodedBlock) -> Result<(), EngineError>,
+) -> Result<(AudioSource, Duration), EngineError> {
+    Ok(if parallel {
         // Decoding runs on its own thread, a few blocks ahead (a bounded channel), so that
         // it overlaps the separator and the stem chains; blocks go back to it for reuse.
         let (block_tx, block_rx) =
@@ -440,14 +502,21 @@ fn render_inner(
             }
         }
         (source, spent)
-    };
-    t_decode += t_dec;
-    engine.finish();
-    if let Some(e) = engine.take_separator_error() {
-        return Err(e);
-    }
-    progress(1.0);
+    })
+}
 
+/// The warnings a finished render adds: non-finite samples, a truncated file, and each
+/// supplied stem whose length differs from the mix's `n` samples by more than 10 ms.
+fn end_warnings(
+    req: &RenderRequest,
+    source: &AudioSource,
+    frames_in: u64,
+    file_rate: u32,
+    supplied: &[SuppliedStem],
+    n: usize,
+    warnings: &mut Vec<String>,
+) {
+    let rate = req.config.sample_rate;
     if source.non_finite() > 0 {
         warnings.push(format!(
             "{}: {} NaN/Inf samples replaced by 0",
@@ -459,11 +528,10 @@ fn render_inner(
         warnings.push(format!(
             "{}: the file ends early; rendered the {:.2} s that could be decoded",
             req.input.display(),
-            frames_in as f64 / info.sample_rate.max(1) as f64
+            frames_in as f64 / file_rate.max(1) as f64
         ));
     }
-    let n = engine.samples_in();
-    for s in &supplied {
+    for s in supplied {
         let diff = s.samples.len() as i64 - n as i64;
         if diff.unsigned_abs() as usize > rate as usize / 100 {
             warnings.push(format!(
@@ -479,38 +547,4 @@ fn render_inner(
             ));
         }
     }
-
-    let duration_s = n as f64 / rate as f64;
-    let frames = engine.frames();
-    for (k, f) in frames.iter().enumerate().skip(delivered) {
-        if !on_frame(k, *f) {
-            return Err(EngineError::Cancelled);
-        }
-    }
-    let source = SourceInfo {
-        path: req.input.display().to_string(),
-        sha256: tactus_glove::sha256_file(&req.input)
-            .map_err(|e| EngineError::Io(req.input.clone(), e))?,
-        duration_s,
-        sample_rate: info.sample_rate,
-    };
-    Ok(RenderOutput::from_engine(
-        &engine,
-        source,
-        frames,
-        &[("decode", t_decode), ("resample", t_resample)],
-        t_all,
-        warnings,
-    ))
-}
-
-fn feed(engine: &mut Engine, l: &[f32], r: &[f32], supplied: &mut [SuppliedStem]) {
-    for s in supplied.iter_mut() {
-        s.next(l.len());
-    }
-    let views: Vec<(Stem, &[f32])> = supplied
-        .iter()
-        .map(|s| (s.stem, s.buf.as_slice()))
-        .collect();
-    engine.process(l, r, &views);
 }

@@ -6,7 +6,8 @@
 //! is chunk-invariant, and the engine turns it on only where it belongs.
 
 use tactus_engine::profile::Profile;
-use tactus_engine::track::{Geometry, PitchTrack, SPECTRAL_PITCH_ADVANCE_HOPS};
+use tactus_engine::recipe::Role;
+use tactus_engine::track::Geometry;
 use tactus_engine::{Engine, EngineConfig, Mode, PitchMethod, SeparatorChoice};
 
 mod common;
@@ -34,7 +35,13 @@ fn steps() -> Vec<f32> {
 
 /// Runs a vocals-range SHS track over `x` in blocks of `chunk`; returns its f0 per hop.
 fn track(mode: Mode, advance: usize, x: &[f32], chunk: usize) -> (Vec<f32>, usize, usize) {
-    let mut t = PitchTrack::new(geo(mode), 70.0, 1400.0, PitchMethod::Shs, true).unwrap();
+    let mut t = common::pitch_track(
+        geo(mode),
+        Role::Lead,
+        true,
+        PitchMethod::Shs,
+        (70.0, 1400.0),
+    );
     t.set_advance_hops(advance);
     for b in x.chunks(chunk) {
         t.process(b);
@@ -54,7 +61,7 @@ fn shifted(f: &[f32], k: usize) -> Vec<f32> {
 fn an_advanced_track_is_the_plain_one_shifted_by_its_hops() {
     let x = steps();
     let (plain, lat0, hop) = track(Mode::Offline, 0, &x, x.len());
-    for k in [1, SPECTRAL_PITCH_ADVANCE_HOPS, 7] {
+    for k in [1, common::tuning().spectral_pitch_advance_hops, 7] {
         let (adv, lat, _) = track(Mode::Offline, k, &x, x.len());
         // Offline the gate, the fences and the range see the same values (the padding is
         // unvoiced and below the gate), so the shift is exact.
@@ -73,7 +80,7 @@ fn an_advanced_track_is_the_plain_one_shifted_by_its_hops() {
 #[test]
 fn streaming_advanced_track_is_chunk_invariant_and_shifted() {
     let x = steps();
-    let k = SPECTRAL_PITCH_ADVANCE_HOPS;
+    let k = common::tuning().spectral_pitch_advance_hops;
     let (whole, _, _) = track(Mode::Streaming, k, &x, x.len());
     for chunk in [1, 97, 441, 4096] {
         let (c, _, _) = track(Mode::Streaming, k, &x, chunk);
@@ -94,9 +101,14 @@ fn an_advanced_track_decides_nothing_before_its_stated_latency() {
     // satisfies `i·hop + latency ≤ fed` (nothing is decided early), and the step's first
     // voiced hop is decided within one hop and one block of its stated latency.
     let x = steps();
-    let k = SPECTRAL_PITCH_ADVANCE_HOPS;
-    let mut t =
-        PitchTrack::new(geo(Mode::Streaming), 70.0, 1400.0, PitchMethod::Shs, true).unwrap();
+    let k = common::tuning().spectral_pitch_advance_hops;
+    let mut t = common::pitch_track(
+        geo(Mode::Streaming),
+        Role::Lead,
+        true,
+        PitchMethod::Shs,
+        (70.0, 1400.0),
+    );
     t.set_advance_hops(k);
     let (hop, lat) = (t.hop(), t.latency_samples());
     // The tracker counts decimated samples: its decisions move in steps of `dec` engine
@@ -158,7 +170,7 @@ fn the_engine_advances_only_the_spectral_separators_tracks_and_not_live() {
     let future = tactus_dsp::bassnet::BassNet::embedded().future();
     assert_eq!(
         spectral,
-        none + (SPECTRAL_PITCH_ADVANCE_HOPS + future) * hop,
+        none + (common::tuning().spectral_pitch_advance_hops + future) * hop,
         "{name}"
     );
     assert!(name.contains("separator's note lag"), "{name}");

@@ -1,9 +1,9 @@
-//! The lead on its own stem sums [`CLEAN_LEAD_HARMONICS`] harmonics (README, "A low voice
-//! on its own stem"): a low vowel whose energy sits at its formants is tracked at its
-//! fundamental, offline and streaming alike.
+//! The lead on its own stem sums 12 harmonics (the clean lead's recipe;
+//! `docs/decisions/0025-twelve-harmonics-for-a-clean-lead.md`): a low vowel whose energy sits
+//! at its formants is tracked at its fundamental, offline and streaming alike.
 
 use tactus_engine::profile::Profile;
-use tactus_engine::track::{PitchTrack, CLEAN_LEAD_HARMONICS};
+use tactus_engine::recipe::Role;
 use tactus_engine::{Mode, PitchMethod};
 
 mod common;
@@ -46,18 +46,12 @@ fn low_vowels() -> (Vec<f32>, Vec<f64>) {
 
 #[test]
 fn a_low_voice_on_its_own_stem_is_tracked_at_its_fundamental() {
-    assert_eq!(CLEAN_LEAD_HARMONICS, 12);
+    assert_eq!(common::tuning().clean_lead_harmonics, 12);
     let (x, truth) = low_vowels();
     let (lo, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
     for mode in [Mode::Offline, Mode::Streaming] {
-        let mut t = PitchTrack::new(
-            common::geo(mode, Profile::Full),
-            lo,
-            hi,
-            PitchMethod::Shs,
-            false,
-        )
-        .unwrap();
+        let geo = common::geo(mode, Profile::Full);
+        let mut t = common::pitch_track(geo, Role::Lead, false, PitchMethod::Shs, (lo, hi));
         for b in x.chunks(3000) {
             t.process(b);
         }

@@ -1,4 +1,4 @@
-//! A lead on its own stem (README, "The clean lead's note changes at the attack"): the
+//! A lead on its own stem (`docs/decisions/0035-clean-lead-note-changes-at-the-attack.md`): the
 //! harmonic-sum tracker reports a late note change from the foot of the attack
 //! (`tactus_dsp::shs` step 9, `CLEAN_LEAD_ATTACK_RISE_DB`), the levels and the pattern read
 //! that pitch, and the note onsets read the decoded pitch before the alignment
@@ -7,6 +7,7 @@
 
 use tactus_engine::notes::{NoteRole, PitchNotes};
 use tactus_engine::profile::Profile;
+use tactus_engine::recipe::Role;
 use tactus_engine::track::PitchTrack;
 use tactus_engine::{Mode, NoteRule, PitchMethod};
 
@@ -43,12 +44,12 @@ fn choir_lead(midi: &[f64], note_s: f64) -> (Vec<f32>, Vec<f64>) {
 fn track(mode: Mode, mixture: bool, x: &[f32], chunk: usize) -> (PitchTrack, Vec<bool>) {
     let (lo, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
     let geo = common::geo(mode, Profile::Full);
-    let mut t = PitchTrack::new(geo, lo, hi, PitchMethod::Shs, mixture).unwrap();
+    let mut t = common::pitch_track(geo, Role::Lead, mixture, PitchMethod::Shs, (lo, hi));
     let role = NoteRole {
         plucked_mix: false,
         clean_lead: !mixture,
     };
-    let mut notes = PitchNotes::new(geo, t.hop(), NoteRule::Attack, role).unwrap();
+    let mut notes = PitchNotes::new(geo, &t, NoteRule::Attack, role).unwrap();
     for b in x.chunks(chunk) {
         t.process(b);
         notes.update(&t);
@@ -105,7 +106,7 @@ fn a_clean_leads_late_changes_move_to_the_attack_and_its_onsets_read_the_decoded
             "{mode:?}: the aligned pitch gives other onsets here"
         );
         // The aligned pitch is the guide of rule 6 (`NoteConfig::guide_back_hops`, off in
-        // the engine: `benches/trials/RULE_guided_onsets.md`); turned on by hand, it moves
+        // the engine: its held-out gain stayed under the adoption bar); turned on by hand, it moves
         // this cross-fading lead's onsets towards the notes' starts.
         assert_eq!(t.note_guide(), &f0[..]);
         let guided = tactus_dsp::notes::NoteConfig {

@@ -93,11 +93,12 @@ fn streaming_follows_offline() {
     // The paper's level rule: the default (`Follow`) pads the streaming range to a prior
     // span of 20 semitones that fades over ~30 s of voicing, so on this 3 s bass line of
     // 7 semitones its streaming levels are compressed against offline (0.47 within ±1),
-    // by design; the corpus tables in README.md measure that trade-off on real lengths.
+    // by design; docs/results.md measures that trade-off on real lengths.
     //
     // Without the separator's kit mask: this synthetic bass is a near-pure 55–82 Hz tone
-    // under a 60 Hz kick, which the mask takes for kick bodies (a known limit,
-    // models/lowband/README.md), leaving too few bass bins to compare the modes on.
+    // under a 60 Hz kick, which the mask takes for kick bodies (a known limit of the kit
+    // mask's model, `docs/decisions/0020-kit-mask.md`), leaving too few bass bins to compare
+    // the modes on.
     let paper = |mode| EngineConfig {
         level_rule: LevelRule::Paper,
         kit_mask: false,
@@ -123,7 +124,7 @@ fn streaming_follows_offline() {
     }
     // Levels in bins voiced in both modes. The streaming range starts empty and only
     // widens, so the first notes map differently: we allow a wider margin than the
-    // 95% reported on long songs in README.md.
+    // 95% measured on long songs (docs/results.md).
     for (stem, a) in &off.levels {
         let b = &st.levels[stem];
         let both: Vec<_> = a

@@ -1,13 +1,14 @@
-//! The mix's lead under the learned method (README, "The learned lead's pitch inside the
-//! harmonic sum's voicing", "The learned lead's voicing veto"): a voicing/pitch pair voiced
-//! only where the harmonic-sum melody tracker is (the learned tracker may veto), whose pitch
-//! is the learned lead salience's where both are voiced, and whose note onsets read that
-//! pitch (since 2026-11-28; before, the harmonic sum's own), offline and streaming, for any
-//! chunking. Its level range comes
-//! from held notes or hops both trackers agree on (README, "The mix's lead range from held or
-//! agreed hops"), offline narrowed to the hops where the learned tracker is sure of its pitch
-//! (README, "The mix's lead range narrowed to sure hops"), against `tactus_dsp`'s range
-//! functions replayed on the track's two pitches and its confidence.
+//! The mix's lead under the learned method
+//! (`docs/decisions/0027-learned-lead-pitch-inside-harmonic-sum-voicing.md`,
+//! `docs/decisions/0028-learned-lead-voicing-veto.md`): a voicing/pitch pair voiced only where
+//! the harmonic-sum melody tracker is (the learned tracker may veto), whose pitch is the
+//! learned lead salience's where both are voiced, and whose note onsets read that pitch
+//! (`docs/decisions/0034-mix-lead-note-onsets-from-the-pair.md`), offline and streaming, for
+//! any chunking. Its level range comes from held notes or hops both trackers agree on
+//! (`docs/decisions/0029-mix-lead-range-from-held-or-agreed-hops.md`), offline narrowed to
+//! the hops where the learned tracker is sure of its pitch
+//! (`docs/decisions/0038-mix-lead-range-narrowed-to-sure-hops.md`), against `tactus_dsp`'s
+//! range functions replayed on the track's two pitches and its confidence.
 
 use tactus_dsp::discretize::{
     agree_mask, narrow_range, pitches_agree, range_quantiles_kept_or, range_quantiles_kept_or_sure,
@@ -16,11 +17,8 @@ use tactus_dsp::discretize::{
 use tactus_dsp::Stem;
 use tactus_engine::notes::{NoteRole, PitchNotes};
 use tactus_engine::profile::Profile;
-use tactus_engine::track::{
-    prior_span_st, PitchTrack, AGREE_TOL_ST, FOLLOW_PRIOR_FADE_HOPS, FOLLOW_RANGE_QUANTILE,
-    HELD_MIN_HOPS, HELD_MIN_SHARE, HELD_TOL_ST, MIX_LEAD_HELD_HOPS, MIX_LEAD_SURE,
-    MIX_LEAD_SURE_MARGIN_ST, MIX_LEAD_SURE_QUANTILE,
-};
+use tactus_engine::recipe::{recipe, Recipe, Role, SeparatorKind, Source};
+use tactus_engine::track::PitchTrack;
 use tactus_engine::{Mode, NoteRule, PitchMethod};
 
 mod common;
@@ -148,8 +146,8 @@ fn synth_over_chords(notes: &[(f64, f64)]) -> Vec<f32> {
 fn track(method: PitchMethod, mode: Mode, x: &[f32], chunk: usize) -> (PitchTrack, Vec<bool>) {
     let (lo, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
     let geo = common::geo(mode, Profile::Full);
-    let mut t = PitchTrack::new(geo, lo, hi, method, true).unwrap();
-    let mut notes = PitchNotes::new(geo, t.hop(), NoteRule::Attack, NoteRole::default()).unwrap();
+    let mut t = common::pitch_track(geo, Role::Lead, true, method, (lo, hi));
+    let mut notes = PitchNotes::new(geo, &t, NoteRule::Attack, NoteRole::default()).unwrap();
     for b in x.chunks(chunk) {
         t.process(b);
         notes.update(&t);
@@ -241,7 +239,7 @@ fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
     let x = lead_with_short_extremes();
     let d = Discretizer::default();
     let (t, _) = track(PitchMethod::Learned, Mode::Offline, &x, 4096);
-    let trusted = agree_mask(&t.f0, t.voicing_f0(), AGREE_TOL_ST);
+    let trusted = agree_mask(&t.f0, t.voicing_f0(), common::tuning().agree_tol_st);
     let agreed = trusted.iter().filter(|&&a| a).count();
     let voiced = t.f0.iter().filter(|&&f| f > 0.0).count();
     assert!(
@@ -251,17 +249,20 @@ fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
     let range = range_quantiles_kept_or(
         &t.f0,
         &trusted,
-        FOLLOW_RANGE_QUANTILE,
-        MIX_LEAD_HELD_HOPS,
-        HELD_TOL_ST,
+        common::tuning().follow_range_quantile,
+        common::tuning().mix_lead_held_hops,
+        common::tuning().held_tol_st,
         0,
-        HELD_MIN_SHARE,
-        HELD_MIN_HOPS,
+        common::tuning().held_min_share,
+        common::tuning().held_min_hops,
     );
     // Offline, narrowed to a semitone beyond the sure hops' range.
     let conf = t.pitch_confidence();
     assert_eq!(conf.len(), t.f0.len());
-    let sure: Vec<bool> = conf.iter().map(|&c| c >= MIX_LEAD_SURE).collect();
+    let sure: Vec<bool> = conf
+        .iter()
+        .map(|&c| c >= common::tuning().mix_lead_sure)
+        .collect();
     let unsure = (0..t.f0.len())
         .filter(|&i| t.f0[i] > 0.0 && !sure[i])
         .count();
@@ -273,18 +274,18 @@ fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
         &t.f0,
         &trusted,
         &sure,
-        MIX_LEAD_SURE_QUANTILE,
-        MIX_LEAD_HELD_HOPS,
-        HELD_TOL_ST,
+        common::tuning().mix_lead_sure_quantile,
+        common::tuning().mix_lead_held_hops,
+        common::tuning().held_tol_st,
         0,
-        HELD_MIN_SHARE,
-        HELD_MIN_HOPS,
+        common::tuning().held_min_share,
+        common::tuning().held_min_hops,
     );
     let narrowed = narrow_range(
         range,
         sure_range,
-        MIX_LEAD_SURE_MARGIN_ST,
-        MIX_LEAD_SURE_MARGIN_ST,
+        common::tuning().mix_lead_sure_margin_st,
+        common::tuning().mix_lead_sure_margin_st,
     );
     let want: Vec<u8> =
         t.f0.iter()
@@ -297,12 +298,12 @@ fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
     let held = range_quantiles_kept_or(
         &t.f0,
         &[],
-        FOLLOW_RANGE_QUANTILE,
-        MIX_LEAD_HELD_HOPS,
-        HELD_TOL_ST,
+        common::tuning().follow_range_quantile,
+        common::tuning().mix_lead_held_hops,
+        common::tuning().held_tol_st,
         0,
-        HELD_MIN_SHARE,
-        HELD_MIN_HOPS,
+        common::tuning().held_min_share,
+        common::tuning().held_min_hops,
     );
     let (a, b) = (range.unwrap(), held.unwrap());
     assert!(
@@ -323,31 +324,38 @@ fn the_mix_leads_range_comes_from_held_or_agreed_hops_offline_and_streaming() {
 /// learned tracker's confidence per hop, which the tracker gives alike offline and
 /// streaming), once that holds, clipping it to a semitone beyond its ends.
 fn streaming_levels(s: &PitchTrack, conf: &[f32], narrow: bool) -> Vec<u8> {
-    let (_, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
     let range = |p: f32| {
         HeldRange::with_prior(
-            RangePrior::Span(prior_span_st(hi)),
-            FOLLOW_PRIOR_FADE_HOPS,
+            RangePrior::Span(common::tuning().lead_prior_span_st),
+            common::tuning().follow_prior_fade_hops,
             p,
-            MIX_LEAD_HELD_HOPS,
-            HELD_TOL_ST,
-            HELD_MIN_SHARE,
-            HELD_MIN_HOPS,
+            common::tuning().mix_lead_held_hops,
+            common::tuning().held_tol_st,
+            common::tuning().held_min_share,
+            common::tuning().held_min_hops,
         )
         .unwrap()
     };
-    let (mut r, mut rs) = (range(FOLLOW_RANGE_QUANTILE), range(MIX_LEAD_SURE_QUANTILE));
+    let (mut r, mut rs) = (
+        range(common::tuning().follow_range_quantile),
+        range(common::tuning().mix_lead_sure_quantile),
+    );
     let d = Discretizer::default();
     assert_eq!(conf.len(), s.f0.len());
     s.f0.iter()
         .zip(s.voicing_f0())
         .zip(conf)
         .map(|((&f, &n), &c)| {
-            let trusted = pitches_agree(f, n, AGREE_TOL_ST);
+            let trusted = pitches_agree(f, n, common::tuning().agree_tol_st);
             let a = r.update_trusted(f, trusted);
-            let b = rs.update_sure(f, trusted, c >= MIX_LEAD_SURE);
+            let b = rs.update_sure(f, trusted, c >= common::tuning().mix_lead_sure);
             let range = if narrow && rs.holds() {
-                narrow_range(a, b, MIX_LEAD_SURE_MARGIN_ST, MIX_LEAD_SURE_MARGIN_ST)
+                narrow_range(
+                    a,
+                    b,
+                    common::tuning().mix_lead_sure_margin_st,
+                    common::tuning().mix_lead_sure_margin_st,
+                )
             } else {
                 a
             };
@@ -373,10 +381,10 @@ fn offline_the_mix_leads_range_is_narrowed_to_a_semitone_beyond_its_sure_hops() 
         }
         if st(f) < 61.0 {
             low += 1;
-            low_unsure += usize::from(c < MIX_LEAD_SURE);
+            low_unsure += usize::from(c < common::tuning().mix_lead_sure);
         } else {
             lead += 1;
-            lead_sure += usize::from(c >= MIX_LEAD_SURE);
+            lead_sure += usize::from(c >= common::tuning().mix_lead_sure);
         }
     }
     assert!(
@@ -387,27 +395,30 @@ fn offline_the_mix_leads_range_is_narrowed_to_a_semitone_beyond_its_sure_hops() 
         lead_sure * 5 >= lead * 4,
         "{lead_sure} of {lead} lead hops sure"
     );
-    let trusted = agree_mask(&t.f0, t.voicing_f0(), AGREE_TOL_ST);
-    let sure: Vec<bool> = conf.iter().map(|&c| c >= MIX_LEAD_SURE).collect();
+    let trusted = agree_mask(&t.f0, t.voicing_f0(), common::tuning().agree_tol_st);
+    let sure: Vec<bool> = conf
+        .iter()
+        .map(|&c| c >= common::tuning().mix_lead_sure)
+        .collect();
     let kept = |sure: &[bool], p: f32| {
         range_quantiles_kept_or_sure(
             &t.f0,
             &trusted,
             sure,
             p,
-            MIX_LEAD_HELD_HOPS,
-            HELD_TOL_ST,
+            common::tuning().mix_lead_held_hops,
+            common::tuning().held_tol_st,
             0,
-            HELD_MIN_SHARE,
-            HELD_MIN_HOPS,
+            common::tuning().held_min_share,
+            common::tuning().held_min_hops,
         )
     };
-    let range = kept(&[], FOLLOW_RANGE_QUANTILE);
+    let range = kept(&[], common::tuning().follow_range_quantile);
     let narrowed = narrow_range(
         range,
-        kept(&sure, MIX_LEAD_SURE_QUANTILE),
-        MIX_LEAD_SURE_MARGIN_ST,
-        MIX_LEAD_SURE_MARGIN_ST,
+        kept(&sure, common::tuning().mix_lead_sure_quantile),
+        common::tuning().mix_lead_sure_margin_st,
+        common::tuning().mix_lead_sure_margin_st,
     );
     let want: Vec<u8> =
         t.f0.iter()
@@ -498,16 +509,10 @@ fn engine_and_views(stem: Stem, hp_hz: f64, harmonics: &[f32]) -> (Vec<f32>, Vec
     (got, own, view)
 }
 
-/// A track's pitch over the whole of `stem` beside `view`, with the engine's register prior
-/// `register_hz` and the spectral stems' advance.
-fn track_with_view(
-    mut t: PitchTrack,
-    register_hz: (f32, f32),
-    stem: &[f32],
-    view: &[f32],
-) -> Vec<f32> {
-    t.set_register_prior(register_hz).unwrap();
-    t.set_advance_hops(tactus_engine::track::SPECTRAL_PITCH_ADVANCE_HOPS);
+/// The pitch of a track built from `recipe` over the whole of `stem` beside `view`.
+fn track_with_view(recipe: &Recipe, stem: &[f32], view: &[f32]) -> Vec<f32> {
+    let geo = common::geo(Mode::Offline, Profile::Full);
+    let mut t = PitchTrack::new(geo, recipe).unwrap();
     t.process_view(stem, view);
     t.finish();
     t.f0
@@ -528,59 +533,57 @@ fn assert_bits_eq(got: &[f32], want: &[f32]) {
     }
 }
 
-/// The spectral separator's lead through the engine (README, "The learned lead reads the
-/// harmonic sum"): the ring finger's pitch is a harmonic-view track fed by hand with the
-/// separator's vocals stem and its harmonic sum (vocals + bass + other), each through the
-/// vocals chain's 60 Hz denoiser, with the engine's register prior and advance; the same
-/// track fed the stem as its own view (what the engine did before) reports other pitches.
+/// The spectral separator's lead through the engine
+/// (`docs/decisions/0037-learned-lead-reads-the-harmonic-sum.md`): the ring finger's pitch is a track of the engine's recipe for it fed by
+/// hand with the separator's vocals stem and its harmonic sum (vocals + bass + other), each
+/// through the vocals chain's 60 Hz denoiser; the same track fed the stem as its own view
+/// reports other pitches.
 #[test]
 fn the_engines_mix_lead_reads_the_separators_harmonic_sum() {
-    use tactus_engine::track::LEAD_REGISTER_HZ;
     let (got, stem, view) = engine_and_views(Stem::Vocals, 60.0, &[1.0]);
-    let (lo, hi) = Stem::Vocals.pitch_range_hz().unwrap();
-    let geo = common::geo(Mode::Offline, Profile::Full);
-    let run = |v: &[f32]| {
-        let t = PitchTrack::new_harmonic_view(geo, lo, hi).unwrap();
-        track_with_view(t, LEAD_REGISTER_HZ, &stem, v)
-    };
-    let want = run(&view);
+    let r = recipe(
+        Role::Lead,
+        Source::Mix,
+        Profile::Full,
+        SeparatorKind::Spectral,
+        PitchMethod::Auto,
+    );
+    assert!(r.harmonic_view);
+    let want = track_with_view(&r, &stem, &view);
     assert_bits_eq(&got, &want);
-    let differ = hops_differing(&run(&stem), &want);
+    let differ = hops_differing(&track_with_view(&r, &stem, &stem), &want);
     assert!(differ >= 10, "the view changes the pitch: {differ} hops");
 }
 
-/// The spectral separator's bass through the engine (README, "The bass reads the harmonic
-/// sum"): with [`LEARNED_BASS_HARMONIC`] (the default since 2026-11-28) the thumb's pitch
-/// is a harmonic-view bass track fed by hand with the separator's bass stem and its
-/// harmonic sum, each through the bass chain's 30 Hz denoiser, with the engine's register
-/// prior and advance, bit for bit; without it, the plain learned bass track on the stem; and
-/// the two differ.
+/// The spectral separator's bass through the engine
+/// (`docs/decisions/0042-bass-reads-the-harmonic-sum.md`): the thumb's pitch is a track of the engine's recipe for it (the harmonic-view bass
+/// model) fed by hand with the separator's bass stem and its harmonic sum, each through the
+/// bass chain's 30 Hz denoiser, bit for bit; the plain learned bass model on the stem
+/// (otherwise the same recipe) differs.
 #[test]
-fn the_engines_mix_bass_reads_the_harmonic_sum_only_when_switched_on() {
-    use tactus_engine::track::{BASS_REGISTER_HZ, LEARNED_BASS_HARMONIC};
+fn the_engines_mix_bass_reads_the_harmonic_sum() {
     let (got, stem, view) = engine_and_views(Stem::Bass, 30.0, &[1.0, 0.4, 0.2]);
-    let (lo, hi) = Stem::Bass.pitch_range_hz().unwrap();
-    let geo = common::geo(Mode::Offline, Profile::Full);
-    let viewed = track_with_view(
-        PitchTrack::new_harmonic_view(geo, lo, hi).unwrap(),
-        BASS_REGISTER_HZ,
-        &stem,
-        &view,
+    let spectral = recipe(
+        Role::Bass,
+        Source::Mix,
+        Profile::Full,
+        SeparatorKind::Spectral,
+        PitchMethod::Auto,
     );
-    let plain = track_with_view(
-        PitchTrack::new(geo, lo, hi, PitchMethod::Learned, true).unwrap(),
-        BASS_REGISTER_HZ,
-        &stem,
-        &stem,
-    );
-    assert_bits_eq(
-        &got,
-        if LEARNED_BASS_HARMONIC {
-            &viewed
-        } else {
-            &plain
-        },
-    );
+    assert!(spectral.harmonic_view);
+    let viewed = track_with_view(&spectral, &stem, &view);
+    let plain = Recipe {
+        advance_hops: spectral.advance_hops,
+        ..recipe(
+            Role::Bass,
+            Source::Mix,
+            Profile::Full,
+            SeparatorKind::None,
+            PitchMethod::Learned,
+        )
+    };
+    let plain = track_with_view(&plain, &stem, &stem);
+    assert_bits_eq(&got, &viewed);
     let differ = hops_differing(&plain, &viewed);
     assert!(differ >= 5, "the view changes the bass: {differ} hops");
 }

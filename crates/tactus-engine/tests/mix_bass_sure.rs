@@ -1,21 +1,17 @@
 //! The mix's learned bass: the bottom of its level range comes from the hops the learned
-//! tracker is sure of ([`MIX_BASS_SURE`], README "The mix's bass range from sure hops, at the
-//! bottom"), through the real learned tracker on audio, against `tactus_dsp`'s range
+//! tracker is sure of (`docs/decisions/0039-mix-bass-range-bottom-from-sure-hops.md`), through the real learned tracker on audio, against `tactus_dsp`'s range
 //! functions replayed on the track's pitch and confidence. A kick-like thump in the line's
 //! gaps is tracked as a held low pitch the tracker is unsure of: the held-note range reaches
 //! it, the narrowed one stops a semitone under the line. Streaming narrows the same way once
-//! the sure hops hold a range (README, "Streaming ranges narrowed to sure hops"), and the
+//! the sure hops hold a range (`docs/decisions/0040-streaming-ranges-narrowed-to-sure-hops.md`), and the
 //! harmonic-sum bass has no confidence rule.
 
 use tactus_dsp::discretize::{
     narrow_range, range_quantiles_kept, range_quantiles_kept_or_sure, Discretizer, RangePrior,
 };
 use tactus_engine::profile::Profile;
-use tactus_engine::track::{
-    prior_span_st, PitchTrack, FOLLOW_PRIOR_FADE_HOPS, FOLLOW_RANGE_QUANTILE, HELD_MIN_HOPS,
-    HELD_MIN_SHARE, HELD_TOL_ST, MIX_BASS_HELD_HOPS, MIX_BASS_SHADOW_HOPS, MIX_BASS_SURE,
-    MIX_BASS_SURE_MARGIN_ST,
-};
+use tactus_engine::recipe::Role;
+use tactus_engine::track::PitchTrack;
 use tactus_engine::{Mode, PitchMethod};
 
 mod common;
@@ -54,7 +50,7 @@ fn line_with_thumps() -> Vec<f32> {
 fn track(method: PitchMethod, mode: Mode, x: &[f32], chunk: usize) -> PitchTrack {
     let (lo, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
     let geo = common::geo(mode, Profile::Full);
-    let mut t = PitchTrack::new(geo, lo, hi, method, true).unwrap();
+    let mut t = common::pitch_track(geo, Role::Bass, true, method, (lo, hi));
     for b in x.chunks(chunk) {
         t.process(b);
     }
@@ -81,10 +77,10 @@ fn offline_the_mix_bass_range_bottom_comes_from_its_sure_hops() {
         }
         if st(f) < 38.5 {
             low += 1;
-            low_unsure += usize::from(c < MIX_BASS_SURE);
+            low_unsure += usize::from(c < common::tuning().mix_bass_sure);
         } else {
             line += 1;
-            line_sure += usize::from(c >= MIX_BASS_SURE);
+            line_sure += usize::from(c >= common::tuning().mix_bass_sure);
         }
     }
     assert!(
@@ -95,22 +91,30 @@ fn offline_the_mix_bass_range_bottom_comes_from_its_sure_hops() {
         line_sure * 3 >= line * 2,
         "{line_sure} of {line} line hops sure"
     );
-    let sure: Vec<bool> = conf.iter().map(|&c| c >= MIX_BASS_SURE).collect();
+    let sure: Vec<bool> = conf
+        .iter()
+        .map(|&c| c >= common::tuning().mix_bass_sure)
+        .collect();
     let kept = |sure: &[bool]| {
         range_quantiles_kept_or_sure(
             &t.f0,
             &[],
             sure,
-            FOLLOW_RANGE_QUANTILE,
-            MIX_BASS_HELD_HOPS,
-            HELD_TOL_ST,
-            MIX_BASS_SHADOW_HOPS,
-            HELD_MIN_SHARE,
-            HELD_MIN_HOPS,
+            common::tuning().follow_range_quantile,
+            common::tuning().mix_bass_held_hops,
+            common::tuning().held_tol_st,
+            common::tuning().mix_bass_shadow_hops,
+            common::tuning().held_min_share,
+            common::tuning().held_min_hops,
         )
     };
     let range = kept(&[]);
-    let narrowed = narrow_range(range, kept(&sure), MIX_BASS_SURE_MARGIN_ST, f32::INFINITY);
+    let narrowed = narrow_range(
+        range,
+        kept(&sure),
+        common::tuning().mix_bass_sure_margin_st,
+        f32::INFINITY,
+    );
     assert_eq!(t.hop_levels, levels(&t.f0, narrowed));
     // The rule matters here: the held-note range reaches the thumps, the narrowed one stops
     // a semitone under E2 (MIDI 40), and the top is the line's own.
@@ -125,7 +129,6 @@ fn offline_the_mix_bass_range_bottom_comes_from_its_sure_hops() {
 fn streaming_the_bottom_is_narrowed_once_the_sure_hops_hold_and_the_harmonic_sum_keeps_the_old_rule(
 ) {
     let x = line_with_thumps();
-    let (_, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
     // Streaming: the held-note range without shadows hop by hop and the same range of the
     // sure hops (the tracker's confidence is the same offline and streaming); once the
     // latter holds, the bottom is raised to a semitone under it.
@@ -137,9 +140,9 @@ fn streaming_the_bottom_is_narrowed_once_the_sure_hops_hold_and_the_harmonic_sum
     let replay = |narrow: bool| {
         let range = || {
             common::mix_bass_held_range(
-                RangePrior::Span(prior_span_st(hi)),
-                FOLLOW_PRIOR_FADE_HOPS,
-                MIX_BASS_SHADOW_HOPS,
+                RangePrior::Span(common::tuning().bass_prior_span_st),
+                common::tuning().follow_prior_fade_hops,
+                common::tuning().mix_bass_shadow_hops,
             )
         };
         let (mut r, mut rs) = (range(), range());
@@ -148,9 +151,14 @@ fn streaming_the_bottom_is_narrowed_once_the_sure_hops_hold_and_the_harmonic_sum
             .zip(&conf)
             .map(|(&f, &c)| {
                 let a = r.update(f);
-                let b = rs.update_sure(f, false, c >= MIX_BASS_SURE);
+                let b = rs.update_sure(f, false, c >= common::tuning().mix_bass_sure);
                 let range = if narrow && rs.holds() {
-                    narrow_range(a, b, MIX_BASS_SURE_MARGIN_ST, f32::INFINITY)
+                    narrow_range(
+                        a,
+                        b,
+                        common::tuning().mix_bass_sure_margin_st,
+                        f32::INFINITY,
+                    )
                 } else {
                     a
                 };
@@ -170,12 +178,12 @@ fn streaming_the_bottom_is_narrowed_once_the_sure_hops_hold_and_the_harmonic_sum
     assert!(h.pitch_confidence().is_empty());
     let range = range_quantiles_kept(
         &h.f0,
-        FOLLOW_RANGE_QUANTILE,
-        MIX_BASS_HELD_HOPS,
-        HELD_TOL_ST,
-        MIX_BASS_SHADOW_HOPS,
-        HELD_MIN_SHARE,
-        HELD_MIN_HOPS,
+        common::tuning().follow_range_quantile,
+        common::tuning().mix_bass_held_hops,
+        common::tuning().held_tol_st,
+        common::tuning().mix_bass_shadow_hops,
+        common::tuning().held_min_share,
+        common::tuning().held_min_hops,
     );
     assert_eq!(h.hop_levels, levels(&h.f0, range));
 }

@@ -4,7 +4,7 @@
 
 use tactus_engine::notes::{NoteRole, NoteRule, NoteTrack, PitchNotes};
 use tactus_engine::profile::Profile;
-use tactus_engine::track::PitchTrack;
+use tactus_engine::recipe::Role;
 use tactus_engine::{Mode, PitchMethod};
 
 mod common;
@@ -36,8 +36,8 @@ fn plucked_line() -> (Vec<f32>, Vec<f64>) {
 /// The bass chain's pitch track and note onsets over `x` in blocks of `chunk`.
 fn onsets(mode: Mode, profile: Profile, rule: NoteRule, x: &[f32], chunk: usize) -> Vec<f64> {
     let g = geo(mode, profile);
-    let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
-    let mut n = PitchNotes::new(g, p.hop(), rule, NoteRole::default()).unwrap();
+    let mut p = common::pitch_track(g, Role::Bass, false, PitchMethod::Shs, (35.0, 400.0));
+    let mut n = PitchNotes::new(g, &p, rule, NoteRole::default()).unwrap();
     for b in x.chunks(chunk) {
         p.process(b);
         n.update(&p);
@@ -76,8 +76,8 @@ fn sung_line() -> (Vec<f32>, Vec<f64>) {
 /// The vocals chain on a clean stem (the melody tracker) and its note onsets.
 fn lead_onsets(mode: Mode, role: NoteRole, x: &[f32], chunk: usize) -> Vec<f64> {
     let g = geo(mode, Profile::Full);
-    let mut p = PitchTrack::new(g, 80.0, 1000.0, PitchMethod::Shs, false).unwrap();
-    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, role).unwrap();
+    let mut p = common::pitch_track(g, Role::Lead, false, PitchMethod::Shs, (80.0, 1000.0));
+    let mut n = PitchNotes::new(g, &p, NoteRule::Attack, role).unwrap();
     for b in x.chunks(chunk) {
         p.process(b);
         n.update(&p);
@@ -166,7 +166,7 @@ fn repeated_plucks_are_notes_offline_and_streaming_in_any_chunking() {
 #[test]
 fn the_stated_latency_of_each_rule() {
     let g = geo(Mode::Streaming, Profile::Full);
-    let p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
+    let p = common::pitch_track(g, Role::Bass, false, PitchMethod::Shs, (35.0, 400.0));
     let hop = p.hop();
     let lat = |profile, rule| {
         let plucked = NoteRole {
@@ -177,13 +177,13 @@ fn the_stated_latency_of_each_rule() {
             plucked_mix: false,
             clean_lead: true,
         };
-        let a = PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, plucked)
+        let a = PitchNotes::new(geo(Mode::Streaming, profile), &p, rule, plucked)
             .unwrap()
-            .latency_samples();
+            .own_latency_samples();
         // A clean lead's moves stay inside the attack search: the same latency.
-        let b = PitchNotes::new(geo(Mode::Streaming, profile), hop, rule, lead)
+        let b = PitchNotes::new(geo(Mode::Streaming, profile), &p, rule, lead)
             .unwrap()
-            .latency_samples();
+            .own_latency_samples();
         assert_eq!(a, b);
         a
     };
@@ -201,9 +201,10 @@ fn streaming_decides_no_onset_before_its_stated_latency() {
     // t + the pitch track's latency + the detector's has been fed.
     let (x, starts) = plucked_line();
     let g = geo(Mode::Streaming, Profile::Full);
-    let mut p = PitchTrack::new(g, 35.0, 400.0, PitchMethod::Shs, false).unwrap();
-    let mut n = PitchNotes::new(g, p.hop(), NoteRule::Attack, NoteRole::default()).unwrap();
-    let lat = p.latency_samples() + n.latency_samples();
+    let mut p = common::pitch_track(g, Role::Bass, false, PitchMethod::Shs, (35.0, 400.0));
+    let mut n = PitchNotes::new(g, &p, NoteRule::Attack, NoteRole::default()).unwrap();
+    let lat = n.latency_samples();
+    assert_eq!(lat, p.latency_samples() + n.own_latency_samples());
     let dec = p.decimation();
     let mut fed = 0usize;
     let mut seen = 0usize;

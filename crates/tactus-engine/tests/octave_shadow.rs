@@ -1,8 +1,8 @@
-//! The mix's bass level range without octave shadows ([`MIX_BASS_SHADOW_HOPS`], README "The
-//! mix's bass range without octave shadows"), through the real bass tracker on audio: a
-//! mixture's bass track places its levels in the range of its own pitch without the hops
-//! whose octave above sounds within 25 hops and outside held notes ([`MIX_BASS_HELD_HOPS`]
-//! on each side; README, "The mix's bass range from held notes") (offline and streaming,
+//! The mix's bass level range without octave shadows
+//! (`docs/decisions/0026-mix-bass-range-without-octave-shadows.md`), through the real bass
+//! tracker on audio: a mixture's bass track places its levels in the range of its own pitch
+//! without the hops whose octave above sounds within 25 hops and outside held notes (the mix
+//! bass recipe's held hops on each side; `docs/decisions/0030-mix-bass-range-from-held-notes.md`) (offline and streaming,
 //! against `tactus_dsp`'s range functions replayed on the track's pitch), the short low notes
 //! in the test line do move the range without that rule, and a clean bass stem keeps the
 //! held-note rule.
@@ -11,11 +11,8 @@ use tactus_dsp::discretize::{
     range_quantiles, range_quantiles_held, range_quantiles_kept, Discretizer, RangePrior,
 };
 use tactus_engine::profile::Profile;
-use tactus_engine::track::{
-    prior_span_st, Geometry, PitchTrack, BASS_REGISTER_HZ, CLEAN_BASS_HELD_HOPS,
-    FOLLOW_PRIOR_FADE_HOPS, FOLLOW_RANGE_QUANTILE, HELD_MIN_HOPS, HELD_MIN_SHARE, HELD_TOL_ST,
-    MIX_BASS_HELD_HOPS, MIX_BASS_SHADOW_HOPS, REGISTER_FADE_HOPS,
-};
+use tactus_engine::recipe::Role;
+use tactus_engine::track::{Geometry, PitchTrack};
 use tactus_engine::{Mode, PitchMethod};
 
 mod common;
@@ -54,9 +51,10 @@ fn line_with_low_octaves() -> Vec<f32> {
 
 fn track(mode: Mode, mixture: bool, register: bool, x: &[f32], chunk: usize) -> PitchTrack {
     let (lo, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
-    let mut t = PitchTrack::new(geo(mode), lo, hi, PitchMethod::Shs, mixture).unwrap();
+    let mut t = common::pitch_track(geo(mode), Role::Bass, mixture, PitchMethod::Shs, (lo, hi));
     if register {
-        t.set_register_prior(BASS_REGISTER_HZ).unwrap();
+        t.set_register_prior(common::tuning().bass_register_hz)
+            .unwrap();
     }
     for b in x.chunks(chunk) {
         t.process(b);
@@ -78,16 +76,16 @@ fn a_mixtures_bass_range_leaves_out_its_octave_shadows_offline() {
     );
     let kept = range_quantiles_kept(
         &t.f0,
-        FOLLOW_RANGE_QUANTILE,
-        MIX_BASS_HELD_HOPS,
-        HELD_TOL_ST,
-        MIX_BASS_SHADOW_HOPS,
-        HELD_MIN_SHARE,
-        HELD_MIN_HOPS,
+        common::tuning().follow_range_quantile,
+        common::tuning().mix_bass_held_hops,
+        common::tuning().held_tol_st,
+        common::tuning().mix_bass_shadow_hops,
+        common::tuning().held_min_share,
+        common::tuning().held_min_hops,
     );
     assert_eq!(t.hop_levels, levels(&t.f0, kept));
     // The rule matters here: the plain range reaches the E1 notes and moves the levels.
-    let plain = range_quantiles(&t.f0, FOLLOW_RANGE_QUANTILE);
+    let plain = range_quantiles(&t.f0, common::tuning().follow_range_quantile);
     assert!(
         plain.unwrap().0 < 48.0 && kept.unwrap().0 > 75.0,
         "{plain:?} {kept:?}"
@@ -97,11 +95,11 @@ fn a_mixtures_bass_range_leaves_out_its_octave_shadows_offline() {
     let c = track(Mode::Offline, false, false, &x, 4096);
     let held = range_quantiles_held(
         &c.f0,
-        FOLLOW_RANGE_QUANTILE,
-        CLEAN_BASS_HELD_HOPS,
-        HELD_TOL_ST,
-        HELD_MIN_SHARE,
-        HELD_MIN_HOPS,
+        common::tuning().follow_range_quantile,
+        common::tuning().clean_bass_held_hops,
+        common::tuning().held_tol_st,
+        common::tuning().held_min_share,
+        common::tuning().held_min_hops,
     );
     assert_eq!(c.hop_levels, levels(&c.f0, held));
 }
@@ -109,16 +107,21 @@ fn a_mixtures_bass_range_leaves_out_its_octave_shadows_offline() {
 #[test]
 fn a_mixtures_streaming_bass_range_leaves_out_its_octave_shadows_hop_by_hop() {
     let x = line_with_low_octaves();
-    let (_, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
     for register in [false, true] {
         let t = track(Mode::Streaming, true, register, &x, 4096);
         let prior = if register {
             (
-                RangePrior::Register(BASS_REGISTER_HZ.0, BASS_REGISTER_HZ.1),
-                REGISTER_FADE_HOPS,
+                RangePrior::Register(
+                    common::tuning().bass_register_hz.0,
+                    common::tuning().bass_register_hz.1,
+                ),
+                common::tuning().register_fade_hops,
             )
         } else {
-            (RangePrior::Span(prior_span_st(hi)), FOLLOW_PRIOR_FADE_HOPS)
+            (
+                RangePrior::Span(common::tuning().bass_prior_span_st),
+                common::tuning().follow_prior_fade_hops,
+            )
         };
         let oracle = |w: usize| {
             let mut r = common::mix_bass_held_range(prior.0, prior.1, w);
@@ -129,7 +132,7 @@ fn a_mixtures_streaming_bass_range_leaves_out_its_octave_shadows_hop_by_hop() {
         };
         assert_eq!(
             t.hop_levels,
-            oracle(MIX_BASS_SHADOW_HOPS),
+            oracle(common::tuning().mix_bass_shadow_hops),
             "register {register}"
         );
         assert_ne!(

@@ -1,4 +1,4 @@
-//! The live profile (issue 13): every stage's stated latency is checked by feeding an
+//! The live profile (`docs/decisions/0006-live-latency-profile.md`): every stage's stated latency is checked by feeding an
 //! impulse (a drum hit) or a step (a tone starting from silence) in small blocks, as the
 //! live driver does, and watching when [`Engine::live_frame`] first shows it; the pin
 //! pulse lasts 50 ms; live frames do not depend on how the input is cut into blocks.

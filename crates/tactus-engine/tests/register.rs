@@ -1,5 +1,5 @@
 //! The register prior of a bass or lead stem's streaming range ([`PitchTrack::set_register_prior`],
-//! README "Streaming levels from a register prior"), through the real bass tracker on audio:
+//! `docs/decisions/0022-streaming-levels-from-a-register-prior.md`), through the real bass tracker on audio:
 //! the streaming levels are the discretizer's levels of the track's own pitch within
 //! `tactus_dsp`'s register-padded held range (the oracle, hop by hop), they differ from the
 //! span prior's on a line that opens on its lowest note, they are chunk-invariant, and the
@@ -7,10 +7,8 @@
 
 use tactus_dsp::discretize::{Discretizer, HeldRange, RangePrior};
 use tactus_engine::profile::Profile;
-use tactus_engine::track::{
-    Geometry, PitchTrack, BASS_REGISTER_HZ, CLEAN_BASS_HELD_HOPS, FOLLOW_RANGE_QUANTILE,
-    HELD_MIN_HOPS, HELD_MIN_SHARE, HELD_TOL_ST, REGISTER_FADE_HOPS,
-};
+use tactus_engine::recipe::Role;
+use tactus_engine::track::{Geometry, PitchTrack};
 use tactus_engine::{Mode, PitchMethod};
 
 mod common;
@@ -47,9 +45,10 @@ fn climbing_line() -> Vec<f32> {
 /// A clean bass track over `x` in blocks of `chunk`, with the register prior or not.
 fn track(mode: Mode, register: bool, x: &[f32], chunk: usize) -> PitchTrack {
     let (lo, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
-    let mut t = PitchTrack::new(geo(mode), lo, hi, PitchMethod::Shs, false).unwrap();
+    let mut t = common::pitch_track(geo(mode), Role::Bass, false, PitchMethod::Shs, (lo, hi));
     if register {
-        t.set_register_prior(BASS_REGISTER_HZ).unwrap();
+        t.set_register_prior(common::tuning().bass_register_hz)
+            .unwrap();
     }
     for b in x.chunks(chunk) {
         t.process(b);
@@ -65,13 +64,16 @@ fn streaming_levels_are_the_register_padded_range_levels_of_the_tracks_own_pitch
     // The oracle: the track's own pitch (after gate and fences), hop by hop through the
     // register-padded held range and the discretizer.
     let mut r = HeldRange::with_prior(
-        RangePrior::Register(BASS_REGISTER_HZ.0, BASS_REGISTER_HZ.1),
-        REGISTER_FADE_HOPS,
-        FOLLOW_RANGE_QUANTILE,
-        CLEAN_BASS_HELD_HOPS,
-        HELD_TOL_ST,
-        HELD_MIN_SHARE,
-        HELD_MIN_HOPS,
+        RangePrior::Register(
+            common::tuning().bass_register_hz.0,
+            common::tuning().bass_register_hz.1,
+        ),
+        common::tuning().register_fade_hops,
+        common::tuning().follow_range_quantile,
+        common::tuning().clean_bass_held_hops,
+        common::tuning().held_tol_st,
+        common::tuning().held_min_share,
+        common::tuning().held_min_hops,
     )
     .unwrap();
     let d = Discretizer::default();
@@ -116,7 +118,13 @@ fn register_prior_streaming_is_chunk_invariant_and_offline_is_unchanged() {
     assert_eq!(a.f0, b.f0);
     // A register that is not one is refused.
     let (lo, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
-    let mut t = PitchTrack::new(geo(Mode::Streaming), lo, hi, PitchMethod::Shs, false).unwrap();
+    let mut t = common::pitch_track(
+        geo(Mode::Streaming),
+        Role::Bass,
+        false,
+        PitchMethod::Shs,
+        (lo, hi),
+    );
     assert!(t.set_register_prior((300.0, 40.0)).is_err());
     assert!(t.set_register_prior((0.0, 40.0)).is_err());
 }

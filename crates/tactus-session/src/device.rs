@@ -25,7 +25,8 @@ use tactus_transport::SinkHandle;
 
 use crate::{LiveEngine, LiveInput, LiveOptions, LiveReport, LiveStatus, SessionError};
 
-/// Capture period the live profile asks for (issue 13): 256 frames, 5.8 ms at 44.1 kHz.
+/// Capture period the live profile asks for (`docs/decisions/0006-live-latency-profile.md`):
+/// 256 frames, 5.8 ms at 44.1 kHz.
 pub const LIVE_PERIOD_FRAMES: u32 = 256;
 
 /// An open capture device, with the calling thread's scheduling settled.
@@ -42,7 +43,7 @@ impl LiveDevice {
     /// (`None`: the default input). With the live profile the device is asked for the
     /// engine's rate (no resampler) and a [`LIVE_PERIOD_FRAMES`] period.
     ///
-    /// Issue 13: on a loaded machine a normal thread waited up to 300 ms for the CPU
+    /// On a loaded machine a normal thread waited up to 300 ms for the CPU
     /// (benches/live_latency.py at load 10-16). Real-time scheduling refused (no
     /// RLIMIT_RTPRIO or CAP_SYS_NICE) is not an error: [`LiveDevice::realtime`] says why.
     pub fn open(input: Option<&str>, config: EngineConfig) -> Result<LiveDevice, SessionError> {

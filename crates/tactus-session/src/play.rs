@@ -388,8 +388,8 @@ pub fn play_song(
 /// Plays a song rendered whole first ([`tactus_engine::Mode::Offline`], whatever mode
 /// `req` asks for): the engine reads the whole song before the first frame, so every level
 /// range is the song's own from the first note (a streaming render learns it as the song
-/// goes, and its first seconds are the least accurate: README, "Offline against
-/// streaming"). The frames are then played as [`play_pattern`] plays a pattern's, on the
+/// goes, and its first seconds are the least accurate: `docs/limitations.md`, "Streaming
+/// levels need the song's range"). The frames are then played as [`play_pattern`] plays a pattern's, on the
 /// song's audio clock. `rendered(seconds)` is called once the render is done. Costs a wait
 /// before the sound starts (about 1 % of the song's duration on 2 cores) and the whole
 /// pattern in memory (about 100 KB for 3.5 minutes at 25 ms bins).

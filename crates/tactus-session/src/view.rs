@@ -1,4 +1,4 @@
-//! The terminal glove view while a session runs (`live --tui`, `play --tui`; issue 13).
+//! The terminal glove view while a session runs (`live --tui`, `play --tui`).
 //!
 //! [`with_view`] runs a session on the calling thread while a second thread redraws
 //! [`tactus_glove::tui::render`] in place every [`VIEW_EVERY`]: the dots are what the

@@ -1,4 +1,4 @@
-//! Issue 13, real-time hygiene: when the processing thread falls behind the capture ring
+//! Real-time hygiene: when the processing thread falls behind the capture ring
 //! (here: stalled for 800 ms inside its own status callback while a feeder writes the
 //! ring at wall-clock pace, as a device would), `live` with
 //! [`LiveOptions::max_backlog`] drops the oldest audio and goes on from the newest, so the

@@ -1,6 +1,6 @@
 //! Live memory is bounded: a long live session, fed at full speed through a capture ring,
 //! keeps its resident memory flat. `TACTUS_LIVE_MINUTES` sets the length (default 10; the
-//! README's figure is for 60:
+//! figure in docs/results.md is for 60:
 //! `TACTUS_LIVE_MINUTES=60 cargo test --release -p tactus-session --test live_memory -- --nocapture`).
 //! The test fails if the engine still holds more than 5,000 per-hop or per-bin values at
 //! the end, if the peak resident set exceeds 50 MB, or if it grows by more than 4 MB

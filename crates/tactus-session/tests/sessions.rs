@@ -55,8 +55,8 @@ fn capture_callback_does_not_allocate() {
     // The first block: stereo kept, in order.
     assert_eq!(left[0], f32::from(i16_stereo[0]) / 32768.0);
     assert_eq!(right[0], f32::from(i16_stereo[1]) / 32768.0);
-    // The latest block's `callback − capture` delay (issue 13: the steady state, not the
-    // first block's 3 ms).
+    // The latest block's `callback − capture` delay (the steady state, not the first
+    // block's 3 ms).
     assert_eq!(r.input_delay_ms(), 0.0);
 }
 
@@ -95,7 +95,7 @@ fn live_sends_every_frame_the_engine_makes_ready() {
     rs.process(&[&l, &r], &mut out);
     let mut eng = Engine::new(common::live_config()).unwrap();
     eng.process(&out[0], &out[1], &[]);
-    // live sends each finger group as soon as it is final (issue 13, Engine::live_frame).
+    // live sends each finger group as soon as it is final (Engine::live_frame).
     assert_eq!(report.frames, eng.live_ready_bins());
     assert!(report.frames > 400, "{report:?}");
     // Every frame and the closing all-down reached the link (or were coalesced).
