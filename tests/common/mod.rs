@@ -3,6 +3,7 @@
 
 /// Skips the calling test on a developer's machine, fails it under `CI=true`, when a
 /// stand-in (socat, PulseAudio, ONNX Runtime, a model, privilege dropping) is missing.
+#[allow(unused_imports)] // not every test binary that includes this module skips
 pub use tactus_testkit::skip;
 
 /// Runs the `tactus` binary with `args` and returns what it did (status, stdout, stderr).

@@ -377,3 +377,8 @@ pub fn finish(dir: &Path, records: &[Record]) -> std::io::Result<()> {
     let (order, earlier): (Vec<PathBuf>, HashMap<PathBuf, Record>) = manifest::read(dir);
     manifest::write_final(dir, records, &order, &earlier)
 }
+
+/// The README's Rust example, compiled as a doctest so that it stays true of the API.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+mod readme {}
