@@ -213,7 +213,7 @@ fn lead(c: &mut Criterion) {
     }
     // The spectral separator's lead as the engine runs it: the pitch
     // tracker (harmonic-view ensemble) reads a second view of the same span
-    // (`process_two`; here the melody under a quiet low pad).
+    // (the pair's side input; here the melody under a quiet low pad).
     let view: Vec<f32> = x
         .iter()
         .enumerate()
@@ -235,26 +235,28 @@ fn lead(c: &mut Criterion) {
             .with_veto();
             let mut acc = 0.0f32;
             for (ch, v) in x.chunks(4096).zip(view.chunks(4096)) {
-                t.process_two(black_box(ch), black_box(v), &mut |_, e, _| acc += e.f0_hz);
+                t.process_with(black_box(ch), Some(black_box(v)), &mut |_, e| {
+                    acc += e.f0_hz
+                });
             }
-            t.finish_both(&mut |_, e, _| acc += e.f0_hz);
+            t.finish(&mut |_, e| acc += e.f0_hz);
             acc
         })
     });
     // A lead on its own stem as the engine runs it (twelve harmonics), without and with the
-    // attack alignment of step 9 (both estimates per hop through `process_both`).
+    // attack alignment of step 9 (both estimates per hop through `Shs::with_decoded`).
     for (name, attack_db) in [("clean", 0.0f32), ("clean_aligned", 0.5)] {
         g.bench_function(name, |b| {
             b.iter(|| {
                 let mut cfg = ShsConfig::melody(LEAD_SR, 70.0, 1400.0);
                 cfg.harmonics = 12;
                 cfg.attack_rise_db = attack_db;
-                let mut t = Shs::new(cfg).unwrap();
+                let mut t = Shs::new(cfg).unwrap().with_decoded();
                 let mut acc = 0.0f32;
                 for ch in x.chunks(4096) {
-                    t.process_both(black_box(ch), &mut |_, e, d| acc += e.f0_hz + d.f0_hz);
+                    t.process(black_box(ch), &mut |_, (e, d)| acc += e.f0_hz + d.f0_hz);
                 }
-                t.finish_both(&mut |_, e, d| acc += e.f0_hz + d.f0_hz);
+                t.finish(&mut |_, (e, d)| acc += e.f0_hz + d.f0_hz);
                 acc
             })
         });

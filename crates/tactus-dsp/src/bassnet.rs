@@ -50,9 +50,10 @@
 //! harmonic sum, vocals + bass + other (the mix without the drum stem), through the same
 //! front end ([`BassNet::embedded_lead_harmonic`], [`BassNet::embedded_lead_harmonic_others`];
 //! [`crate::shs::ShsConfig::learned_harmonic`]). The pair's voicing tracker still reads the
-//! lead band ([`crate::pair::VoicingPitchPair::process_two`]). The bass has one such model
+//! lead band (the pitch tracker of a [`crate::pair::VoicingPitchPair`] reads the sum as
+//! the side input, [`crate::HopStage::process_with`]). The bass has one such model
 //! too ([`BassNet::embedded_bass_harmonic`]): its network reads the harmonic sum while the
-//! harmonic sum it is blended with still reads the bass band ([`crate::shs::Shs::process_view`]). On songs none of the models
+//! harmonic sum it is blended with still reads the bass band (the side input of [`crate::shs::Shs`]). On songs none of the models
 //! trained on, their ensemble's argmax is the lead's pitch on 0.891 / 0.731 / 0.787 of the
 //! voiced hops (chorales / instrumental leads over an unseen kit / sung) against 0.837 /
 //! 0.676 / 0.683 for the lead-band ensemble (`models/bassnet/README.md`).

@@ -44,6 +44,12 @@
 //!   They push results through a callback `emit(hop_index, value)`, so nothing allocates.
 //!   `finish(emit)` flushes the last hops as if zeros followed the input; call `reset()`
 //!   before reusing a finished stage. See [`framer::Framer`], which they all build on.
+//! * The shapes are three traits ([`stage`]): [`SampleStage`], [`HopStage`] and, above the
+//!   kernels, [`HopFilter`] (one value per hop in). A hop-domain stage that reads a second
+//!   signal of the same span (a learned tracker's harmonic view, a drum signal's backing)
+//!   takes it as the optional side input of [`HopStage::process_with`]; `process` is the
+//!   same call without one. A stage with two estimates per hop emits them as its `Out`
+//!   ([`shs::WithDecoded`], [`pair::WithVoicing`]).
 //! * Non-finite input samples never reach the arithmetic: they are replaced by 0 and
 //!   counted (see [`sanitize`]).
 //!
@@ -94,7 +100,7 @@ pub mod twoframe;
 mod viterbi;
 pub mod yin;
 
-pub use stage::HopFilter;
+pub use stage::{HopFilter, HopStage, SampleStage};
 
 /// Errors raised when a stage is constructed with impossible parameters.
 /// Processing itself never fails.
@@ -230,41 +236,4 @@ impl Band {
             Band::Cymbals => (5000.0, 12000.0),
         }
     }
-}
-
-/// A stage that maps input samples one-to-one to output samples (filters, median).
-pub trait SampleStage: Send {
-    /// Processes `input` into `output[..input.len()]`: by default, copies it and calls
-    /// [`SampleStage::process_inplace`].
-    ///
-    /// # Panics
-    /// If `output` is shorter than `input`.
-    fn process(&mut self, input: &[f32], output: &mut [f32]) {
-        let output = &mut output[..input.len()];
-        output.copy_from_slice(input);
-        self.process_inplace(output);
-    }
-    /// Processes a block in place.
-    fn process_inplace(&mut self, block: &mut [f32]);
-    /// Back to the just-constructed state.
-    fn reset(&mut self);
-    /// Group delay in samples that the stage adds (0 for IIR filters by convention).
-    fn latency_samples(&self) -> usize;
-}
-
-/// A stage that turns samples into one value per hop (YIN, pYIN, flux, RMS).
-/// See the crate docs for the hop/time convention.
-pub trait HopStage: Send {
-    /// What the stage emits per hop.
-    type Out: Copy;
-    /// Feeds a block of any length; calls `emit(hop_index, value)` in hop order.
-    fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, Self::Out));
-    /// Ends the stream: emits every remaining hop (`n.div_ceil(hop)` in all).
-    fn finish(&mut self, emit: &mut dyn FnMut(usize, Self::Out));
-    /// Back to the just-constructed state.
-    fn reset(&mut self);
-    /// How many input samples after the centre of hop `i` must arrive before hop `i` is emitted.
-    fn latency_samples(&self) -> usize;
-    /// Samples between hops.
-    fn hop(&self) -> usize;
 }

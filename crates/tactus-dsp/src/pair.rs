@@ -17,14 +17,14 @@
 //!
 //! **Veto** ([`VoicingPitchPair::with_veto`]). Where the pitch tracker is unvoiced the hop is
 //! unvoiced too, in the merged estimate and in the voicing tracker's own as emitted by
-//! [`VoicingPitchPair::process_both`]: on a mixture's lead the harmonic sum keeps a pitch
-//! through the lead's rests while the chords sound, and the learned lead salience knows a
-//! rest (`docs/decisions/0028-learned-lead-voicing-veto.md`).
+//! [`WithVoicing`]: on a mixture's lead the harmonic sum keeps a pitch through the lead's
+//! rests while the chords sound, and the learned lead salience knows a rest
+//! (`docs/decisions/0028-learned-lead-voicing-veto.md`).
 //!
-//! **Two views** ([`VoicingPitchPair::process_two`]). The pitch tracker may read another
-//! signal of the same span than the voicing tracker: on the spectral separator's lead the
-//! learned lead models read the separator's harmonic sum (vocals + bass + other), which
-//! keeps what the lead band's masks take from the voice, while the harmonic sum still
+//! **Two views** (the side input of [`HopStage::process_with`]). The pitch tracker may read
+//! another signal of the same span than the voicing tracker: on the spectral separator's
+//! lead the learned lead models read the separator's harmonic sum (vocals + bass + other),
+//! which keeps what the lead band's masks take from the voice, while the harmonic sum still
 //! decides voicing on the lead band (`docs/decisions/0037-learned-lead-reads-the-harmonic-sum.md`).
 //!
 //! # Latency
@@ -121,28 +121,23 @@ impl VoicingPitchPair {
         }
     }
 
-    /// [`HopStage::process`], emitting per hop the merged estimate and the voicing
-    /// tracker's own (for a consumer that wants both, e.g. note onsets from the voicing
-    /// tracker's pitch).
-    pub fn process_both(
-        &mut self,
-        input: &[f32],
-        emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate),
-    ) {
-        self.process_two(input, input, emit);
+    /// The pair emitting the voicing tracker's own estimate beside the merged one
+    /// ([`WithVoicing`]).
+    pub fn with_voicing(self) -> WithVoicing {
+        WithVoicing(self)
     }
 
-    /// [`VoicingPitchPair::process_both`] where the two trackers read different views of
-    /// the same span: `voicing_input` goes to the voicing tracker, `pitch_input` (as many
-    /// samples, hop for hop the same instants) to the pitch tracker (module docs, "Two
-    /// views"). With equal inputs it is [`VoicingPitchPair::process_both`]. Extra samples of
-    /// the longer input are not read.
-    pub fn process_two(
+    /// Feeds a block, emitting per hop the merged estimate and the voicing tracker's own:
+    /// `voicing_input` goes to the voicing tracker, `pitch_input` (default: the same; as
+    /// many samples, hop for hop the same instants) to the pitch tracker (module docs, "Two
+    /// views"). Extra samples of the longer input are not read.
+    fn feed(
         &mut self,
         voicing_input: &[f32],
-        pitch_input: &[f32],
+        pitch_input: Option<&[f32]>,
         emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate),
     ) {
+        let pitch_input = pitch_input.unwrap_or(voicing_input);
         let n = voicing_input.len().min(pitch_input.len());
         let step = self.voicing.hop() * BLOCK_HOPS;
         for (va, pb) in voicing_input[..n]
@@ -156,8 +151,8 @@ impl VoicingPitchPair {
         }
     }
 
-    /// [`HopStage::finish`] with both estimates ([`VoicingPitchPair::process_both`]).
-    pub fn finish_both(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate)) {
+    /// Ends the stream, emitting both estimates per hop ([`VoicingPitchPair::feed`]).
+    fn end(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate)) {
         let (a, b) = (&mut self.a, &mut self.b);
         self.voicing.finish(&mut |i, e| a.push_back((i, e)));
         self.pitch.finish(&mut |i, e| b.push_back((i, e)));
@@ -175,11 +170,22 @@ impl HopStage for VoicingPitchPair {
     type Out = PitchEstimate;
 
     fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, PitchEstimate)) {
-        self.process_both(input, &mut |i, e, _| emit(i, e));
+        self.feed(input, None, &mut |i, e, _| emit(i, e));
+    }
+
+    /// The side input is what the pitch tracker reads instead of `input` (module docs, "Two
+    /// views").
+    fn process_with(
+        &mut self,
+        input: &[f32],
+        side: Option<&[f32]>,
+        emit: &mut dyn FnMut(usize, PitchEstimate),
+    ) {
+        self.feed(input, side, &mut |i, e, _| emit(i, e));
     }
 
     fn finish(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
-        self.finish_both(&mut |i, e, _| emit(i, e));
+        self.end(&mut |i, e, _| emit(i, e));
     }
 
     fn reset(&mut self) {
@@ -197,5 +203,44 @@ impl HopStage for VoicingPitchPair {
 
     fn hop(&self) -> usize {
         self.voicing.hop()
+    }
+}
+
+/// A [`VoicingPitchPair`] that emits two estimates per hop, `(merged, voicing)`: the merged
+/// one and the voicing tracker's own (for a consumer that wants both, e.g. note onsets from
+/// the voicing tracker's pitch). The side input is the pitch tracker's, as for the pair.
+#[derive(Debug)]
+pub struct WithVoicing(VoicingPitchPair);
+
+impl HopStage for WithVoicing {
+    type Out = (PitchEstimate, PitchEstimate);
+
+    fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, Self::Out)) {
+        self.0.feed(input, None, &mut |i, e, v| emit(i, (e, v)));
+    }
+
+    fn process_with(
+        &mut self,
+        input: &[f32],
+        side: Option<&[f32]>,
+        emit: &mut dyn FnMut(usize, Self::Out),
+    ) {
+        self.0.feed(input, side, &mut |i, e, v| emit(i, (e, v)));
+    }
+
+    fn finish(&mut self, emit: &mut dyn FnMut(usize, Self::Out)) {
+        self.0.end(&mut |i, e, v| emit(i, (e, v)));
+    }
+
+    fn reset(&mut self) {
+        self.0.reset();
+    }
+
+    fn latency_samples(&self) -> usize {
+        self.0.latency_samples()
+    }
+
+    fn hop(&self) -> usize {
+        self.0.hop()
     }
 }

@@ -1,6 +1,20 @@
-//! The one shape of the per-hop stages above the kernels: [`HopFilter`].
+//! The stage shapes: [`SampleStage`], [`HopStage`] and [`HopFilter`].
 //!
-//! The kernels turn samples into one value per hop ([`crate::HopStage`]: YIN, pYIN, flux,
+//! * **Sample-domain** ([`SampleStage`]: filters, median): samples in, as many samples out.
+//! * **Hop-domain** ([`HopStage`]: YIN, pYIN, flux, RMS, the mel bank, the harmonic sum, the
+//!   drum transcriber): samples in, one value per hop out through `emit(hop_index, value)`.
+//!   A stage that reads a second signal of the same span beside its input (the harmonic
+//!   view of a learned tracker, a drum signal's backing) takes it as the side input of
+//!   [`HopStage::process_with`]; [`HopStage::process`] is the same call without one. What a
+//!   stage emits per hop is its `Out`: a stage that has two estimates per hop (a
+//!   [`crate::shs::WithDecoded`], a [`crate::pair::WithVoicing`]) emits both as a pair.
+//! * **Per-hop** ([`HopFilter`]): the stages above the kernels, one value per hop in.
+//!
+//! Every shape has `reset` and `latency_samples`; the hop-domain ones `finish` too.
+//!
+//! ## Per-hop filters
+//!
+//! The kernels turn samples into one value per hop ([`HopStage`]: YIN, pYIN, flux,
 //! RMS). What follows them works on those per-hop values: the gate
 //! ([`StreamingGate`](crate::rms::StreamingGate)), the Tukey fences
 //! ([`SlidingTukey`](crate::tukey::SlidingTukey)), the ranges
@@ -14,6 +28,58 @@
 //! The per-hop filters are causal and emit one value per hop at once (latency 0); a binner
 //! emits a bin when its last hop arrives, so the first hop of a bin waits for the others:
 //! `(⌈bin / hop⌉ − 1) · hop` samples at most.
+
+/// A stage that maps input samples one-to-one to output samples (filters, median).
+pub trait SampleStage: Send {
+    /// Processes `input` into `output[..input.len()]`: by default, copies it and calls
+    /// [`SampleStage::process_inplace`].
+    ///
+    /// # Panics
+    /// If `output` is shorter than `input`.
+    fn process(&mut self, input: &[f32], output: &mut [f32]) {
+        let output = &mut output[..input.len()];
+        output.copy_from_slice(input);
+        self.process_inplace(output);
+    }
+    /// Processes a block in place.
+    fn process_inplace(&mut self, block: &mut [f32]);
+    /// Back to the just-constructed state.
+    fn reset(&mut self);
+    /// Group delay in samples that the stage adds (0 for IIR filters by convention).
+    fn latency_samples(&self) -> usize;
+}
+
+/// A stage that turns samples into one value per hop (YIN, pYIN, flux, RMS).
+/// See the crate docs for the hop/time convention.
+pub trait HopStage: Send {
+    /// What the stage emits per hop.
+    type Out: Copy;
+    /// Feeds a block of any length; calls `emit(hop_index, value)` in hop order.
+    fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, Self::Out));
+    /// [`HopStage::process`] with a side input: another signal of the same span as `input`
+    /// (as many samples, hop for hop the same instants) that the stage reads beside it,
+    /// e.g. the harmonic view of a learned tracker or the backing of a drum signal. With
+    /// `None` it is [`HopStage::process`]. A stage that reads no side input ignores it (the
+    /// default); one that does reads at most `input.len()` samples of it. Feed a stream
+    /// either always with a side input or never.
+    fn process_with(
+        &mut self,
+        input: &[f32],
+        side: Option<&[f32]>,
+        emit: &mut dyn FnMut(usize, Self::Out),
+    ) {
+        let _ = side;
+        self.process(input, emit);
+    }
+    /// Ends the stream: emits every remaining hop (`n.div_ceil(hop)` in all).
+    fn finish(&mut self, emit: &mut dyn FnMut(usize, Self::Out));
+    /// Back to the just-constructed state.
+    fn reset(&mut self);
+    /// How many input samples after the centre of hop `i` must arrive before hop `i` is emitted.
+    fn latency_samples(&self) -> usize;
+    /// Samples between hops.
+    fn hop(&self) -> usize;
+}
 
 /// A per-hop stage above the kernels. See the module docs.
 pub trait HopFilter {

@@ -9,7 +9,7 @@
 mod common;
 
 use tactus_dsp::bassnet::{BassFront, BassNet, BANDS, BINS_PER_SEMITONE, LOW_HZ, RANGE_DB};
-use tactus_dsp::shs::{Shs, ShsConfig};
+use tactus_dsp::shs::{Shs, ShsConfig, WithDecoded};
 use tactus_dsp::HopStage;
 use tactus_testkit::Rng;
 
@@ -778,50 +778,71 @@ fn bass_and_view() -> (Vec<f32>, Vec<f32>) {
 
 type Out = Vec<(usize, u32, u32)>;
 
-fn run_view(s: &mut Shs, x: &[f32], v: &[f32], chunk: usize) -> Out {
+fn run_view(s: &mut WithDecoded, x: &[f32], v: &[f32], chunk: usize) -> Out {
     let mut out = Vec::new();
     for (a, b) in x.chunks(chunk).zip(v.chunks(chunk)) {
-        s.process_view(a, b, &mut |i, e, d| {
+        s.process_with(a, Some(b), &mut |i, (e, d)| {
             out.push((i, e.f0_hz.to_bits(), d.f0_hz.to_bits()))
         });
     }
-    s.finish_view(&mut |i, e, d| out.push((i, e.f0_hz.to_bits(), d.f0_hz.to_bits())));
+    s.finish(&mut |i, (e, d)| out.push((i, e.f0_hz.to_bits(), d.f0_hz.to_bits())));
     out
 }
 
 #[test]
 fn the_bass_view_feeds_the_network_and_the_harmonic_sum_keeps_the_stem() {
     // The learned bass tracker as the engine runs it (blended with the harmonic sum):
-    // `process_view(x, x)` is `process_both(x)` bit for bit; another view changes the
+    // `process_with(x, Some(x))` is `process(x)` bit for bit; another view changes the
     // output; any chunking gives the same; the harmonic-view model is the one read with
     // the flag; a warm tracker does not allocate.
     let (x, v) = bass_and_view();
     let mut c = cfg();
     c.learned_blend = 1.0;
     let plain: Out = {
-        let mut s = Shs::new(c.clone()).unwrap();
+        let mut s = Shs::new(c.clone()).unwrap().with_decoded();
         let mut out = Vec::new();
         for b in x.chunks(4096) {
-            s.process_both(b, &mut |i, e, d| {
+            s.process(b, &mut |i, (e, d)| {
                 out.push((i, e.f0_hz.to_bits(), d.f0_hz.to_bits()))
             });
         }
-        s.finish_both(&mut |i, e, d| out.push((i, e.f0_hz.to_bits(), d.f0_hz.to_bits())));
+        s.finish(&mut |i, (e, d)| out.push((i, e.f0_hz.to_bits(), d.f0_hz.to_bits())));
         out
     };
     assert_eq!(
-        run_view(&mut Shs::new(c.clone()).unwrap(), &x, &x, 4096),
+        run_view(
+            &mut Shs::new(c.clone()).unwrap().with_decoded(),
+            &x,
+            &x,
+            4096
+        ),
         plain
     );
-    let viewed = run_view(&mut Shs::new(c.clone()).unwrap(), &x, &v, 4096);
+    let viewed = run_view(
+        &mut Shs::new(c.clone()).unwrap().with_decoded(),
+        &x,
+        &v,
+        4096,
+    );
     assert_eq!(viewed.len(), plain.len());
+    // The tracker alone, fed the same view, reports the same estimates (its tail too).
+    let mut alone = Shs::new(c.clone()).unwrap();
+    let mut reported = Vec::new();
+    for (a, b) in x.chunks(4096).zip(v.chunks(4096)) {
+        alone.process_with(a, Some(b), &mut |i, e| {
+            reported.push((i, e.f0_hz.to_bits()))
+        });
+    }
+    alone.finish(&mut |i, e| reported.push((i, e.f0_hz.to_bits())));
+    let want: Vec<_> = viewed.iter().map(|&(i, e, _)| (i, e)).collect();
+    assert_eq!(reported, want);
     let differ = viewed.iter().zip(&plain).filter(|(a, b)| a != b).count();
     assert!(
         differ > 5,
         "the view reaches the network: {differ} hops differ"
     );
     for chunk in [1usize, 49, 333, x.len()] {
-        let mut s = Shs::new(c.clone()).unwrap();
+        let mut s = Shs::new(c.clone()).unwrap().with_decoded();
         assert_eq!(run_view(&mut s, &x, &v, chunk), viewed, "chunk {chunk}");
         s.reset();
         assert_eq!(
@@ -832,7 +853,12 @@ fn the_bass_view_feeds_the_network_and_the_harmonic_sum_keeps_the_stem() {
     }
     let mut h = c.clone();
     h.learned_harmonic = true;
-    let harm = run_view(&mut Shs::new(h.clone()).unwrap(), &x, &v, 4096);
+    let harm = run_view(
+        &mut Shs::new(h.clone()).unwrap().with_decoded(),
+        &x,
+        &v,
+        4096,
+    );
     let moved = harm.iter().zip(&viewed).filter(|(a, b)| a != b).count();
     assert!(
         moved > 5,
@@ -840,10 +866,10 @@ fn the_bass_view_feeds_the_network_and_the_harmonic_sum_keeps_the_stem() {
     );
     let mut s = Shs::new(h).unwrap();
     let cut = x.len() / 3;
-    s.process_view(&x[..cut], &v[..cut], &mut |_, _, _| {});
+    s.process_with(&x[..cut], Some(&v[..cut]), &mut |_, _| {});
     let allocs = tactus_testkit::allocations_during(|| {
         for (a, b) in x[cut..].chunks(512).zip(v[cut..].chunks(512)) {
-            s.process_view(a, b, &mut |_, _, _| {});
+            s.process_with(a, Some(b), &mut |_, _| {});
         }
     });
     assert_eq!(allocs, 0);

@@ -1123,11 +1123,11 @@ fn no_allocation_while_processing() {
         .map(|i| 0.3 * (i as f32 * 0.02).sin())
         .collect();
     let mut t = DrumTranscriber::with_model(SR, random_backing_model()).unwrap();
-    t.process_with_backing(&x[..4096], &back[..4096], &mut |_, _| {});
+    t.process_with(&x[..4096], Some(&back[..4096]), &mut |_, _| {});
     let before = allocs();
     let mut n = 0;
     for (c, b) in x[4096..].chunks(16_384).zip(back[4096..].chunks(16_384)) {
-        t.process_with_backing(c, b, &mut |_, _| n += 1);
+        t.process_with(c, Some(b), &mut |_, _| n += 1);
     }
     t.finish(&mut |_, _| n += 1);
     assert_eq!(
@@ -1143,7 +1143,7 @@ fn transcribe_backing(model: &DrumModel, x: &[f32], back: &[f32], chunk: usize) 
     assert!(t.wants_backing());
     let mut out = Vec::new();
     for (c, b) in x.chunks(chunk.max(1)).zip(back.chunks(chunk.max(1))) {
-        t.process_with_backing(c, b, &mut |i, f| {
+        t.process_with(c, Some(b), &mut |i, f| {
             assert_eq!(i, out.len());
             out.push(f)
         });
@@ -1263,10 +1263,10 @@ fn backing_view_matches_an_offline_oracle_for_any_chunking() {
     assert_eq!(transcribe_backing(&m, &x, &zeros, 3000), without);
     // Reset reproduces.
     let mut t = DrumTranscriber::with_model(SR, m.clone()).unwrap();
-    t.process_with_backing(&x[..9_000], &back[..9_000], &mut |_, _| {});
+    t.process_with(&x[..9_000], Some(&back[..9_000]), &mut |_, _| {});
     t.reset();
     let mut again = Vec::new();
-    t.process_with_backing(&x, &back, &mut |_, f| again.push(f));
+    t.process_with(&x, Some(&back), &mut |_, f| again.push(f));
     t.finish(&mut |_, f| again.push(f));
     assert_eq!(again, whole);
 }

@@ -208,12 +208,13 @@ fn with_a_veto_the_pitch_trackers_rests_unvoice_both_estimates() {
     for chunk in [1usize, 80, x.len()] {
         let mut pair = VoicingPitchPair::new(Box::new(shs()), Box::new(yin()))
             .unwrap()
-            .with_veto();
+            .with_veto()
+            .with_voicing();
         let mut got = Vec::new();
         for b in x.chunks(chunk) {
-            pair.process_both(b, &mut |i, e, n| got.push((i, e, n)));
+            pair.process(b, &mut |i, (e, n)| got.push((i, e, n)));
         }
-        pair.finish_both(&mut |i, e, n| got.push((i, e, n)));
+        pair.finish(&mut |i, (e, n)| got.push((i, e, n)));
         assert_both_eq(&got, &want, chunk);
     }
 }
@@ -258,9 +259,9 @@ fn other_view() -> Vec<f32> {
 
 #[test]
 fn two_views_the_voicing_tracker_reads_one_the_pitch_tracker_the_other() {
-    // `process_two(a, b)`: the voicing tracker run on `a` alone and the pitch tracker on
-    // `b` alone, merged (with the veto) by the rule written out above, for any chunking;
-    // `process_two(a, a)` is `process_both(a)` bit for bit.
+    // `process_with(a, Some(b))`: the voicing tracker run on `a` alone and the pitch
+    // tracker on `b` alone, merged (with the veto) by the rule written out above, for any
+    // chunking; `process_with(a, Some(a))` is `process(a)` bit for bit.
     let (a, b) = (melody(), other_view());
     assert_eq!(a.len(), b.len());
     let v = run(&mut shs(), &a, a.len());
@@ -281,26 +282,29 @@ fn two_views_the_voicing_tracker_reads_one_the_pitch_tracker_the_other() {
     for chunk in [1usize, 7, 80, 1000, a.len()] {
         let mut pair = VoicingPitchPair::new(Box::new(shs()), Box::new(yin()))
             .unwrap()
-            .with_veto();
+            .with_veto()
+            .with_voicing();
         let mut got = Vec::new();
         for (x, y) in a.chunks(chunk).zip(b.chunks(chunk)) {
-            pair.process_two(x, y, &mut |i, e, n| got.push((i, e, n)));
+            pair.process_with(x, Some(y), &mut |i, (e, n)| got.push((i, e, n)));
         }
-        pair.finish_both(&mut |i, e, n| got.push((i, e, n)));
+        pair.finish(&mut |i, (e, n)| got.push((i, e, n)));
         assert_both_eq(&got, &want, chunk);
         // One view for both is the plain pair.
         let mut one = VoicingPitchPair::new(Box::new(shs()), Box::new(yin()))
             .unwrap()
-            .with_veto();
+            .with_veto()
+            .with_voicing();
         let mut two = VoicingPitchPair::new(Box::new(shs()), Box::new(yin()))
             .unwrap()
-            .with_veto();
+            .with_veto()
+            .with_voicing();
         let (mut x1, mut x2) = (Vec::new(), Vec::new());
         for c in a.chunks(chunk) {
-            one.process_both(c, &mut |i, e, n| {
+            one.process(c, &mut |i, (e, n)| {
                 x1.push((i, e.f0_hz.to_bits(), n.f0_hz.to_bits()))
             });
-            two.process_two(c, c, &mut |i, e, n| {
+            two.process_with(c, Some(c), &mut |i, (e, n)| {
                 x2.push((i, e.f0_hz.to_bits(), n.f0_hz.to_bits()))
             });
         }

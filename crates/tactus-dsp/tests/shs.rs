@@ -1111,16 +1111,17 @@ fn raw_pitch_accuracy(est: &[PitchEstimate], truth: &[f64], hop: usize) -> f64 {
 }
 
 /// Runs `s` over `x` in blocks of `chunk` samples with both estimates per hop.
-fn run_both(s: &mut Shs, x: &[f32], chunk: usize) -> (Vec<PitchEstimate>, Vec<PitchEstimate>) {
+fn run_both(s: Shs, x: &[f32], chunk: usize) -> (Vec<PitchEstimate>, Vec<PitchEstimate>) {
+    let mut s = s.with_decoded();
     let (mut rep, mut dec) = (Vec::new(), Vec::new());
     for b in x.chunks(chunk.max(1)) {
-        s.process_both(b, &mut |i, r, d| {
+        s.process(b, &mut |i, (r, d)| {
             assert_eq!(i, rep.len());
             rep.push(r);
             dec.push(d);
         });
     }
-    s.finish_both(&mut |i, r, d| {
+    s.finish(&mut |i, (r, d)| {
         assert_eq!(i, rep.len());
         rep.push(r);
         dec.push(d);
@@ -1177,7 +1178,7 @@ fn attack_alignment_matches_a_slow_fixed_lag_oracle() {
         c.lag_hops = lag;
         let (want_rep, want_dec) = naive_attack_align(&c, &x);
         for chunk in [x.len(), 777, 98] {
-            let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, chunk);
+            let (rep, dec) = run_both(Shs::new(c.clone()).unwrap(), &x, chunk);
             let what = format!("lag {lag}, chunk {chunk}, ");
             assert_states(&c, &rep, &want_rep, &format!("{what}reported: "));
             assert_states(&c, &dec, &want_dec, &format!("{what}decoded: "));
@@ -1186,7 +1187,7 @@ fn attack_alignment_matches_a_slow_fixed_lag_oracle() {
         let mut off = c.clone();
         off.attack_rise_db = 0.0;
         let plain = common::run(&mut Shs::new(off).unwrap(), &x, &[x.len()]);
-        let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, x.len());
+        let (rep, dec) = run_both(Shs::new(c.clone()).unwrap(), &x, x.len());
         assert_eq!(plain, dec, "lag {lag}: the decoding changed");
         let n = want_rep
             .iter()
@@ -1223,7 +1224,7 @@ fn attack_alignment_finds_a_slow_attack_sooner_and_leaves_level_changes_alone() 
     let hop = c.hop;
     let rpa = |est: &[PitchEstimate]| raw_pitch_accuracy(est, &truth, hop);
     c.attack_rise_db = 0.5; // the engine's clean lead
-    let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, 4096);
+    let (rep, dec) = run_both(Shs::new(c.clone()).unwrap(), &x, 4096);
     let (a, d) = (rpa(&rep), rpa(&dec));
     eprintln!("RPA aligned {a:.4}, decoded {d:.4}");
     assert!(a >= d + 0.05, "aligned RPA {a} against decoded {d}");
@@ -1238,10 +1239,10 @@ fn attack_alignment_finds_a_slow_attack_sooner_and_leaves_level_changes_alone() 
                 .map(|v| 0.3 * v)
         })
         .collect();
-    let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &flat, 4096);
+    let (rep, dec) = run_both(Shs::new(c.clone()).unwrap(), &flat, 4096);
     let moved = rep.iter().zip(&dec).filter(|(r, d)| r != d).count();
     let moved_slow = {
-        let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, 4096);
+        let (rep, dec) = run_both(Shs::new(c.clone()).unwrap(), &x, 4096);
         rep.iter().zip(&dec).filter(|(r, d)| r != d).count()
     };
     eprintln!("moved: slow attacks {moved_slow}, level changes {moved}");
@@ -1277,15 +1278,15 @@ fn attack_alignment_follows_the_new_notes_salience_through_a_cross_fade() {
     let moved = |rep: &[PitchEstimate], dec: &[PitchEstimate]| {
         rep.iter().zip(dec).filter(|(r, d)| r != d).count()
     };
-    let (lrep, ldec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, x.len());
+    let (lrep, ldec) = run_both(Shs::new(c.clone()).unwrap(), &x, x.len());
     c.attack_salience_ratio = 0.3;
     let (want_rep, want_dec) = naive_attack_align(&c, &x);
     for chunk in [x.len(), 777, 98] {
-        let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, chunk);
+        let (rep, dec) = run_both(Shs::new(c.clone()).unwrap(), &x, chunk);
         assert_states(&c, &rep, &want_rep, &format!("chunk {chunk}, reported: "));
         assert_states(&c, &dec, &want_dec, &format!("chunk {chunk}, decoded: "));
     }
-    let (rep, dec) = run_both(&mut Shs::new(c.clone()).unwrap(), &x, x.len());
+    let (rep, dec) = run_both(Shs::new(c.clone()).unwrap(), &x, x.len());
     assert_eq!(
         dec, ldec,
         "the decoding is the same with or without the ratio"

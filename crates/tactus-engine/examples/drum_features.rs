@@ -75,7 +75,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let mut back = backing(&d.left, &d.right, sr)?;
             Denoise::new(30.0, sr)?.process_inplace(&mut back);
             for (c, b) in x.chunks(88_200).zip(back.chunks(88_200)) {
-                t.process_with_backing(c, b, &mut |_, f| rows.extend_from_slice(&f.activation));
+                t.process_with(c, Some(b), &mut |_, f| {
+                    rows.extend_from_slice(&f.activation)
+                });
             }
         } else {
             for c in x.chunks(88_200) {

@@ -157,10 +157,7 @@ impl Detector {
         emit: &mut dyn FnMut(usize, DrumFrame),
     ) {
         match self {
-            Detector::Embedded(d) => match backing {
-                Some(b) => d.process_with_backing(block, b, emit),
-                None => d.process(block, emit),
-            },
+            Detector::Embedded(d) => d.process_with(block, backing, emit),
             #[cfg(feature = "onnx")]
             Detector::AdtLib(a) => {
                 let _ = backing;

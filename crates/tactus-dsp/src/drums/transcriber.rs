@@ -206,37 +206,21 @@ impl DrumTranscriber {
         &self.core.model
     }
 
-    /// Whether the model reads a backing beside the drum signal
-    /// ([`DrumTranscriber::process_with_backing`]).
+    /// Whether the model reads a backing beside the drum signal (the side input of
+    /// [`HopStage::process_with`]).
     pub fn wants_backing(&self) -> bool {
         self.core.model.backing.is_some()
     }
 
-    /// Feeds a block; calls `emit(hop, frame)` for every decided hop, in order. A model with
-    /// the backing view sees silence as the backing (a supplied, clean drum stem).
-    pub fn process_frames(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
+    /// Feeds a block of the drum signal alone. A model with the backing view sees silence
+    /// as the backing (a supplied, clean drum stem).
+    fn feed(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
         if self.core.model.short {
             return self.feed_both(input, input, emit);
         }
         let core = &mut self.core;
         self.mel
             .process_bands(input, &mut |_, bands| core.push_frame(bands, None, emit));
-    }
-
-    /// Feeds a block of the drum signal and the same span of its backing (the separator's
-    /// other stems, summed); `backing` must be as long as `input`. A model without the
-    /// backing view ignores it. A stream is fed either always with a backing or never.
-    pub fn process_with_backing(
-        &mut self,
-        input: &[f32],
-        backing: &[f32],
-        emit: &mut dyn FnMut(usize, DrumFrame),
-    ) {
-        if self.core.model.backing.is_none() {
-            return self.process_frames(input, emit);
-        }
-        debug_assert_eq!(input.len(), backing.len());
-        self.feed_both(input, backing, emit);
     }
 
     /// Feeds the drum signal to the main front end and `second` (the backing, or the drum
@@ -261,7 +245,7 @@ impl DrumTranscriber {
 
     /// Ends the stream: emits every remaining hop (`n.div_ceil(hop)` in all), holding the
     /// last mel frame for the look-ahead frames past the end.
-    pub fn finish_frames(&mut self, emit: &mut dyn FnMut(usize, DrumFrame)) {
+    fn end(&mut self, emit: &mut dyn FnMut(usize, DrumFrame)) {
         let n = self.core.model.bands;
         let (queue, core) = (&mut self.second_queue, &mut self.core);
         if let Some(second_mel) = self.second_mel.as_mut() {
@@ -296,12 +280,30 @@ impl DrumTranscriber {
 impl HopStage for DrumTranscriber {
     type Out = DrumFrame;
 
+    /// Calls `emit(hop, frame)` for every decided hop, in order.
     fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, DrumFrame)) {
-        self.process_frames(input, emit);
+        self.feed(input, emit);
+    }
+
+    /// The side input is the backing: the same span of the separator's other stems, summed,
+    /// as long as `input`. A model without the backing view ignores it.
+    fn process_with(
+        &mut self,
+        input: &[f32],
+        side: Option<&[f32]>,
+        emit: &mut dyn FnMut(usize, DrumFrame),
+    ) {
+        match side {
+            Some(backing) if self.core.model.backing.is_some() => {
+                debug_assert_eq!(input.len(), backing.len());
+                self.feed_both(input, backing, emit);
+            }
+            _ => self.feed(input, emit),
+        }
     }
 
     fn finish(&mut self, emit: &mut dyn FnMut(usize, DrumFrame)) {
-        self.finish_frames(emit);
+        self.end(emit);
     }
 
     fn reset(&mut self) {

@@ -97,16 +97,17 @@ pub struct ShsConfig {
     /// separator's harmonic sum (vocals + bass + other). On the lead's grid
     /// [`BassNet::embedded_lead_harmonic`] (with [`ShsConfig::learned_ensemble`] also
     /// [`BassNet::embedded_lead_harmonic_others`]), and the tracker must be fed that sum
-    /// ([`crate::pair::VoicingPitchPair::process_two`]); on the bass grid
-    /// [`BassNet::embedded_bass_harmonic`], whose network reads the sum given as the view of
-    /// [`Shs::process_view`] ([`crate::bassnet`] module docs, "The harmonic view"). Off by
-    /// default.
+    /// (the side input of a [`crate::pair::VoicingPitchPair`]); on the bass grid
+    /// [`BassNet::embedded_bass_harmonic`], whose network reads the sum given as the side
+    /// input of [`Shs`] ([`HopStage::process_with`]; [`crate::bassnet`] module docs, "The
+    /// harmonic view"). Off by default.
     ///
     /// [`BassNet::embedded_lead_harmonic`]: crate::bassnet::BassNet::embedded_lead_harmonic
     /// [`BassNet::embedded_lead_harmonic_others`]:
     ///     crate::bassnet::BassNet::embedded_lead_harmonic_others
     /// [`BassNet::embedded_bass_harmonic`]: crate::bassnet::BassNet::embedded_bass_harmonic
-    /// [`Shs::process_view`]: super::Shs::process_view
+    /// [`Shs`]: super::Shs
+    /// [`HopStage::process_with`]: crate::HopStage::process_with
     pub learned_harmonic: bool,
     /// Attack alignment of a clean lead's note changes (module docs, step 9): a decided
     /// voiced hop reports the note the provisional path jumps to within the lag when the

@@ -81,7 +81,7 @@
 //!    bin of `B`) at least r times `A`'s at `h`, and it grows towards the jump, falling by no
 //!    more than [`ATTACK_SALIENCE_TOL`] from one hop to the next; the band level's fall then
 //!    does not end the search. The decoded state still drives everything else (contour voicing,
-//!    register, the Viterbi), and [`Shs::process_both`] gives both. No latency is added: only
+//!    register, the Viterbi), and [`WithDecoded`] gives both. No latency is added: only
 //!    the lag is read. Off by default; the engine turns it on (0.5 dB, r = 0.3) for a lead that
 //!    comes as its own stem.
 //!
@@ -144,7 +144,7 @@ mod tracker;
 
 pub use attack::{ATTACK_HOLD_HOPS, ATTACK_SALIENCE_TOL};
 pub use config::ShsConfig;
-pub use stage::Shs;
+pub use stage::{Shs, WithDecoded};
 pub use tracker::CONFIDENCE_BINS;
 
 /// Floor for probabilities before the logarithm.

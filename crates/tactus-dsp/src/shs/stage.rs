@@ -1,5 +1,6 @@
-//! The stage ([`Shs`]): the framer (and a second one for the learned salience's view) in
-//! front of the tracker, and the [`HopStage`] shape.
+//! The stage ([`Shs`]): the framer (and a second one for the learned salience's view, the
+//! side input of [`HopStage::process_with`]) in front of the tracker, and the [`HopStage`]
+//! shape; [`WithDecoded`] emits the decoded estimate beside the reported one.
 
 use super::config::ShsConfig;
 use super::tracker::Tracker;
@@ -13,11 +14,11 @@ pub struct Shs {
     cfg: ShsConfig,
     framer: Framer,
     tracker: Tracker,
-    /// The view's framer and its frames, for [`Shs::process_view`] (a learned tracker only).
+    /// The view's framer and its frames, for the side input (a learned tracker only).
     view: Option<ViewFrames>,
 }
 
-/// The second stream of [`Shs::process_view`]: its framer, in step with the input's, and
+/// The side input of [`HopStage::process_with`]: its framer, in step with the input's, and
 /// room for the frames it emits in one step (at most one per hop of input, or the tail at
 /// the end).
 #[derive(Debug)]
@@ -28,6 +29,8 @@ struct ViewFrames {
     buf: Vec<f32>,
     n: usize,
     next: usize,
+    /// Whether this stream is fed with a side input (its tail then ends the stream too).
+    fed: bool,
 }
 
 impl ViewFrames {
@@ -54,6 +57,7 @@ impl Shs {
                 buf: vec![0.0; tail * cfg.frame],
                 n: 0,
                 next: 0,
+                fed: false,
             })
         } else {
             None
@@ -66,22 +70,26 @@ impl Shs {
         })
     }
 
-    /// [`Shs::process_both`] where the learned salience reads `view`, another signal of the
-    /// same span (as many samples, hop for hop the same instants), and the harmonic sum
-    /// still reads `input`: the bass of a mix whose network was trained on the separator's
-    /// harmonic sum ([`ShsConfig::learned_harmonic`]). With `view == input` it is
-    /// [`Shs::process_both`] bit for bit. A tracker without the learned salience ignores
-    /// `view`. Extra samples of the longer input are not read.
-    pub fn process_view(
+    /// Feeds a block, emitting per hop the reported and the decoded estimate. With a side
+    /// input `view` (another signal of the same span: as many samples, hop for hop the same
+    /// instants) the learned salience reads it and the harmonic sum still reads `input`: the
+    /// bass of a mix whose network was trained on the separator's harmonic sum
+    /// ([`ShsConfig::learned_harmonic`]). With `view == input` it is the call without a
+    /// view, bit for bit. A tracker without the learned salience ignores `view`. Extra
+    /// samples of the longer input are not read.
+    fn feed(
         &mut self,
         input: &[f32],
-        view: &[f32],
+        view: Option<&[f32]>,
         emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate),
     ) {
-        let Some(vs) = self.view.as_mut() else {
-            self.process_both(input, emit);
+        let (Some(view), Some(vs)) = (view, self.view.as_mut()) else {
+            let tracker = &mut self.tracker;
+            self.framer.push(input, |_, fr| tracker.on_frame(fr, emit));
+            self.tracker.flush_batch(emit);
             return;
         };
+        vs.fed = true;
         let n = input.len().min(view.len());
         let hop = self.cfg.hop.max(1);
         let tracker = &mut self.tracker;
@@ -103,10 +111,14 @@ impl Shs {
         self.tracker.flush_batch(emit);
     }
 
-    /// [`Shs::finish_both`] after [`Shs::process_view`]: the tails of both streams.
-    pub fn finish_view(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate)) {
-        let Some(vs) = self.view.as_mut() else {
-            self.finish_both(emit);
+    /// Ends the stream, emitting both estimates per hop ([`Shs::feed`]): the tails of the
+    /// input and, for a stream fed with a side input, of the view.
+    fn end(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate)) {
+        let Some(vs) = self.view.as_mut().filter(|vs| vs.fed) else {
+            let tracker = &mut self.tracker;
+            self.framer.finish(|_, fr| tracker.on_frame(fr, emit));
+            self.tracker.drain_net(emit);
+            self.tracker.flush(emit);
             return;
         };
         vs.n = 0;
@@ -137,25 +149,9 @@ impl Shs {
         self.tracker.m
     }
 
-    /// [`HopStage::process`] with two estimates per hop: the reported one (after the attack
-    /// alignment of step 9) and the decoded one (the Viterbi's decision, before it); the
-    /// two differ only where [`ShsConfig::attack_rise_db`] moved a note change.
-    pub fn process_both(
-        &mut self,
-        input: &[f32],
-        emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate),
-    ) {
-        let tracker = &mut self.tracker;
-        self.framer.push(input, |_, fr| tracker.on_frame(fr, emit));
-        self.tracker.flush_batch(emit);
-    }
-
-    /// [`HopStage::finish`] with both estimates ([`Shs::process_both`]).
-    pub fn finish_both(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate, PitchEstimate)) {
-        let tracker = &mut self.tracker;
-        self.framer.finish(|_, fr| tracker.on_frame(fr, emit));
-        self.tracker.drain_net(emit);
-        self.tracker.flush(emit);
+    /// The tracker emitting the decoded estimate beside the reported one ([`WithDecoded`]).
+    pub fn with_decoded(self) -> WithDecoded {
+        WithDecoded(self)
     }
 
     /// Salience of one frame (`cfg.frame` samples) per candidate, and its voicing evidence,
@@ -174,11 +170,22 @@ impl HopStage for Shs {
     type Out = PitchEstimate;
 
     fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, PitchEstimate)) {
-        self.process_both(input, &mut |h, e, _| emit(h, e));
+        self.feed(input, None, &mut |h, e, _| emit(h, e));
+    }
+
+    /// The side input is the view that the learned salience reads; the harmonic sum still
+    /// reads `input` ([`ShsConfig::learned_harmonic`]).
+    fn process_with(
+        &mut self,
+        input: &[f32],
+        side: Option<&[f32]>,
+        emit: &mut dyn FnMut(usize, PitchEstimate),
+    ) {
+        self.feed(input, side, &mut |h, e, _| emit(h, e));
     }
 
     fn finish(&mut self, emit: &mut dyn FnMut(usize, PitchEstimate)) {
-        self.finish_both(&mut |h, e, _| emit(h, e));
+        self.end(&mut |h, e, _| emit(h, e));
     }
 
     fn reset(&mut self) {
@@ -187,6 +194,7 @@ impl HopStage for Shs {
             v.framer.reset();
             v.n = 0;
             v.next = 0;
+            v.fed = false;
         }
         self.tracker.reset();
     }
@@ -198,5 +206,52 @@ impl HopStage for Shs {
 
     fn hop(&self) -> usize {
         self.cfg.hop
+    }
+}
+
+/// An [`Shs`] that emits two estimates per hop, `(reported, decoded)`: the reported one
+/// (after the attack alignment of step 9) and the decoded one (the Viterbi's decision,
+/// before it); the two differ only where [`ShsConfig::attack_rise_db`] moved a note change.
+/// The side input is the view, as for [`Shs`].
+#[derive(Debug)]
+pub struct WithDecoded(Shs);
+
+impl WithDecoded {
+    /// The tracker inside.
+    pub fn shs(&self) -> &Shs {
+        &self.0
+    }
+}
+
+impl HopStage for WithDecoded {
+    type Out = (PitchEstimate, PitchEstimate);
+
+    fn process(&mut self, input: &[f32], emit: &mut dyn FnMut(usize, Self::Out)) {
+        self.0.feed(input, None, &mut |h, e, d| emit(h, (e, d)));
+    }
+
+    fn process_with(
+        &mut self,
+        input: &[f32],
+        side: Option<&[f32]>,
+        emit: &mut dyn FnMut(usize, Self::Out),
+    ) {
+        self.0.feed(input, side, &mut |h, e, d| emit(h, (e, d)));
+    }
+
+    fn finish(&mut self, emit: &mut dyn FnMut(usize, Self::Out)) {
+        self.0.end(&mut |h, e, d| emit(h, (e, d)));
+    }
+
+    fn reset(&mut self) {
+        self.0.reset();
+    }
+
+    fn latency_samples(&self) -> usize {
+        self.0.latency_samples()
+    }
+
+    fn hop(&self) -> usize {
+        self.0.hop()
     }
 }

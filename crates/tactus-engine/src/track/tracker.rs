@@ -1,8 +1,8 @@
 //! The pitch trackers a [`super::PitchTrack`] runs, built from a recipe.
 
-use tactus_dsp::pair::VoicingPitchPair;
+use tactus_dsp::pair::{VoicingPitchPair, WithVoicing};
 use tactus_dsp::pyin::{Pyin, PyinConfig};
-use tactus_dsp::shs::{Shs, ShsConfig};
+use tactus_dsp::shs::{Shs, ShsConfig, WithDecoded};
 use tactus_dsp::tukey::SlidingTukey;
 use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
 use tactus_dsp::{ConfigError, HopStage};
@@ -42,10 +42,10 @@ pub(super) fn shs_config(tuning: &ShsTuning, yc: &YinConfig, lag_hops: usize) ->
 /// ([`PitchTrack::note_f0`]).
 pub(super) enum Tracker {
     One(Box<dyn HopStage<Out = PitchEstimate>>),
-    Pair(Box<VoicingPitchPair>),
-    Aligned(Box<Shs>),
-    /// The learned bass tracker whose network reads the harmonic view
-    /// ([`tactus_dsp::shs::Shs::process_view`]).
+    Pair(Box<WithVoicing>),
+    Aligned(Box<WithDecoded>),
+    /// The learned bass tracker whose network reads the harmonic view as its side input
+    /// ([`HopStage::process_with`]).
     View(Box<Shs>),
 }
 
@@ -67,10 +67,12 @@ impl Tracker {
                 Tracker::One(Box::new(Pyin::new(pc)?))
             }
             TrackerRecipe::Shs(t) => Tracker::One(Box::new(shs(t)?)),
-            TrackerRecipe::Aligned(t) => Tracker::Aligned(Box::new(shs(t)?)),
+            TrackerRecipe::Aligned(t) => Tracker::Aligned(Box::new(shs(t)?.with_decoded())),
             TrackerRecipe::View(t) => Tracker::View(Box::new(shs(t)?)),
             TrackerRecipe::Pair { voicing, pitch } => Tracker::Pair(Box::new(
-                VoicingPitchPair::new(Box::new(shs(voicing)?), Box::new(shs(pitch)?))?.with_veto(),
+                VoicingPitchPair::new(Box::new(shs(voicing)?), Box::new(shs(pitch)?))?
+                    .with_veto()
+                    .with_voicing(),
             )),
         })
     }
@@ -88,13 +90,13 @@ impl Tracker {
         let c = |e: PitchEstimate| 1.0 - e.aperiodicity;
         match self {
             Tracker::One(t) => t.process(x, &mut |_, e| emit(e.f0_hz, None, c(e))),
-            Tracker::Pair(p) => p.process_two(x, view.unwrap_or(x), &mut |_, e, v| {
-                emit(e.f0_hz, Some(v.f0_hz), c(e))
-            }),
-            Tracker::Aligned(t) => {
-                t.process_both(x, &mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz), c(e)))
+            Tracker::Pair(p) => {
+                p.process_with(x, view, &mut |_, (e, v)| emit(e.f0_hz, Some(v.f0_hz), c(e)))
             }
-            Tracker::View(t) => t.process_view(x, view.unwrap_or(x), &mut |_, e, _| {
+            Tracker::Aligned(t) => {
+                t.process(x, &mut |_, (e, d)| emit(e.f0_hz, Some(d.f0_hz), c(e)))
+            }
+            Tracker::View(t) => t.process_with(x, Some(view.unwrap_or(x)), &mut |_, e| {
                 emit(e.f0_hz, None, c(e))
             }),
         }
@@ -104,9 +106,9 @@ impl Tracker {
         let c = |e: PitchEstimate| 1.0 - e.aperiodicity;
         match self {
             Tracker::One(t) => t.finish(&mut |_, e| emit(e.f0_hz, None, c(e))),
-            Tracker::Pair(p) => p.finish_both(&mut |_, e, v| emit(e.f0_hz, Some(v.f0_hz), c(e))),
-            Tracker::Aligned(t) => t.finish_both(&mut |_, e, d| emit(e.f0_hz, Some(d.f0_hz), c(e))),
-            Tracker::View(t) => t.finish_view(&mut |_, e, _| emit(e.f0_hz, None, c(e))),
+            Tracker::Pair(p) => p.finish(&mut |_, (e, v)| emit(e.f0_hz, Some(v.f0_hz), c(e))),
+            Tracker::Aligned(t) => t.finish(&mut |_, (e, d)| emit(e.f0_hz, Some(d.f0_hz), c(e))),
+            Tracker::View(t) => t.finish(&mut |_, e| emit(e.f0_hz, None, c(e))),
         }
     }
 
@@ -114,7 +116,8 @@ impl Tracker {
         match self {
             Tracker::One(t) => t.reset(),
             Tracker::Pair(p) => p.reset(),
-            Tracker::Aligned(t) | Tracker::View(t) => t.reset(),
+            Tracker::Aligned(t) => t.reset(),
+            Tracker::View(t) => t.reset(),
         }
     }
 
@@ -122,7 +125,8 @@ impl Tracker {
         match self {
             Tracker::One(t) => t.latency_samples(),
             Tracker::Pair(p) => p.latency_samples(),
-            Tracker::Aligned(t) | Tracker::View(t) => t.latency_samples(),
+            Tracker::Aligned(t) => t.latency_samples(),
+            Tracker::View(t) => t.latency_samples(),
         }
     }
 }
