@@ -72,6 +72,8 @@ pub mod plot;
 #[cfg(feature = "png")]
 pub mod png;
 pub mod protocol;
+#[cfg(test)]
+mod test_sample;
 pub mod tui;
 
 pub use atomic::{write_atomic, OutputError, OutputSet};
