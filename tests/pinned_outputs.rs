@@ -38,8 +38,14 @@ const DEMO_CASES: &[(&str, &[&str])] = &[
 const MODE_PROFILE: &[(&str, &[&str])] = &[
     ("offline-full", &["--mode", "offline", "--profile", "full"]),
     ("offline-live", &["--mode", "offline", "--profile", "live"]),
-    ("streaming-full", &["--mode", "streaming", "--profile", "full"]),
-    ("streaming-live", &["--mode", "streaming", "--profile", "live"]),
+    (
+        "streaming-full",
+        &["--mode", "streaming", "--profile", "full"],
+    ),
+    (
+        "streaming-live",
+        &["--mode", "streaming", "--profile", "live"],
+    ),
 ];
 
 fn root() -> PathBuf {
@@ -106,7 +112,13 @@ fn demo_and_fixtures_outputs_are_byte_identical_to_the_pinned_ones() {
     let dir = tempfile::tempdir().unwrap();
     let mut got = Vec::new();
     for (name, extra) in DEMO_CASES {
-        got.extend(render(&root(), "examples/demo.ogg", name, extra, dir.path()));
+        got.extend(render(
+            &root(),
+            "examples/demo.ogg",
+            name,
+            extra,
+            dir.path(),
+        ));
     }
     let songs = [
         ("demo", "examples/demo.ogg".to_string()),

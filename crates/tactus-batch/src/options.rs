@@ -230,27 +230,26 @@ impl RenderOptions {
             if live { "classes-live" } else { "classes" },
             &["classes", "classes-live", "bands", "adtlib"],
         )?;
-        let drums = match (drums_name, self.drum_model.clone()) {
-            ("bands", Some(_)) => {
-                return Err(err(
+        let drums =
+            match (drums_name, self.drum_model.clone()) {
+                ("bands", Some(_)) => return Err(err(
                     "--drum-model is for --drums classes, classes-live (a Tactus drum model file) \
                      or adtlib (an ONNX file), not bands"
                         .into(),
-                ))
-            }
-            ("bands", None) => DrumMethod::Bands,
-            ("adtlib", model) => DrumMethod::AdtLib(model.ok_or_else(|| {
-                err(
+                )),
+                ("bands", None) => DrumMethod::Bands,
+                ("adtlib", model) => DrumMethod::AdtLib(model.ok_or_else(|| {
+                    err(
                     "--drums adtlib needs --drum-model PATH (see docs/install.md, \"ONNX models\")"
                         .into(),
                 )
-            })?),
-            // A model file of models/drums/train.py or train_cnn.py in place of the embedded
-            // one; its own context decides its latency.
-            (_, Some(path)) => DrumMethod::ClassesFile(path),
-            ("classes-live", None) => DrumMethod::ClassesLive,
-            _ => DrumMethod::Classes,
-        };
+                })?),
+                // A model file of models/drums/train.py or train_cnn.py in place of the embedded
+                // one; its own context decides its latency.
+                (_, Some(path)) => DrumMethod::ClassesFile(path),
+                ("classes-live", None) => DrumMethod::ClassesLive,
+                _ => DrumMethod::Classes,
+            };
         let mode = pick(
             "mode",
             self.mode.as_deref(),

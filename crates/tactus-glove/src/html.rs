@@ -536,7 +536,6 @@ mod tests {
         assert_eq!(audio_kind(&demo).name, "Ogg/Vorbis");
     }
 
-
     /// The page, byte for byte: it changes only on purpose (the page is not pinned by the
     /// render tests, which hash the pattern and features files).
     #[test]

@@ -457,7 +457,6 @@ mod tests {
         (pattern, features)
     }
 
-
     /// The plot, byte for byte: it changes only on purpose (the plot is not pinned by the
     /// render tests, which hash the pattern and features files).
     #[test]
