@@ -144,9 +144,14 @@ pub struct Tuning {
     pub spectral_pitch_advance_hops: usize,
 }
 
-/// [`Tuning`] from the recipes of the full profile.
+/// [`Tuning`] from the recipes of the full profile, read once per test binary.
 #[allow(dead_code)]
-pub fn tuning() -> Tuning {
+pub fn tuning() -> &'static Tuning {
+    static TUNING: std::sync::OnceLock<Tuning> = std::sync::OnceLock::new();
+    TUNING.get_or_init(read_tuning)
+}
+
+fn read_tuning() -> Tuning {
     use tactus_engine::recipe::TrackerRecipe;
     let full = |role, source, sep, method| recipe(role, source, Profile::Full, sep, method);
     let mix_bass = full(
