@@ -9,6 +9,10 @@ use super::common;
 
 pub struct Pulse {
     dir: tempfile::TempDir,
+    /// Held for the server's lifetime: one audio test at a time on this machine. Several
+    /// servers and renderers at once on two cores starved the sound (a 4 s song took 9.9 s
+    /// of wall time) and the sink coalesced frames that the tests require to arrive.
+    _turn: std::fs::File,
 }
 
 impl Pulse {
@@ -29,11 +33,18 @@ impl Pulse {
                 return None;
             }
         }
+        let turn = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(std::env::temp_dir().join("tactus-audio-tests.lock"))
+            .unwrap();
+        turn.lock().unwrap();
         let dir = tempfile::tempdir().unwrap();
         let mut perms = std::fs::metadata(dir.path()).unwrap().permissions();
         std::os::unix::fs::PermissionsExt::set_mode(&mut perms, 0o700);
         std::fs::set_permissions(dir.path(), perms).unwrap();
-        let p = Pulse { dir };
+        let p = Pulse { dir, _turn: turn };
         let st = p
             .cmd("pulseaudio")
             .args([
