@@ -77,6 +77,7 @@
 
 pub mod bassnet;
 pub mod binner;
+pub mod dc;
 pub mod discretize;
 pub mod drums;
 pub mod flux;
@@ -86,6 +87,7 @@ pub mod melbank;
 pub mod nn;
 pub mod notes;
 pub mod pair;
+pub mod plain;
 pub mod pyin;
 pub mod rms;
 pub mod sanitize;

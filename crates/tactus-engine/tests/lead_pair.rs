@@ -143,10 +143,14 @@ fn synth_over_chords(notes: &[(f64, f64)]) -> Vec<f32> {
     x
 }
 
+/// The lead's track with `method` (without the plain guard, whose YIN may take a hop of
+/// the pair: these tests are about the pair) over `x`, fed in `chunk`s.
 fn track(method: PitchMethod, mode: Mode, x: &[f32], chunk: usize) -> (PitchTrack, Vec<bool>) {
     let (lo, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
     let geo = common::geo(mode, Profile::Full);
-    let mut t = common::pitch_track(geo, Role::Lead, true, method, (lo, hi));
+    let mut r = common::bare_recipe(Role::Lead, true, Profile::Full, method, (lo, hi));
+    r.plain_guard = None;
+    let mut t = PitchTrack::new(geo, &r).unwrap();
     let mut notes = PitchNotes::new(geo, &t, NoteRule::Attack, NoteRole::default()).unwrap();
     for b in x.chunks(chunk) {
         t.process(b);
@@ -489,6 +493,12 @@ fn engine_and_views(stem: Stem, hp_hz: f64, harmonics: &[f32]) -> (Vec<f32>, Vec
         },
     )
     .unwrap();
+    // The engine removes DC from the mix first (docs/decisions/0053-dc-at-the-input.md).
+    let mut x = x;
+    tactus_dsp::SampleStage::process_inplace(
+        &mut tactus_dsp::dc::DcBlock::new(SR).unwrap(),
+        &mut x,
+    );
     let mut out = StemOutput::new();
     sep.process(&x, &x, &mut out);
     sep.finish(&mut out);

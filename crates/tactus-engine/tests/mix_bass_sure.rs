@@ -47,10 +47,16 @@ fn line_with_thumps() -> Vec<f32> {
     x
 }
 
+/// The mix bass's track with `method` over `x`, fed in `chunk`s, without the plain guard
+/// (docs/decisions/0051-plain-guard.md): this synthetic line is a plain tone that YIN would
+/// take where the learned tracker is silent, and these tests are about the learned
+/// tracker's confidence.
 fn track(method: PitchMethod, mode: Mode, x: &[f32], chunk: usize) -> PitchTrack {
     let (lo, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
     let geo = common::geo(mode, Profile::Full);
-    let mut t = common::pitch_track(geo, Role::Bass, true, method, (lo, hi));
+    let mut r = common::bare_recipe(Role::Bass, true, Profile::Full, method, (lo, hi));
+    r.plain_guard = None;
+    let mut t = PitchTrack::new(geo, &r).unwrap();
     for b in x.chunks(chunk) {
         t.process(b);
     }

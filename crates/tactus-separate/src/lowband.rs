@@ -32,6 +32,12 @@
 //! in `models/lowband/README.md`). The separator moves `p_k` of the bass mask to the drums
 //! (`bass ← bass·(1 − p)`, `drums ← drums + bass·p`), so the four masks still sum to 1.
 //!
+//! **Held tones.** After the network, a low output bin whose log magnitude stays within
+//! 0.25 nats over the whole context (9 frames, about 210 ms; frames before the start do
+//! not count) keeps its bass share (`p_k = 0`): a kick or a tom decays, a held sub-bass
+//! tone does not (a 41 Hz or 55 Hz sine otherwise went to the drums whole and fired kicks;
+//! docs/decisions/0052-kit-mask-spares-held-tones.md).
+//!
 //! **Latency**: none added: the 2 future frames are the separator's own look-ahead.
 //! **Allocation**: none after construction.
 //! **Rate**: the weights hold for one bin width (44.1 kHz / 2048); another bin width turns
@@ -185,6 +191,9 @@ pub struct LowBand {
     slow_a: f32,
     x: Vec<f32>,
     h: Vec<f32>,
+    /// Log magnitude of each output bin per context frame, before the running reference
+    /// (NaN: a frame before the start), ring-indexed like `ring`.
+    held: Vec<f32>,
 }
 
 impl LowBand {
@@ -230,6 +239,7 @@ impl LowBand {
             slow_a: hop as f32 / (SLOW_S * sample_rate as f32),
             x: vec![0.0; n_in],
             h: vec![0.0; hidden],
+            held: vec![f32::NAN; model.out * ctx],
             model,
         };
         lb.reset();
@@ -258,6 +268,7 @@ impl LowBand {
         self.real = 0;
         self.reference = 0.0;
         self.slow_mean.fill(0.0);
+        self.held.fill(f32::NAN);
     }
 
     /// Computes frame features of `spectrum` into `out` (`per_frame` values), updating the
@@ -328,6 +339,23 @@ impl LowBand {
             }
             None => buf[slot * per..(slot + 1) * per].fill(PAD),
         }
+        let n_out = self.model.out.min(self.model.low);
+        let held = &mut self.held[slot * self.model.out..][..n_out];
+        match spectrum {
+            Some(_) => {
+                for (h, &v) in held.iter_mut().zip(&buf[slot * per..]) {
+                    *h = v + self.reference;
+                }
+            }
+            None if self.frames > 0 => {
+                let prev = (self.frames - 1) % ctx;
+                self.held.copy_within(
+                    prev * self.model.out..prev * self.model.out + n_out,
+                    slot * self.model.out,
+                );
+            }
+            None => held.fill(f32::NAN),
+        }
         self.ring = buf;
         self.frames += 1;
     }
@@ -375,5 +403,27 @@ impl LowBand {
         for o in &mut out[..n_out] {
             *o = 1.0 / (1.0 + (-*o).exp());
         }
+        // A held tone is not a drum body: a low bin whose log magnitude stays within
+        // STEADY_NATS over the whole context (about 210 ms; an attack in it breaks this,
+        // frames before the start do not count) keeps its bass share
+        // (docs/decisions/0052-kit-mask-spares-held-tones.md).
+        let stride = m.out;
+        for (k, o) in out[..n_out.min(m.low)].iter_mut().enumerate() {
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            for j in 0..ctx.min(self.frames) {
+                let v = self.held[j * stride + k];
+                if !v.is_nan() {
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
+            }
+            if hi >= lo && hi - lo < STEADY_NATS {
+                *o = 0.0;
+            }
+        }
     }
 }
+
+/// How far (nats of magnitude) a low bin's level may move over the context and still count
+/// as held (docs/decisions/0052-kit-mask-spares-held-tones.md).
+const STEADY_NATS: f32 = 0.25;

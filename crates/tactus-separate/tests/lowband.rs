@@ -60,10 +60,41 @@ fn raw_features(m: &LowBandModel, spec: &[realfft::num_complex::Complex<f32>]) -
     f
 }
 
+/// How far a low bin's level may move over the context and still count as held (the
+/// module's 0.25 nats).
+const STEADY_NATS: f64 = 0.25;
+
+/// Per frame and low output bin, the spread (max − min) of `ln(|X_k| + ε)` over the frame's
+/// context (frames before the start skipped, frames after the end repeating the last): a
+/// bin that spreads less than [`STEADY_NATS`] keeps its bass share.
+fn held_spread(
+    m: &LowBandModel,
+    frames: &[Vec<realfft::num_complex::Complex<f32>>],
+) -> Vec<Vec<f64>> {
+    let raw: Vec<Vec<f64>> = frames.iter().map(|s| raw_features(m, s)).collect();
+    (0..frames.len())
+        .map(|t| {
+            (0..m.out.min(m.low))
+                .map(|k| {
+                    let vals = (0..m.past + 1 + m.future).filter_map(|j| {
+                        let u = t as i64 - m.past as i64 + j as i64;
+                        (u >= 0).then(|| raw[(u as usize).min(frames.len() - 1)][k])
+                    });
+                    let (lo, hi) = vals.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                        (lo.min(v), hi.max(v))
+                    });
+                    hi - lo
+                })
+                .collect()
+        })
+        .collect()
+}
+
 fn reference(
     m: &LowBandModel,
     frames: &[Vec<realfft::num_complex::Complex<f32>>],
 ) -> Vec<Vec<f64>> {
+    let spread = held_spread(m, frames);
     // Normalised features of every frame.
     let a = HOP as f64 / (2.0 * SR as f64);
     let b = HOP as f64 / (1.0 * SR as f64);
@@ -110,6 +141,9 @@ fn reference(
                 .collect();
             (0..m.out)
                 .map(|k| {
+                    if spread[t].get(k).is_some_and(|&s| s < STEADY_NATS) {
+                        return 0.0;
+                    }
                     let z = m.b2[k] as f64
                         + (0..m.hidden)
                             .map(|j| h[j] * m.w2[j * m.out + k] as f64)
@@ -152,14 +186,29 @@ fn streaming_mask_equals_the_f64_reference() {
         }
     }
     assert_eq!(got.len(), want.len());
+    let held = held_spread(&m, &frames);
     let mut worst = 0.0f64;
     let mut spread = (1.0f64, 0.0f64);
-    for (g, w) in got.iter().zip(&want) {
-        for (a, b) in g.iter().zip(w) {
+    let (mut n_held, mut n_edge) = (0, 0);
+    for ((g, w), h) in got.iter().zip(&want).zip(&held) {
+        for (k, (a, b)) in g.iter().zip(w).enumerate() {
+            // A spread within f32 round-off of the threshold may fall either way.
+            if h.get(k).is_some_and(|s| (s - STEADY_NATS).abs() < 1e-4) {
+                n_edge += 1;
+                continue;
+            }
+            if h.get(k).is_some_and(|&s| s < STEADY_NATS) {
+                n_held += 1;
+            }
             worst = worst.max((*a as f64 - b).abs());
             spread = (spread.0.min(*b), spread.1.max(*b));
         }
     }
+    // The silent gap holds every bin; the rest of the signal moves.
+    assert!(
+        n_held > 0 && n_edge < 5,
+        "held {n_held}, at the edge {n_edge}"
+    );
     println!(
         "{} frames, max |f32 − f64| = {worst:.2e}, shares span {:.3}–{:.3}",
         got.len(),
@@ -219,4 +268,35 @@ fn damaged_weight_files_are_errors() {
     let mut bad = WEIGHTS.to_vec();
     bad[8..12].copy_from_slice(&u32::MAX.to_le_bytes()); // low bins
     assert!(LowBandModel::parse(&bad).is_err());
+}
+
+/// A held sub-bass tone is not a drum body: once the context holds nothing but the tone,
+/// its energy keeps its bass share (docs/decisions/0052-kit-mask-spares-held-tones.md).
+/// Energy-weighted: far from the tone, where its two spectral images interfere, a bin's
+/// level swings from frame to frame, and what the mask does with it moves nothing.
+#[test]
+fn a_held_sub_bass_tone_keeps_its_bass_share() {
+    for f0 in [41.2f32, 55.0] {
+        let x: Vec<f32> = (0..2 * SR as usize)
+            .map(|i| 0.5 * (std::f32::consts::TAU * f0 * i as f32 / SR as f32).sin())
+            .collect();
+        let frames = frames_of(&x);
+        let mut lb = LowBand::new(SR, N_FFT, HOP).unwrap();
+        let mut share = vec![0.0f32; lb.out_bins()];
+        let ctx = lb.model().past + 1 + lb.future();
+        let mut worst = 0.0f32;
+        for (t, s) in frames.iter().enumerate() {
+            lb.push(Some(s));
+            // The share of frame t − future; from the second context on, a steady tone.
+            if t >= lb.future() + ctx && t + 2 < frames.len() {
+                lb.drum_share(&mut share);
+                let spec = &frames[t - lb.future()];
+                let e: Vec<f32> = spec[..share.len()].iter().map(|c| c.norm_sqr()).collect();
+                let moved: f32 = share.iter().zip(&e).map(|(p, e)| p * e).sum();
+                worst = worst.max(moved / e.iter().sum::<f32>());
+            }
+        }
+        // Without the held rule the network moves all of it (1.0 at 41 Hz).
+        assert!(worst < 1e-3, "{f0} Hz: drum share of the energy {worst}");
+    }
 }

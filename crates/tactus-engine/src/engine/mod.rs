@@ -17,7 +17,8 @@ pub use config::{EngineConfig, SeparatorChoice, StageTimes, ENGINE_RATE};
 
 use std::time::{Duration, Instant};
 
-use tactus_dsp::{Band, Stem};
+use tactus_dsp::dc::DcBlock;
+use tactus_dsp::{Band, SampleStage, Stem};
 use tactus_separate::{SegmentStats, Separator, StemOutput, StemSet};
 
 use crate::profile::Profile;
@@ -49,6 +50,9 @@ pub struct Engine {
     drums_on_mix: bool,
     /// Bins forgotten by [`Engine::discard_before`]: the tracks' bin vectors start here.
     bin_base: usize,
+    /// DC removal of the mix's channels ([`tactus_dsp::dc`]) and their current block.
+    dc: [DcBlock; 2],
+    dc_out: [Vec<f32>; 2],
 }
 
 impl Engine {
@@ -122,6 +126,10 @@ impl Engine {
             }),
             drums_on_mix,
             sep_out: StemOutput::with_capacity(separated, PARALLEL_MIN_BLOCK * 4),
+            dc: [
+                DcBlock::new(geo.sample_rate)?,
+                DcBlock::new(geo.sample_rate)?,
+            ],
             cfg,
             geo,
             separator,
@@ -130,6 +138,7 @@ impl Engine {
             t_separate: Duration::ZERO,
             pending: None,
             bin_base: 0,
+            dc_out: [Vec::new(), Vec::new()],
         })
     }
 
@@ -171,6 +180,21 @@ impl Engine {
     /// Feeds one block of the mix (planar stereo; pass the same slice twice for mono) and
     /// the same span of every supplied stem. All slices must have the same length.
     pub fn process(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {
+        let [mut l, mut r] = std::mem::take(&mut self.dc_out);
+        for ((buf, x), dc) in [&mut l, &mut r]
+            .into_iter()
+            .zip([left, right])
+            .zip(&mut self.dc)
+        {
+            buf.clear();
+            buf.extend_from_slice(x);
+            dc.process_inplace(buf);
+        }
+        self.process_mix(&l, &r, supplied);
+        self.dc_out = [l, r];
+    }
+
+    fn process_mix(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {
         if self.drums_on_mix {
             // The live profile: the drum chain takes the mono mix, as if it were supplied.
             let mut mix = std::mem::take(&mut self.mix);
@@ -295,5 +319,8 @@ impl Engine {
         self.t_separate = Duration::ZERO;
         self.pending = None;
         self.bin_base = 0;
+        for d in &mut self.dc {
+            d.reset();
+        }
     }
 }

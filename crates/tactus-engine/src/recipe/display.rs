@@ -111,6 +111,7 @@ impl fmt::Display for Recipe {
             lag_hops,
             harmonic_view,
             advance_hops,
+            plain_guard,
             levels,
             notes,
         } = self;
@@ -124,6 +125,9 @@ impl fmt::Display for Recipe {
         }
         if *advance_hops > 0 {
             write!(f, " advance {advance_hops}")?;
+        }
+        if let Some(hz) = plain_guard {
+            write!(f, " plain-guard {hz}")?;
         }
         if notes.plucked_mix {
             f.write_str(" plucked-mix")?;

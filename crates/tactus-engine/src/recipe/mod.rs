@@ -211,6 +211,11 @@ pub struct Recipe {
     /// latency (3 hops on its bass and lead in the full profile,
     /// `docs/decisions/0012-spectral-pitch-tracks-30-ms-earlier.md`).
     pub advance_hops: usize,
+    /// Whether YIN backs the tracker on plain tones ([`tactus_dsp::plain`]), and up to what
+    /// f0 (Hz): a learned tracker's hop where the stem is a plain periodic tone between the
+    /// range's floor and this ceiling takes YIN's estimate
+    /// (docs/decisions/0051-plain-guard.md).
+    pub plain_guard: Option<f32>,
     /// How the level range is chosen.
     pub levels: LevelRecipe,
     /// The note-onset rule's stem-specific parts.
@@ -436,6 +441,16 @@ pub fn recipe(
             PYIN_LAG_HOPS
         },
         harmonic_view,
+        // A learned network may not know a plain tone; YIN does. The spectral separator
+        // sends a centred tone up to its vocal band's top to the lead, so the lead's guard
+        // reaches the glove's highest pitch (the other stem's top): a whistle or a flute.
+        plain_guard: learned.then(|| {
+            let top = |stem| profile::pitch_range_hz(profile, stem).map_or(0.0, |r| r.1);
+            match role {
+                Role::Lead => top(tactus_dsp::Stem::Other).max(top(role.stem())),
+                _ => top(role.stem()),
+            }
+        }),
         // The spectral separator's stems lag their stated latency.
         advance_hops: if !live && line && spectral_mix {
             SPECTRAL_PITCH_ADVANCE_HOPS

@@ -5,6 +5,7 @@ use tactus_dsp::discretize::{
     agree_mask, narrow_range, pitches_agree, range_offline, range_quantiles_kept_or_sure,
     Discretizer, RangePrior, RunningRange, Scale,
 };
+use tactus_dsp::plain::PlainGuard;
 use tactus_dsp::rms::{gate_offline, Rms, StreamingGate, GATE_BELOW_DB};
 use tactus_dsp::tukey::{reject_outliers_offline_min_iqr, SlidingTukey, TUKEY_K};
 use tactus_dsp::twoframe::TwoFrameYin;
@@ -29,6 +30,8 @@ pub struct PitchTrack {
     /// tracker reads the separator's harmonic sum, decimated like the stem.
     view: Option<Decimator>,
     tracker: Tracker,
+    /// YIN behind a learned tracker on plain tones ([`Recipe::plain_guard`]).
+    plain: Option<PlainGuard>,
     /// With a pair: the voicing tracker's pitch for note onsets.
     note_side: Option<NoteSide>,
     rms: Rms,
@@ -135,6 +138,13 @@ impl PitchTrack {
             } else {
                 None
             },
+            // The guard reads the stem as the tracker does: decimated, on the same hops.
+            plain: if let Some(ceiling_hz) = recipe.plain_guard {
+                let tracker_hops = tracker.latency_samples().div_ceil(yc.hop);
+                Some(PlainGuard::new(&yc, ceiling_hz, tracker_hops + 4)?)
+            } else {
+                None
+            },
             tracker,
             note_side,
             rms: Rms::new(frame.min(4 * yc.hop).max(yc.hop), yc.hop)?,
@@ -210,6 +220,7 @@ impl PitchTrack {
         self.tracker
             .latency_samples()
             .max(self.rms.latency_samples())
+            .max(self.plain.as_ref().map_or(0, PlainGuard::latency_samples))
             * self.decimator.factor
             + self.advance * self.hop
     }
@@ -249,7 +260,12 @@ impl PitchTrack {
         let side = &mut self.note_side;
         let (conf, skipped_conf) = (&mut self.raw_conf, &mut self.skipped_conf);
         let keep_conf = self.chain.sure_range.is_some();
-        self.tracker.process(block, view, &mut |f, nf, c| {
+        let plain = &mut self.plain;
+        if let Some(g) = plain.as_mut() {
+            g.process(block);
+        }
+        self.tracker.process(block, view, &mut |i, f, nf, c| {
+            let (f, nf, c) = plain_or(plain, i, f, nf, c);
             advanced_push(raw_f0, skipped, advance, f);
             if keep_conf {
                 advanced_push(conf, skipped_conf, advance, c);
@@ -271,7 +287,12 @@ impl PitchTrack {
         let side = &mut self.note_side;
         let (conf, skipped_conf) = (&mut self.raw_conf, &mut self.skipped_conf);
         let keep_conf = self.chain.sure_range.is_some();
-        self.tracker.finish(&mut |f, nf, c| {
+        let plain = &mut self.plain;
+        if let Some(g) = plain.as_mut() {
+            g.finish();
+        }
+        self.tracker.finish(&mut |i, f, nf, c| {
+            let (f, nf, c) = plain_or(plain, i, f, nf, c);
             advanced_push(raw_f0, skipped, advance, f);
             if keep_conf {
                 advanced_push(conf, skipped_conf, advance, c);
@@ -476,6 +497,9 @@ impl PitchTrack {
             d.reset();
         }
         self.tracker.reset();
+        if let Some(g) = &mut self.plain {
+            g.reset();
+        }
         self.rms.reset();
         self.raw_f0.clear();
         self.raw_rms.clear();
@@ -549,5 +573,22 @@ fn advanced_push(out: &mut Vec<f32>, skipped: &mut usize, advance: usize, v: f32
         *skipped += 1;
     } else {
         out.push(v);
+    }
+}
+
+/// The tracker's hop `i` (`f0`, side pitch, confidence), or what the guard makes of it
+/// ([`PlainGuard::resolve`]): YIN's f0 (the side pitch too), or unvoiced. The confidence
+/// stays the tracker's: what the level range trusts is still the learned tracker's word (a
+/// kick's decaying body is a plain tone too).
+fn plain_or(
+    plain: &mut Option<PlainGuard>,
+    i: usize,
+    f0: f32,
+    side: Option<f32>,
+    conf: f32,
+) -> (f32, Option<f32>, f32) {
+    match plain.as_mut().and_then(|g| g.resolve(i, f0)) {
+        Some(f) => (f, side.map(|_| f), conf),
+        None => (f0, side, conf),
     }
 }

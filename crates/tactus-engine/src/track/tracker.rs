@@ -77,38 +77,39 @@ impl Tracker {
         })
     }
 
-    /// Feeds a block; `emit(f0, side_f0, confidence)` per hop (`side_f0` for a pair or an
-    /// aligned tracker; `confidence` = 1 − the estimate's aperiodicity, for a pair the
-    /// learned tracker's confidence in its pitch). `view`: the same span of the harmonic view, which a pair's pitch tracker
-    /// reads instead of `x` and a view tracker's network reads beside it (`None`: `x`).
+    /// Feeds a block; `emit(hop, f0, side_f0, confidence)` per hop (`side_f0` for a pair or
+    /// an aligned tracker; `confidence` = 1 − the estimate's aperiodicity, for a pair the
+    /// learned tracker's confidence in its pitch). `view`: the same span of the harmonic
+    /// view, which a pair's pitch tracker reads instead of `x` and a view tracker's network
+    /// reads beside it (`None`: `x`).
     pub(super) fn process(
         &mut self,
         x: &[f32],
         view: Option<&[f32]>,
-        emit: &mut dyn FnMut(f32, Option<f32>, f32),
+        emit: &mut dyn FnMut(usize, f32, Option<f32>, f32),
     ) {
         let c = |e: PitchEstimate| 1.0 - e.aperiodicity;
         match self {
-            Tracker::One(t) => t.process(x, &mut |_, e| emit(e.f0_hz, None, c(e))),
-            Tracker::Pair(p) => {
-                p.process_with(x, view, &mut |_, (e, v)| emit(e.f0_hz, Some(v.f0_hz), c(e)))
-            }
+            Tracker::One(t) => t.process(x, &mut |i, e| emit(i, e.f0_hz, None, c(e))),
+            Tracker::Pair(p) => p.process_with(x, view, &mut |i, (e, v)| {
+                emit(i, e.f0_hz, Some(v.f0_hz), c(e))
+            }),
             Tracker::Aligned(t) => {
-                t.process(x, &mut |_, (e, d)| emit(e.f0_hz, Some(d.f0_hz), c(e)))
+                t.process(x, &mut |i, (e, d)| emit(i, e.f0_hz, Some(d.f0_hz), c(e)))
             }
-            Tracker::View(t) => t.process_with(x, Some(view.unwrap_or(x)), &mut |_, e| {
-                emit(e.f0_hz, None, c(e))
+            Tracker::View(t) => t.process_with(x, Some(view.unwrap_or(x)), &mut |i, e| {
+                emit(i, e.f0_hz, None, c(e))
             }),
         }
     }
 
-    pub(super) fn finish(&mut self, emit: &mut dyn FnMut(f32, Option<f32>, f32)) {
+    pub(super) fn finish(&mut self, emit: &mut dyn FnMut(usize, f32, Option<f32>, f32)) {
         let c = |e: PitchEstimate| 1.0 - e.aperiodicity;
         match self {
-            Tracker::One(t) => t.finish(&mut |_, e| emit(e.f0_hz, None, c(e))),
-            Tracker::Pair(p) => p.finish(&mut |_, (e, v)| emit(e.f0_hz, Some(v.f0_hz), c(e))),
-            Tracker::Aligned(t) => t.finish(&mut |_, (e, d)| emit(e.f0_hz, Some(d.f0_hz), c(e))),
-            Tracker::View(t) => t.finish(&mut |_, e| emit(e.f0_hz, None, c(e))),
+            Tracker::One(t) => t.finish(&mut |i, e| emit(i, e.f0_hz, None, c(e))),
+            Tracker::Pair(p) => p.finish(&mut |i, (e, v)| emit(i, e.f0_hz, Some(v.f0_hz), c(e))),
+            Tracker::Aligned(t) => t.finish(&mut |i, (e, d)| emit(i, e.f0_hz, Some(d.f0_hz), c(e))),
+            Tracker::View(t) => t.finish(&mut |i, e| emit(i, e.f0_hz, None, c(e))),
         }
     }
 
