@@ -5,9 +5,14 @@
 //! * `song_180s/yin` and `song_180s/pyin`: a 180 s, 44.1 kHz signal with frame 2048 and
 //!   hop 512 (50–2000 Hz, the "other" stem range), the configuration peers were measured
 //!   with (NOTES.md: aubio yinfft 0.54 s, aubio yinfast 0.83 s, librosa.yin 2.2 s).
+//! * `plain_guard_60s/{bass,lead}`: the plain-signal guard beside a learned tracker
+//!   ([`tactus_dsp::plain`]) over 60 s of the bass (35–400 Hz at 4.9 kHz) and the lead
+//!   (70–1400 Hz, ceiling 2 kHz, at 14.7 kHz), the decimated rates the engine runs them at,
+//!   each hop resolved against a tracker reading; throughput in hops.
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use tactus_dsp::plain::PlainGuard;
 use tactus_dsp::pyin::{Pyin, PyinConfig};
 use tactus_dsp::yin::{PitchEstimate, Yin, YinConfig};
 use tactus_dsp::HopStage;
@@ -100,5 +105,55 @@ fn song(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, blocks, song);
+/// `melody` at another rate.
+fn melody_at(rate: u32, n: usize) -> Vec<f32> {
+    (0..n)
+        .map(|i| {
+            let t = i as f64 / rate as f64;
+            let f0 = 110.0 * 2f64.powf(((t * 4.0) as usize % 12) as f64 / 12.0);
+            (0.5 * (std::f64::consts::TAU * f0 * t).sin()) as f32
+        })
+        .collect()
+}
+
+fn plain_guard(c: &mut Criterion) {
+    let mut g = c.benchmark_group("plain_guard_60s");
+    g.sample_size(10);
+    for (name, rate, lo, hi, ceiling) in [
+        ("bass", 4_900u32, 35.0f32, 400.0f32, 400.0f32),
+        ("lead", 14_700, 70.0, 1400.0, 2000.0),
+    ] {
+        let yc = YinConfig::new(rate, lo, hi);
+        let x = melody_at(rate, rate as usize * 60);
+        let hops = x.len().div_ceil(yc.hop);
+        g.throughput(Throughput::Elements(hops as u64));
+        let mut guard = PlainGuard::new(&yc, ceiling, 16).unwrap();
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                guard.reset();
+                let mut taken = 0usize;
+                let (mut hop, mut pos) = (0usize, 0usize);
+                while pos < x.len() {
+                    let n = 4096.min(x.len() - pos);
+                    guard.process(black_box(&x[pos..pos + n]));
+                    pos += n;
+                    // Resolve what YIN has judged so far, a tracker reading of 55 Hz.
+                    while (hop + 1) * yc.hop + guard.latency_samples() <= pos {
+                        taken += usize::from(guard.resolve(hop, 55.0).is_some());
+                        hop += 1;
+                    }
+                }
+                guard.finish();
+                while hop < hops {
+                    taken += usize::from(guard.resolve(hop, 55.0).is_some());
+                    hop += 1;
+                }
+                taken
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, blocks, song, plain_guard);
 criterion_main!(benches);
