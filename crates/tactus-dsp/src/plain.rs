@@ -19,8 +19,8 @@
 //!
 //! ## Which estimate a hop keeps ([`PlainGuard::resolve`])
 //! A band of a mix can look plain at a period that is not its note's: the notes of a chord
-//! of sampled instruments share a longer period (the held-out chorales' lead read 73–110
-//! Hz under a soprano at 500 Hz, aperiodicity 0.02–0.04), and a bass with a weak
+//! of sampled instruments share a longer period (a corpus chorale's lead read 73–110 Hz
+//! under a soprano at 500 Hz, aperiodicity 0.02–0.04), and a bass with a weak
 //! fundamental repeats at half its period. Letting YIN overrule the tracker on every plain
 //! hop cost the held-out mixes' bass 0.04 RPA. So YIN wins a plain hop only where
 //! * the tracker is silent;
@@ -39,8 +39,9 @@
 //! YIN's (half its frame). The guard never delays the tracker it backs as long as that
 //! tracker's latency is at least YIN's; a hop YIN has not reported yet is not plain.
 //!
-//! No allocation after [`PlainGuard::new`] while the tracker stays within
-//! [`PlainGuard::new`]'s `capacity` hops of YIN.
+//! The queue holds the hops YIN has judged and the tracker has not reported yet: its
+//! `capacity` ([`PlainGuard::new`]) covers the tracker's lag; a block longer than that
+//! grows it once, and nothing is allocated after that.
 
 use std::collections::VecDeque;
 
