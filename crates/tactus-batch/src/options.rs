@@ -224,10 +224,17 @@ impl RenderOptions {
         let drums_name = choice(
             "drums",
             self.drums.as_deref(),
-            // Live uses the per-instrument transcriber's 1-hop model (held-out mix kick F 0.80
-            // against the bands' 0.29; rhythm p95 29.1 ms end to end, 12 of 12 hits of
-            // tests/live.rs; docs/decisions/0015-live-drums-by-the-one-hop-model.md).
-            if live { "classes-live" } else { "classes" },
+            // Live, and any command in the live profile, uses the per-instrument transcriber's
+            // 1-hop model (held-out mix kick F 0.80 against the bands' 0.29; rhythm p95 29.1 ms
+            // end to end, 12 of 12 hits of tests/live.rs;
+            // docs/decisions/0015-live-drums-by-the-one-hop-model.md): the full model's
+            // 61.6 ms look-ahead does not fit the live profile's budget, and `render --profile
+            // live` computes what `live` does (docs/decisions/0054-live-profile-drums.md).
+            if live || profile == Profile::Live {
+                "classes-live"
+            } else {
+                "classes"
+            },
             &["classes", "classes-live", "bands", "adtlib"],
         )?;
         let drums =
