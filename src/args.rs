@@ -26,7 +26,8 @@ pub(crate) enum ModeArg {
 pub(crate) enum DrumsArg {
     /// Per-instrument transcriber embedded in Tactus (default).
     Classes,
-    /// The same with its low-latency model (21.6 ms instead of 61.6 ms), for live input.
+    /// The same with its low-latency model (21.6 ms instead of 61.6 ms), for live input (the
+    /// default for live and --profile live).
     ClassesLive,
     /// The paper's four Butterworth bands with spectral-flux onsets.
     Bands,
@@ -110,8 +111,9 @@ pub(crate) struct EngineArgs {
     #[arg(long, value_enum)]
     pub(crate) pitch: Option<PitchArg>,
     /// Drum transcription: classes (embedded per-instrument transcriber; the default for
-    /// render and play), classes-live (the same with its 21.6 ms model; the default for live), bands (the paper's band-pass) or adtlib
-    /// (ONNX, --drum-model models/adtlib.onnx).
+    /// render and play), classes-live (the same with its 21.6 ms model; the default for live
+    /// and for --profile live), bands (the paper's band-pass) or adtlib (ONNX, --drum-model
+    /// models/adtlib.onnx).
     #[arg(long, value_enum)]
     pub(crate) drums: Option<DrumsArg>,
     /// Drum model file: for --drums adtlib the ONNX file of models/setup_adtlib.sh; for
