@@ -281,6 +281,47 @@ mod tests {
         assert!(hops.iter().all(Option::is_none));
     }
 
+    /// A saw's first two harmonics (as the spectral separator's vocal band, up to 5 kHz,
+    /// leaves a 2 kHz saw) whose period is a fractional number of samples (1970 Hz at 14.7 kHz: 7.46): judged at
+    /// integer lags YIN misses the threshold at lag 7 and takes twice the period; judged at
+    /// the interpolated lag it reads the saw at its own pitch, and plain.
+    #[test]
+    fn the_interpolated_lag_reads_a_high_saw_at_its_own_period() {
+        let rate = 14_700;
+        let f0 = 1970.0f32;
+        let x: Vec<f32> = (0..rate as usize)
+            .map(|j| {
+                let t = j as f32 / rate as f32;
+                (1..=2)
+                    .map(|h| 0.3 / h as f32 * (std::f32::consts::TAU * h as f32 * f0 * t).sin())
+                    .sum()
+            })
+            .collect();
+        let mut yc = YinConfig::new(rate, 70.0, 3675.0);
+        yc.fmax_hz = 3675.0;
+        let read = |vertex: bool| {
+            let y = Yin::new(yc.clone()).unwrap();
+            let mut y = if vertex {
+                y.with_vertex_aperiodicity()
+            } else {
+                y
+            };
+            let mut est = Vec::new();
+            y.process(&x, &mut |_, e| est.push(e));
+            est[20..80].to_vec()
+        };
+        let (vertex, integer) = (read(true), read(false));
+        // At its own pitch with the interpolated lag; at twice the period, or not at all,
+        // with integer lags.
+        assert!(vertex.iter().all(|e| (e.f0_hz / f0 - 1.0).abs() < 0.01));
+        let own = |e: &&PitchEstimate| (e.f0_hz / f0 - 1.0).abs() < 0.01;
+        assert!(
+            integer.iter().filter(own).count() * 2 < integer.len(),
+            "{:?}",
+            &integer[..4]
+        );
+    }
+
     #[test]
     fn noise_silence_and_dc_are_not_plain() {
         let yc = YinConfig::new(4900, 35.0, 400.0);

@@ -499,10 +499,12 @@ impl Yin {
     /// Judges the CMND at the interpolated lag (the vertex of the parabola through
     /// `d'(τ−1), d'(τ), d'(τ+1)`, at least 0) instead of at the integer lag, both for the
     /// absolute threshold (the first local minimum whose vertex is below it) and for the
-    /// reported aperiodicity: a period of a fractional number of samples then reads as
-    /// periodic as it is (a 2 kHz saw at 14.7 kHz: 0.07 at lag 7, near 0 at 7.35; judged at
-    /// integer lags, YIN took twice the period). For judging whether a signal is a plain
-    /// tone ([`crate::plain`]).
+    /// reported aperiodicity: a period of a fractional number of samples then reads closer
+    /// to as periodic as it is (a 2 kHz saw at 14.7 kHz, 7.35 samples a period: 0.07 at
+    /// lag 7, and judged at integer lags YIN took twice the period). The vertex is an
+    /// estimate: where the minimum falls midway between two lags it stays above the true
+    /// one (about 0.05 for the first two harmonics of a 1970 Hz saw at 14.7 kHz). For
+    /// judging whether a signal is a plain tone ([`crate::plain`]).
     pub fn with_vertex_aperiodicity(mut self) -> Self {
         self.vertex = true;
         self
