@@ -148,9 +148,7 @@ fn synth_over_chords(notes: &[(f64, f64)]) -> Vec<f32> {
 fn track(method: PitchMethod, mode: Mode, x: &[f32], chunk: usize) -> (PitchTrack, Vec<bool>) {
     let (lo, hi) = tactus_dsp::Stem::Vocals.pitch_range_hz().unwrap();
     let geo = common::geo(mode, Profile::Full);
-    let mut r = common::bare_recipe(Role::Lead, true, Profile::Full, method, (lo, hi));
-    r.plain_guard = None;
-    let mut t = PitchTrack::new(geo, &r).unwrap();
+    let mut t = common::pitch_track_unguarded(geo, Role::Lead, true, method, (lo, hi));
     let mut notes = PitchNotes::new(geo, &t, NoteRule::Attack, NoteRole::default()).unwrap();
     for b in x.chunks(chunk) {
         t.process(b);

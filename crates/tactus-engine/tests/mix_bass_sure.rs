@@ -54,9 +54,7 @@ fn line_with_thumps() -> Vec<f32> {
 fn track(method: PitchMethod, mode: Mode, x: &[f32], chunk: usize) -> PitchTrack {
     let (lo, hi) = tactus_dsp::Stem::Bass.pitch_range_hz().unwrap();
     let geo = common::geo(mode, Profile::Full);
-    let mut r = common::bare_recipe(Role::Bass, true, Profile::Full, method, (lo, hi));
-    r.plain_guard = None;
-    let mut t = PitchTrack::new(geo, &r).unwrap();
+    let mut t = common::pitch_track_unguarded(geo, Role::Bass, true, method, (lo, hi));
     for b in x.chunks(chunk) {
         t.process(b);
     }

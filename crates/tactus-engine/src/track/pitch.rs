@@ -256,24 +256,23 @@ impl PitchTrack {
             }
             None => None,
         };
-        let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
-        let side = &mut self.note_side;
-        let (conf, skipped_conf) = (&mut self.raw_conf, &mut self.skipped_conf);
-        let keep_conf = self.chain.sure_range.is_some();
-        let plain = &mut self.plain;
-        if let Some(g) = plain.as_mut() {
+        if let Some(g) = self.plain.as_mut() {
             g.process(block);
         }
-        self.tracker.process(block, view, &mut |i, f, nf, c| {
-            let (f, nf, c) = plain_or(plain, i, f, nf, c);
-            advanced_push(raw_f0, skipped, advance, f);
-            if keep_conf {
-                advanced_push(conf, skipped_conf, advance, c);
-            }
-            if let (Some(s), Some(nf)) = (side.as_mut(), nf) {
-                advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
-            }
-        });
+        let mut sink = HopSink {
+            plain: &mut self.plain,
+            f0: (&mut self.raw_f0, &mut self.skipped_f0),
+            conf: self
+                .chain
+                .sure_range
+                .is_some()
+                .then_some((&mut self.raw_conf, &mut self.skipped_conf)),
+            side: &mut self.note_side,
+            advance: self.advance,
+        };
+        self.tracker
+            .process(block, view, &mut |i, f, nf, c| sink.push(i, f, nf, c));
+        let advance = self.advance;
         let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
         self.rms.process(block, &mut |_, r| {
             advanced_push(raw_rms, skipped, advance, r)
@@ -283,33 +282,26 @@ impl PitchTrack {
 
     /// Ends the stream (and, offline, computes the whole-track statistics).
     pub fn finish(&mut self) {
-        let (raw_f0, skipped, advance) = (&mut self.raw_f0, &mut self.skipped_f0, self.advance);
-        let side = &mut self.note_side;
-        let (conf, skipped_conf) = (&mut self.raw_conf, &mut self.skipped_conf);
-        let keep_conf = self.chain.sure_range.is_some();
-        let plain = &mut self.plain;
-        if let Some(g) = plain.as_mut() {
+        if let Some(g) = self.plain.as_mut() {
             g.finish();
         }
-        self.tracker.finish(&mut |i, f, nf, c| {
-            let (f, nf, c) = plain_or(plain, i, f, nf, c);
-            advanced_push(raw_f0, skipped, advance, f);
-            if keep_conf {
-                advanced_push(conf, skipped_conf, advance, c);
-            }
-            if let (Some(s), Some(nf)) = (side.as_mut(), nf) {
-                advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
-            }
-        });
+        let mut sink = HopSink {
+            plain: &mut self.plain,
+            f0: (&mut self.raw_f0, &mut self.skipped_f0),
+            conf: self
+                .chain
+                .sure_range
+                .is_some()
+                .then_some((&mut self.raw_conf, &mut self.skipped_conf)),
+            side: &mut self.note_side,
+            advance: self.advance,
+        };
+        self.tracker
+            .finish(&mut |i, f, nf, c| sink.push(i, f, nf, c));
         // The advanced track ends as long as it would have: the dropped hops come back
         // unvoiced and silent at the end.
-        raw_f0.extend(std::iter::repeat_n(0.0, *skipped));
-        if let Some(s) = side {
-            s.raw.extend(std::iter::repeat_n(0.0, s.skipped));
-        }
-        if keep_conf {
-            conf.extend(std::iter::repeat_n(0.0, *skipped_conf));
-        }
+        sink.pad_end();
+        let advance = self.advance;
         let (raw_rms, skipped) = (&mut self.raw_rms, &mut self.skipped_rms);
         self.rms
             .finish(&mut |_, r| advanced_push(raw_rms, skipped, advance, r));
@@ -576,19 +568,47 @@ fn advanced_push(out: &mut Vec<f32>, skipped: &mut usize, advance: usize, v: f32
     }
 }
 
-/// The tracker's hop `i` (`f0`, side pitch, confidence), or what the guard makes of it
-/// ([`PlainGuard::resolve`]): YIN's f0 (the side pitch too), or unvoiced. The confidence
-/// stays the tracker's: what the level range trusts is still the learned tracker's word (a
-/// kick's decaying body is a plain tone too).
-fn plain_or(
-    plain: &mut Option<PlainGuard>,
-    i: usize,
-    f0: f32,
-    side: Option<f32>,
-    conf: f32,
-) -> (f32, Option<f32>, f32) {
-    match plain.as_mut().and_then(|g| g.resolve(i, f0)) {
-        Some(f) => (f, side.map(|_| f), conf),
-        None => (f0, side, conf),
+/// Where the tracker's hops go: through the plain guard, then into the raw tracks, each
+/// moved `advance` hops earlier ([`PitchTrack::set_advance_hops`]).
+struct HopSink<'a> {
+    plain: &'a mut Option<PlainGuard>,
+    /// The raw f0 track and the hops of it dropped so far.
+    f0: (&'a mut Vec<f32>, &'a mut usize),
+    /// The confidence track, kept for a track with a sure rule.
+    conf: Option<(&'a mut Vec<f32>, &'a mut usize)>,
+    side: &'a mut Option<NoteSide>,
+    advance: usize,
+}
+
+impl HopSink<'_> {
+    /// The tracker's hop `i` (`f0`, side pitch, confidence), or what the guard makes of it
+    /// ([`PlainGuard::resolve`]): YIN's f0 (the side pitch too), or unvoiced. The confidence
+    /// stays the tracker's: what the level range trusts is still the learned tracker's word
+    /// (a kick's decaying body is a plain tone too).
+    fn push(&mut self, i: usize, f0: f32, side: Option<f32>, conf: f32) {
+        let (f0, side) = match self.plain.as_mut().and_then(|g| g.resolve(i, f0)) {
+            Some(f) => (f, side.map(|_| f)),
+            None => (f0, side),
+        };
+        let advance = self.advance;
+        advanced_push(self.f0.0, self.f0.1, advance, f0);
+        if let Some((c, skipped)) = &mut self.conf {
+            advanced_push(c, skipped, advance, conf);
+        }
+        if let (Some(s), Some(nf)) = (self.side.as_mut(), side) {
+            advanced_push(&mut s.raw, &mut s.skipped, advance, nf);
+        }
+    }
+
+    /// At the end of the stream: the hops dropped at the start come back unvoiced (with no
+    /// confidence) at the end.
+    fn pad_end(&mut self) {
+        self.f0.0.extend(std::iter::repeat_n(0.0, *self.f0.1));
+        if let Some(s) = self.side.as_mut() {
+            s.raw.extend(std::iter::repeat_n(0.0, s.skipped));
+        }
+        if let Some((c, skipped)) = &mut self.conf {
+            c.extend(std::iter::repeat_n(0.0, **skipped));
+        }
     }
 }

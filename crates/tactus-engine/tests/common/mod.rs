@@ -70,6 +70,22 @@ pub fn pitch_track(
     .unwrap()
 }
 
+/// [`pitch_track`] without the plain guard (docs/decisions/0051-plain-guard.md): for tests
+/// of a learned tracker on a synthetic line, which is a plain tone that YIN would take
+/// where the tracker is silent. (Not every test file uses it.)
+#[allow(dead_code)]
+pub fn pitch_track_unguarded(
+    geo: Geometry,
+    role: Role,
+    mixture: bool,
+    method: PitchMethod,
+    range_hz: (f32, f32),
+) -> PitchTrack {
+    let mut r = bare_recipe(role, mixture, geo.profile, method, range_hz);
+    r.plain_guard = None;
+    PitchTrack::new(geo, &r).unwrap()
+}
+
 /// The level recipe of a `role` track on a band of the mix (`mixture`) or a clean stem with
 /// `method` (full profile), for replaying its range rule by hand. (Not every test file uses
 /// it.)
