@@ -158,20 +158,6 @@ struct Tracker {
     next_emit: usize,
 }
 
-/// One offset of the Viterbi max: for every target `i`, `best[i] = max(best[i], src[i] + w)`,
-/// recording `offset` in `arg[i]` when the new value is strictly larger.
-#[inline(always)]
-fn relax(best: &mut [f32], arg: &mut [u32], src: &[f32], w: f32, offset: u32) {
-    for ((b, a), &x) in best.iter_mut().zip(arg.iter_mut()).zip(src) {
-        let v = x + w;
-        let better = v > *b;
-        // Branch-free select (a bit mask), so the loop becomes compare + blend.
-        let mask = (better as u32).wrapping_neg();
-        *a = (offset & mask) | (*a & !mask);
-        *b = if better { v } else { *b };
-    }
-}
-
 impl Tracker {
     fn new(cfg: &PyinConfig, lag: usize) -> Result<Self, ConfigError> {
         let core = YinCore::new(&cfg.yin)?;
@@ -435,8 +421,8 @@ impl Tracker {
                 continue;
             }
             let (s0, s1) = (k0 + oi - j, k1 + oi - j);
-            relax(&mut bv[k0..k1], &mut av[k0..k1], &dv[s0..s1], w, oi as u32);
-            relax(&mut bu[k0..k1], &mut au[k0..k1], &du[s0..s1], w, oi as u32);
+            crate::simd::relax(&mut bv[k0..k1], &mut av[k0..k1], &dv[s0..s1], w, oi as u32);
+            crate::simd::relax(&mut bu[k0..k1], &mut au[k0..k1], &du[s0..s1], w, oi as u32);
         }
         let mut best = f32::NEG_INFINITY;
         for k in 0..m {

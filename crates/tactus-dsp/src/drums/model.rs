@@ -196,6 +196,97 @@ impl DrumModel {
         out.map(|x| x / n)
     }
 
+    /// [`DrumModel::forward`] on `count` assembled inputs at once (`inputs`: `count` rows of
+    /// [`DrumModel::input_len`] values), the activations into `out[..count]`. Each hop's
+    /// activations are `forward`'s on its input alone, bit for bit: every pass runs
+    /// [`crate::nn::mlp::run_layers_batch`], whose outputs do not depend on the batch, and
+    /// the passes are averaged in the same order. What batching buys: one read of a weight
+    /// row serves every hop of the batch ([`crate::nn`]'s AVX2 kernel meets four hops and two
+    /// rows at once). A convolutional model runs its hops one at a time.
+    pub fn forward_batch(
+        &self,
+        inputs: &[f32],
+        count: usize,
+        s: &mut BatchScratch,
+        out: &mut [[f32; CLASSES]],
+    ) {
+        let len = self.input_len();
+        s.fit(self, count);
+        let convolutional = self.conv.is_some() || self.members.iter().any(|m| m.conv.is_some());
+        if convolutional {
+            for (x, o) in inputs.chunks_exact(len).zip(out.iter_mut()).take(count) {
+                *o = self.forward(x, &mut s.a, &mut s.b, &mut s.c);
+            }
+            return;
+        }
+        let out = &mut out[..count];
+        if !self.retunings.is_empty() {
+            let view = self.window_len();
+            out.fill([0.0; CLASSES]);
+            for r in &self.retunings {
+                let x = if r.is_identity() {
+                    &inputs[..count * len]
+                } else {
+                    for (src, dst) in inputs[..count * len]
+                        .chunks_exact(len)
+                        .zip(s.c.chunks_exact_mut(len))
+                    {
+                        for (v, w) in src.chunks_exact(view).zip(dst.chunks_exact_mut(view)) {
+                            r.apply(v, self.floor, w);
+                        }
+                    }
+                    &s.c[..count * len]
+                };
+                self.forward_own_batch(x, count, &mut s.a, &mut s.b, &mut |h, o| {
+                    for (x, y) in out[h].iter_mut().zip(o) {
+                        *x += y;
+                    }
+                });
+            }
+            let n = self.retunings.len() as f32;
+            for o in out.iter_mut() {
+                *o = o.map(|x| x / n);
+            }
+            return;
+        }
+        self.forward_own_batch(inputs, count, &mut s.a, &mut s.b, &mut |h, o| out[h] = o);
+        if self.members.is_empty() {
+            return;
+        }
+        for m in &self.members {
+            m.forward_own_batch(inputs, count, &mut s.a, &mut s.b, &mut |h, o| {
+                for (x, y) in out[h].iter_mut().zip(o) {
+                    *x += y;
+                }
+            });
+        }
+        let n = (1 + self.members.len()) as f32;
+        for o in out.iter_mut() {
+            *o = o.map(|x| x / n);
+        }
+    }
+
+    /// This perceptron's activations alone (members ignored) on `count` inputs, handed to
+    /// `each(hop, activations)` in order.
+    fn forward_own_batch(
+        &self,
+        inputs: &[f32],
+        count: usize,
+        a: &mut [f32],
+        b: &mut [f32],
+        each: &mut dyn FnMut(usize, [f32; CLASSES]),
+    ) {
+        let z = crate::nn::mlp::run_layers_batch(&self.layers, inputs, count, a, b);
+        let n = z.len() / count.max(1);
+        for (h, row) in z.chunks_exact(n).enumerate() {
+            let mut o = [0f32; CLASSES];
+            for (o, &z) in o.iter_mut().zip(row) {
+                *o = 1.0 / (1.0 + (-z).exp());
+            }
+            each(h, o);
+        }
+    }
+
     /// This network's activations alone (members ignored).
     fn forward_one(
         &self,
@@ -231,5 +322,32 @@ impl DrumModel {
             *o = 1.0 / (1.0 + (-z).exp());
         }
         out
+    }
+}
+
+/// Scratch of [`DrumModel::forward_batch`]: grown to the largest batch it has met, then
+/// reused (no allocation after the first batch of that size).
+#[derive(Debug, Default)]
+pub struct BatchScratch {
+    a: Vec<f32>,
+    b: Vec<f32>,
+    c: Vec<f32>,
+}
+
+impl BatchScratch {
+    /// Scratch for batches of up to `count` hops of `model`.
+    pub fn new(model: &DrumModel, count: usize) -> BatchScratch {
+        let mut s = BatchScratch::default();
+        s.fit(model, count);
+        s
+    }
+
+    fn fit(&mut self, model: &DrumModel, count: usize) {
+        let n = model.scratch_len() * count.max(1);
+        for v in [&mut self.a, &mut self.b, &mut self.c] {
+            if v.len() < n {
+                v.resize(n, 0.0);
+            }
+        }
     }
 }

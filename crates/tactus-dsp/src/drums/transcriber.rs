@@ -3,7 +3,7 @@
 //! stage.
 
 use super::judge::Staged;
-use super::model::DrumModel;
+use super::model::{BatchScratch, DrumModel};
 use super::picker::Picker;
 use super::{DrumFrame, CLASSES};
 use crate::melbank::{MelBank, MelConfig, LOG_FLOOR};
@@ -25,6 +25,11 @@ pub struct DrumTranscriber {
 /// see the same sub-block in turn, so at most this many samples' frames wait in the queue.
 const BACKING_STEP: usize = 4096;
 
+/// Hops the network runs on together ([`DrumModel::forward_batch`]). A feed call ends by
+/// running the hops it queued, so batching delays no hop past the call that completed it:
+/// the latency, and every output, are those of one hop at a time.
+const BATCH: usize = 16;
+
 struct Core {
     model: DrumModel,
     /// The last `past + 1 + future` mel frames, oldest first (shifted by hand).
@@ -32,10 +37,12 @@ struct Core {
     /// The second view's frames of the same hops: the backing's (silence without a
     /// backing) or the short view's.
     second_window: Vec<f32>,
-    input: Vec<f32>,
-    a: Vec<f32>,
-    b: Vec<f32>,
-    c: Vec<f32>,
+    /// Assembled network inputs of the queued hops, [`BATCH`] rows.
+    inputs: Vec<f32>,
+    /// Hops assembled and waiting for the network (`next..next + queued`).
+    queued: usize,
+    scratch: BatchScratch,
+    acts: Vec<[f32; CLASSES]>,
     pickers: [Picker; CLASSES],
     min_gap: usize,
     /// Mel frames received.
@@ -72,13 +79,29 @@ impl Core {
         // `frames - 1 - future`.
         if self.frames > self.model.future {
             let i = self.frames - 1 - self.model.future;
-            debug_assert_eq!(i, self.next);
+            debug_assert_eq!(i, self.next + self.queued);
+            let len = self.model.input_len();
+            let slot = &mut self.inputs[self.queued * len..(self.queued + 1) * len];
             self.model
-                .assemble_with_backing(&self.window, &self.second_window, &mut self.input);
-            let act = self
-                .model
-                .forward(&self.input, &mut self.a, &mut self.b, &mut self.c);
-            let thresholds = self.model.thresholds;
+                .assemble_with_backing(&self.window, &self.second_window, slot);
+            self.queued += 1;
+            if self.queued == BATCH {
+                self.run_queued(emit);
+            }
+        }
+    }
+
+    /// Runs the network on the queued hops and decides them in order.
+    fn run_queued(&mut self, emit: &mut dyn FnMut(usize, DrumFrame)) {
+        let count = std::mem::take(&mut self.queued);
+        if count == 0 {
+            return;
+        }
+        self.model
+            .forward_batch(&self.inputs, count, &mut self.scratch, &mut self.acts);
+        let thresholds = self.model.thresholds;
+        for &act in &self.acts[..count] {
+            let i = self.next;
             self.next += 1;
             if let (Some(st), Some(stage)) = (self.staged.as_mut(), self.model.stage.as_ref()) {
                 let k = st.ring.len();
@@ -95,7 +118,7 @@ impl Core {
                         emit,
                     );
                 }
-                return;
+                continue;
             }
             let mut f = DrumFrame {
                 activation: act,
@@ -134,6 +157,7 @@ impl Core {
         self.pickers = [Picker::NEW; CLASSES];
         self.frames = 0;
         self.next = 0;
+        self.queued = 0;
         match (self.staged.as_mut(), self.model.stage.as_ref()) {
             // Back to the start in place: a reset allocates nothing.
             (Some(st), Some(_)) => st.clear(),
@@ -166,7 +190,6 @@ impl DrumTranscriber {
             None
         };
         let mel = MelBank::new(cfg)?;
-        let widest = model.scratch_len();
         let min_gap = ((0.05 * sample_rate as f64) / hop as f64).ceil() as usize;
         let second_len = if model.has_second_view() {
             model.window_len()
@@ -176,10 +199,10 @@ impl DrumTranscriber {
         let mut core = Core {
             window: vec![0.0; model.window_len()],
             second_window: vec![0.0; second_len],
-            input: vec![0.0; model.input_len()],
-            a: vec![0.0; widest],
-            b: vec![0.0; widest],
-            c: vec![0.0; widest],
+            inputs: vec![0.0; BATCH * model.input_len()],
+            queued: 0,
+            scratch: BatchScratch::new(&model, BATCH),
+            acts: vec![[0.0; CLASSES]; BATCH],
             model,
             pickers: [Picker::NEW; CLASSES],
             min_gap: min_gap.max(1),
@@ -221,6 +244,7 @@ impl DrumTranscriber {
         let core = &mut self.core;
         self.mel
             .process_bands(input, &mut |_, bands| core.push_frame(bands, None, emit));
+        core.run_queued(emit);
     }
 
     /// Feeds the drum signal to the main front end and `second` (the backing, or the drum
@@ -241,6 +265,7 @@ impl DrumTranscriber {
             });
             queue.clear();
         }
+        core.run_queued(emit);
     }
 
     /// Ends the stream: emits every remaining hop (`n.div_ceil(hop)` in all), holding the
@@ -269,10 +294,11 @@ impl DrumTranscriber {
         if has_second {
             last_second[..n].copy_from_slice(&core.second_window[len - n..]);
         }
-        while core.next < total {
+        while core.next + core.queued < total {
             let back = has_second.then_some(&last_second[..n]);
             core.push_frame(&last[..n], back, emit);
         }
+        core.run_queued(emit);
         core.drain(emit);
     }
 }

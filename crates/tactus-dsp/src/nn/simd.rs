@@ -5,9 +5,9 @@
 //! A dense layer is a dot product per weight row ([`super::mlp::dot8`]): eight lanes, each
 //! one dependent chain of adds, so a row at a time is bound by the adder's latency, not its
 //! throughput, and the portable build (x86-64's SSE2 baseline) holds the eight lanes in two
-//! registers. Here one row meets four inputs at once ([`super::mlp::run_layers_batch`]'s
-//! hops): four independent chains, one 256-bit register each, and one load of the weights
-//! serves all four.
+//! registers. Here a tile of two rows meets four inputs at once
+//! ([`super::mlp::run_layers_batch`]'s hops): eight independent chains, one 256-bit register
+//! each; one load of a weight vector serves four inputs and one load of an input two rows.
 //!
 //! # Exactness
 //! Lane `k` of an accumulator is `Σ_c w[8c + k] · x[8c + k]` in ascending `c`, each product
@@ -49,8 +49,13 @@ mod x86 {
         __m256, _mm256_add_ps, _mm256_loadu_ps, _mm256_mul_ps, _mm256_setzero_ps, _mm256_storeu_ps,
     };
 
-    /// Inputs met by one weight row at a time.
+    /// Inputs met by the weight rows of a tile.
     const HOPS: usize = 4;
+    /// Weight rows of a tile: with [`HOPS`] inputs, eight accumulators, two weight registers
+    /// and four input registers, fourteen of the sixteen `ymm` registers. Each weight load
+    /// serves four inputs and each input load two rows, so the loop is bound by the
+    /// multiplier and adder ports, not by loads or by one chain's latency.
+    const ROWS: usize = 2;
 
     /// See [`super::dense`].
     ///
@@ -70,38 +75,99 @@ mod x86 {
         assert!(src.len() >= count * n_in && dst.len() >= count * n_out);
         let chunks = n_in / 8;
         let split = chunks * 8;
-        for r in 0..n_out {
-            let row = &w[r * n_in..(r + 1) * n_in];
-            let bias = b[r];
+        let mut r = 0;
+        while r < n_out {
+            let nr = (n_out - r).min(ROWS);
             let mut h = 0;
             while h < count {
                 let k = (count - h).min(HOPS);
-                let mut acc: [__m256; HOPS] = [_mm256_setzero_ps(); HOPS];
-                for c in 0..chunks {
-                    // SAFETY: `8c + 8 ≤ split ≤ n_in = row.len()`.
-                    let wv = unsafe { _mm256_loadu_ps(row.as_ptr().add(8 * c)) };
-                    for (j, a) in acc.iter_mut().enumerate().take(k) {
-                        // SAFETY: `(h + j)·n_in + 8c + 8 ≤ count·n_in ≤ src.len()`.
-                        let xv =
-                            unsafe { _mm256_loadu_ps(src.as_ptr().add((h + j) * n_in + 8 * c)) };
-                        *a = _mm256_add_ps(*a, _mm256_mul_ps(wv, xv));
+                let mut acc: [[__m256; HOPS]; ROWS] = [[_mm256_setzero_ps(); HOPS]; ROWS];
+                if nr == ROWS && k == HOPS {
+                    // A whole tile: fixed bounds, so the accumulators stay in registers.
+                    // SAFETY: as in `tile`, with `nr = ROWS` rows and `k = HOPS` hops.
+                    acc = unsafe { tile(w, src, n_in, r, h, chunks) };
+                } else {
+                    for c in 0..chunks {
+                        let mut wv = [_mm256_setzero_ps(); ROWS];
+                        for (i, v) in wv.iter_mut().enumerate().take(nr) {
+                            // SAFETY: `(r + i)·n_in + 8c + 8 ≤ (r + i)·n_in + split ≤
+                            // n_out·n_in ≤ w.len()`.
+                            *v = unsafe { _mm256_loadu_ps(w.as_ptr().add((r + i) * n_in + 8 * c)) };
+                        }
+                        for j in 0..k {
+                            // SAFETY: `(h + j)·n_in + 8c + 8 ≤ count·n_in ≤ src.len()`.
+                            let xv = unsafe {
+                                _mm256_loadu_ps(src.as_ptr().add((h + j) * n_in + 8 * c))
+                            };
+                            for i in 0..nr {
+                                acc[i][j] = _mm256_add_ps(acc[i][j], _mm256_mul_ps(wv[i], xv));
+                            }
+                        }
                     }
                 }
-                for (j, a) in acc.iter().enumerate().take(k) {
-                    let mut lanes = [0f32; 8];
-                    // SAFETY: `lanes` holds eight values.
-                    unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), *a) };
-                    let x = &src[(h + j) * n_in..(h + j + 1) * n_in];
-                    // The same expression as `dot8`'s, so the same bits.
-                    let mut s: f32 = lanes.iter().sum::<f32>() + bias;
-                    for (wt, v) in row[split..].iter().zip(&x[split..]) {
-                        s += wt * v;
+                for (i, acc_row) in acc.iter().enumerate().take(nr) {
+                    let row = &w[(r + i) * n_in..(r + i + 1) * n_in];
+                    let bias = b[r + i];
+                    for (j, a) in acc_row.iter().enumerate().take(k) {
+                        let mut lanes = [0f32; 8];
+                        // SAFETY: `lanes` holds eight values.
+                        unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), *a) };
+                        let x = &src[(h + j) * n_in..(h + j + 1) * n_in];
+                        // The same expression as `dot8`'s, so the same bits.
+                        let mut s: f32 = lanes.iter().sum::<f32>() + bias;
+                        for (wt, v) in row[split..].iter().zip(&x[split..]) {
+                            s += wt * v;
+                        }
+                        dst[(h + j) * n_out + r + i] = if relu { s.max(0.0) } else { s };
                     }
-                    dst[(h + j) * n_out + r] = if relu { s.max(0.0) } else { s };
                 }
                 h += k;
             }
+            r += nr;
         }
+    }
+
+    /// The accumulators of a whole tile: rows `r`, `r + 1` of `w` against inputs `h..h + 4`
+    /// of `src`, over the first `8·chunks` values, each lane summed in ascending chunk order
+    /// (a product rounded, then added), exactly as the remainder loop in `dense_avx2` does.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2; `(r + 2)·n_in ≤ w.len()`, `(h + 4)·n_in ≤ src.len()` and
+    /// `8·chunks ≤ n_in` (what `dense_avx2` asserts and iterates within).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn tile(
+        w: &[f32],
+        src: &[f32],
+        n_in: usize,
+        r: usize,
+        h: usize,
+        chunks: usize,
+    ) -> [[__m256; HOPS]; ROWS] {
+        debug_assert!((r + ROWS) * n_in <= w.len() && (h + HOPS) * n_in <= src.len());
+        let (w0, w1) = (w.as_ptr().add(r * n_in), w.as_ptr().add((r + 1) * n_in));
+        let x0 = src.as_ptr().add(h * n_in);
+        let (x1, x2, x3) = (x0.add(n_in), x0.add(2 * n_in), x0.add(3 * n_in));
+        let z = _mm256_setzero_ps();
+        let (mut a00, mut a01, mut a02, mut a03) = (z, z, z, z);
+        let (mut a10, mut a11, mut a12, mut a13) = (z, z, z, z);
+        for c in 0..chunks {
+            let o = 8 * c;
+            let (wa, wb) = (_mm256_loadu_ps(w0.add(o)), _mm256_loadu_ps(w1.add(o)));
+            let v = _mm256_loadu_ps(x0.add(o));
+            a00 = _mm256_add_ps(a00, _mm256_mul_ps(wa, v));
+            a10 = _mm256_add_ps(a10, _mm256_mul_ps(wb, v));
+            let v = _mm256_loadu_ps(x1.add(o));
+            a01 = _mm256_add_ps(a01, _mm256_mul_ps(wa, v));
+            a11 = _mm256_add_ps(a11, _mm256_mul_ps(wb, v));
+            let v = _mm256_loadu_ps(x2.add(o));
+            a02 = _mm256_add_ps(a02, _mm256_mul_ps(wa, v));
+            a12 = _mm256_add_ps(a12, _mm256_mul_ps(wb, v));
+            let v = _mm256_loadu_ps(x3.add(o));
+            a03 = _mm256_add_ps(a03, _mm256_mul_ps(wa, v));
+            a13 = _mm256_add_ps(a13, _mm256_mul_ps(wb, v));
+        }
+        [[a00, a01, a02, a03], [a10, a11, a12, a13]]
     }
 }
 

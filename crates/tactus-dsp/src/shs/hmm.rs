@@ -23,7 +23,8 @@ pub(super) struct Hmm {
     /// Scratch of [`Hmm::step`]: per voiced bin, the best predecessor's score and index.
     best_in: Vec<f32>,
     /// The best predecessor's offset `src − k`.
-    arg_in: Vec<i32>,
+    /// The best offset per voiced bin, an `i32` stored as its bits.
+    arg_in: Vec<u32>,
     /// Backpointers, `ring × (m + 1)`.
     pub(super) bp: Vec<u16>,
 }
@@ -91,19 +92,13 @@ impl Hmm {
             let src = &self.delta[src_lo..src_lo + (k_hi - k_lo)];
             let bv = &mut self.best_in[k_lo..k_hi];
             let arg = &mut self.arg_in[k_lo..k_hi];
-            let d32 = d as i32;
-            for ((b, a), &x) in bv.iter_mut().zip(arg.iter_mut()).zip(src) {
-                let v = x + w;
-                let gt = v > *b;
-                *b = if gt { v } else { *b };
-                *a = if gt { d32 } else { *a };
-            }
+            crate::simd::relax(bv, arg, src, w, d as i32 as u32);
         }
         let mut best = f32::NEG_INFINITY;
         for k in 0..m {
             let (bv, arg) = (
                 self.best_in[k],
-                (k as isize + self.arg_in[k] as isize) as usize,
+                (k as isize + self.arg_in[k] as i32 as isize) as usize,
             );
             let stay = bv + self.l_stay;
             let enter = du + self.l_enter;
