@@ -99,8 +99,8 @@ mod x86 {
                             let xv = unsafe {
                                 _mm256_loadu_ps(src.as_ptr().add((h + j) * n_in + 8 * c))
                             };
-                            for i in 0..nr {
-                                acc[i][j] = _mm256_add_ps(acc[i][j], _mm256_mul_ps(wv[i], xv));
+                            for (acc_row, wr) in acc.iter_mut().zip(&wv).take(nr) {
+                                acc_row[j] = _mm256_add_ps(acc_row[j], _mm256_mul_ps(*wr, xv));
                             }
                         }
                     }
