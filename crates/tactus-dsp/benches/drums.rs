@@ -6,8 +6,8 @@
 //! * `drums_forward/default`: one network pass (one hop), without the front end.
 use std::hint::black_box;
 
-use criterion::{criterion_group, criterion_main, Criterion};
-use tactus_dsp::drums::{DrumModel, DrumTranscriber};
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use tactus_dsp::drums::{BatchScratch, DrumModel, DrumTranscriber, CLASSES};
 use tactus_dsp::HopStage;
 
 const SR: u32 = 44_100;
@@ -80,9 +80,26 @@ fn forward(c: &mut Criterion) {
     let mut input = vec![0.0f32; m.input_len()];
     m.assemble(&window, &mut input);
     let (mut a, mut b, mut s) = (vec![0.0f32; w], vec![0.0f32; w], vec![0.0f32; w]);
-    c.bench_function("drums_forward/default", |bch| {
+    let mut g = c.benchmark_group("drums_forward");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("default", |bch| {
         bch.iter(|| m.forward(black_box(&input), &mut a, &mut b, &mut s))
     });
+    // As the transcriber runs it: 16 hops at once (throughput in hops).
+    const BATCH: usize = 16;
+    let inputs: Vec<f32> = input
+        .iter()
+        .copied()
+        .cycle()
+        .take(BATCH * input.len())
+        .collect();
+    let mut scratch = BatchScratch::new(&m, BATCH);
+    let mut acts = vec![[0.0f32; CLASSES]; BATCH];
+    g.throughput(Throughput::Elements(BATCH as u64));
+    g.bench_function("default_batch16", |bch| {
+        bch.iter(|| m.forward_batch(black_box(&inputs), BATCH, &mut scratch, &mut acts))
+    });
+    g.finish();
 }
 
 criterion_group!(benches, song, forward);

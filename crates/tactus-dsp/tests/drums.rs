@@ -8,8 +8,8 @@
 #![deny(unsafe_code)]
 
 use tactus_dsp::drums::{
-    Conv, ConvNet, DrumFrame, DrumModel, DrumTranscriber, Judge, Layer, Retuning, SecondStage,
-    CLASSES,
+    BatchScratch, Conv, ConvNet, DrumFrame, DrumModel, DrumTranscriber, Judge, Layer, Retuning,
+    SecondStage, CLASSES,
 };
 use tactus_dsp::melbank::{filters, MelBank, MelConfig, LOG_FLOOR};
 use tactus_dsp::HopStage;
@@ -1314,4 +1314,52 @@ fn short_view_matches_an_offline_oracle_for_any_chunking() {
     t.process(&x, &mut |_, f| again.push(f));
     t.finish(&mut |_, f| again.push(f));
     assert_eq!(again, whole);
+}
+
+/// The transcriber runs its network on a batch of hops ([`DrumModel::forward_batch`]); each
+/// hop's activations must be those of [`DrumModel::forward`] on that hop alone, bit for bit,
+/// for the embedded models (retuned, with the short view), an ensemble with members, a
+/// convolutional model and a flux model, and for every batch size and its remainder.
+#[test]
+fn batched_forward_equals_one_hop_at_a_time_bit_for_bit() {
+    let mut with_members = random_flux_model();
+    let mut member = random_flux_model();
+    for l in &mut member.layers {
+        for w in &mut l.w {
+            *w = -*w * 0.7;
+        }
+    }
+    with_members.members.push(member);
+    let models = [
+        DrumModel::embedded(),
+        DrumModel::embedded_live(),
+        random_flux_model(),
+        with_members,
+        random_backing_model(),
+        random_conv_model(3, (2, 2)),
+    ];
+    let mut rng = Rng::new(5);
+    for (mi, m) in models.iter().enumerate() {
+        let len = m.input_len();
+        let w = m.scratch_len();
+        let (mut a, mut b, mut c) = (vec![0.0; w], vec![0.0; w], vec![0.0; w]);
+        for count in [1usize, 3, 4, 5, 16, 17] {
+            // Inputs as the transcriber assembles them: log-mel values relative to the
+            // window's maximum, clipped at the floor.
+            let inputs: Vec<f32> = (0..count * len)
+                .map(|_| (-20.0 * rng.next_f32()).max(m.floor))
+                .collect();
+            let mut scratch = BatchScratch::new(m, 2);
+            let mut got = vec![[f32::NAN; CLASSES]; count];
+            m.forward_batch(&inputs, count, &mut scratch, &mut got);
+            for (h, x) in inputs.chunks_exact(len).enumerate() {
+                let want = m.forward(x, &mut a, &mut b, &mut c);
+                assert_eq!(
+                    got[h].map(f32::to_bits),
+                    want.map(f32::to_bits),
+                    "model {mi}, batch {count}, hop {h}"
+                );
+            }
+        }
+    }
 }

@@ -90,7 +90,7 @@ mod transcriber;
 
 pub use crate::nn::{Conv, ConvNet, Layer};
 pub use judge::{Judge, SecondStage, JUDGE_INPUTS};
-pub use model::DrumModel;
+pub use model::{BatchScratch, DrumModel};
 pub use retune::Retuning;
 pub use transcriber::DrumTranscriber;
 
