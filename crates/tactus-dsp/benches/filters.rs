@@ -10,7 +10,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use tactus_dsp::median::MedianFilter;
-use tactus_dsp::sos::SosFilter;
+use tactus_dsp::sos::{Response, SosFilter};
 use tactus_dsp::{Band, SampleStage};
 use tactus_testkit::Rng;
 
@@ -37,6 +37,21 @@ fn stages() -> Vec<(String, Box<dyn SampleStage>)> {
     v.push((
         "highpass_30hz_o4".into(),
         Box::new(SosFilter::highpass(30.0, 4, FS).unwrap()),
+    ));
+    // The pitch tracks' anti-aliasing low-pass (order 8, four sections), as the lead's
+    // decimator by 3 designs it.
+    v.push((
+        "lowpass_5880hz_o8".into(),
+        Box::new(
+            SosFilter::butterworth(
+                8,
+                Response::LowPass {
+                    cutoff_hz: 0.4 * FS as f64 / 3.0,
+                },
+                FS,
+            )
+            .unwrap(),
+        ),
     ));
     v.push(("median_3".into(), Box::new(MedianFilter::new(3).unwrap())));
     v.push(("median_31".into(), Box::new(MedianFilter::new(31).unwrap())));
