@@ -12,6 +12,7 @@ mod config;
 mod frames;
 mod report;
 mod separator;
+mod workers;
 
 pub use config::{EngineConfig, SeparatorChoice, StageTimes, ENGINE_RATE};
 
@@ -26,6 +27,7 @@ use crate::recipe::{recipe, Role, Source};
 use crate::track::{Geometry, Mode};
 use crate::EngineError;
 use chain::{feed, StemChain};
+use workers::{Block, Workers};
 
 /// Blocks at least this long are processed with one thread per stem chain.
 const PARALLEL_MIN_BLOCK: usize = 16_384;
@@ -53,6 +55,11 @@ pub struct Engine {
     /// DC removal of the mix's channels ([`tactus_dsp::dc`]) and their current block.
     dc: [DcBlock; 2],
     dc_out: [Vec<f32>; 2],
+    /// Offline, pipelined and parallel: the chains on threads of their own from the first
+    /// block to [`Engine::finish`] (`workers`); `chains` is empty meanwhile.
+    workers: Option<Workers>,
+    /// The chains' stems, in order (also while the workers hold the chains).
+    stem_list: Vec<Stem>,
 }
 
 impl Engine {
@@ -115,6 +122,7 @@ impl Engine {
             }
         }
         let separator = separator::separator_for(&cfg, separated)?;
+        let stem_list = chains.iter().map(|c| c.stem).collect();
         let drums_on_mix = cfg.profile == Profile::Live
             && !cfg.supplied.contains(Stem::Drums)
             && chains.iter().any(|c| c.stem == Stem::Drums);
@@ -139,6 +147,8 @@ impl Engine {
             pending: None,
             bin_base: 0,
             dc_out: [Vec::new(), Vec::new()],
+            workers: None,
+            stem_list,
         })
     }
 
@@ -149,7 +159,7 @@ impl Engine {
 
     /// Stems the engine computes features for.
     pub fn stems(&self) -> Vec<Stem> {
-        self.chains.iter().map(|c| c.stem).collect()
+        self.stem_list.clone()
     }
 
     /// Name of the separator that runs, if any.
@@ -213,7 +223,11 @@ impl Engine {
     fn process_inner(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {
         self.n_in += left.len();
         if self.cfg.pipeline && self.cfg.parallel && self.separator.is_some() {
-            self.process_pipelined(left, right, supplied);
+            if self.cfg.mode == Mode::Offline && (self.workers.is_some() || self.chains.len() > 1) {
+                self.process_on_workers(left, right, supplied);
+            } else {
+                self.process_pipelined(left, right, supplied);
+            }
             return;
         }
         if let Some(sep) = &mut self.separator {
@@ -223,6 +237,24 @@ impl Engine {
             self.t_separate += t.elapsed();
         }
         feed(&mut self.chains, &self.sep_out, supplied, self.cfg.parallel);
+    }
+
+    /// Separates this block on the calling thread and queues it for the chains' own threads
+    /// ([`workers`]), started on the first block.
+    fn process_on_workers(&mut self, left: &[f32], right: &[f32], supplied: &[(Stem, &[f32])]) {
+        let Some(sep) = self.separator.as_mut() else {
+            return;
+        };
+        let workers = self
+            .workers
+            .get_or_insert_with(|| Workers::start(std::mem::take(&mut self.chains)));
+        let mut out = self.sep_out.clone();
+        out.clear();
+        let t = Instant::now();
+        sep.process(left, right, &mut out);
+        self.t_separate += t.elapsed();
+        let supplied = supplied.iter().map(|(st, x)| (*st, x.to_vec())).collect();
+        workers.send(Block { out, supplied });
     }
 
     /// Separates this block on the calling thread while the chains work on the previous one.
@@ -265,6 +297,22 @@ impl Engine {
     /// Ends the stream: flushes the separator and every chain, and (offline) computes the
     /// whole-track statistics.
     pub fn finish(&mut self) {
+        if let Some(workers) = self.workers.take() {
+            if let Some(sep) = &mut self.separator {
+                let mut out = self.sep_out.clone();
+                out.clear();
+                let t = Instant::now();
+                sep.finish(&mut out);
+                self.t_separate += t.elapsed();
+                workers.send(Block {
+                    out,
+                    supplied: Vec::new(),
+                });
+            }
+            self.chains = workers.join();
+            self.finish_chains();
+            return;
+        }
         if let Some((p_out, p_sup)) = self.pending.take() {
             let views: Vec<(Stem, &[f32])> =
                 p_sup.iter().map(|(st, v)| (*st, v.as_slice())).collect();
@@ -277,6 +325,11 @@ impl Engine {
             self.t_separate += t.elapsed();
             feed(&mut self.chains, &self.sep_out, &[], self.cfg.parallel);
         }
+        self.finish_chains();
+    }
+
+    /// Ends every chain's stream (offline: on one thread each).
+    fn finish_chains(&mut self) {
         let parallel = self.cfg.parallel && self.chains.len() > 1 && self.cfg.mode == Mode::Offline;
         if parallel {
             std::thread::scope(|s| {
@@ -312,6 +365,9 @@ impl Engine {
             s.reset();
         }
         self.sep_out.clear();
+        if let Some(w) = self.workers.take() {
+            self.chains = w.join();
+        }
         for c in &mut self.chains {
             c.reset();
         }
