@@ -86,21 +86,25 @@ mod x86 {
                     // A whole tile: fixed bounds, so the accumulators stay in registers.
                     // SAFETY: as in `tile`, with `nr = ROWS` rows and `k = HOPS` hops.
                     acc = unsafe { tile(w, src, n_in, r, h, chunks) };
+                } else if nr == ROWS && k == 1 {
+                    // One hop (a live block): two rows, two independent chains.
+                    // SAFETY: as in `pair_one`, with `nr = ROWS` rows and one hop.
+                    let [a0, a1] = unsafe { pair_one(w, src, n_in, r, h, chunks) };
+                    acc[0][0] = a0;
+                    acc[1][0] = a1;
                 } else {
-                    for c in 0..chunks {
-                        let mut wv = [_mm256_setzero_ps(); ROWS];
-                        for (i, v) in wv.iter_mut().enumerate().take(nr) {
-                            // SAFETY: `(r + i)·n_in + 8c + 8 ≤ (r + i)·n_in + split ≤
-                            // n_out·n_in ≤ w.len()`.
-                            *v = unsafe { _mm256_loadu_ps(w.as_ptr().add((r + i) * n_in + 8 * c)) };
-                        }
-                        for j in 0..k {
-                            // SAFETY: `(h + j)·n_in + 8c + 8 ≤ count·n_in ≤ src.len()`.
-                            let xv = unsafe {
-                                _mm256_loadu_ps(src.as_ptr().add((h + j) * n_in + 8 * c))
-                            };
-                            for (acc_row, wr) in acc.iter_mut().zip(&wv).take(nr) {
-                                acc_row[j] = _mm256_add_ps(acc_row[j], _mm256_mul_ps(*wr, xv));
+                    // The rest: a row at a time against up to four hops.
+                    for (i, acc_row) in acc.iter_mut().enumerate().take(nr) {
+                        let row = (r + i) * n_in;
+                        for c in 0..chunks {
+                            // SAFETY: `row + 8c + 8 ≤ row + split ≤ n_out·n_in ≤ w.len()`.
+                            let wv = unsafe { _mm256_loadu_ps(w.as_ptr().add(row + 8 * c)) };
+                            for (j, a) in acc_row.iter_mut().enumerate().take(k) {
+                                // SAFETY: `(h + j)·n_in + 8c + 8 ≤ count·n_in ≤ src.len()`.
+                                let xv = unsafe {
+                                    _mm256_loadu_ps(src.as_ptr().add((h + j) * n_in + 8 * c))
+                                };
+                                *a = _mm256_add_ps(*a, _mm256_mul_ps(wv, xv));
                             }
                         }
                     }
@@ -125,6 +129,34 @@ mod x86 {
             }
             r += nr;
         }
+    }
+
+    /// The accumulators of rows `r`, `r + 1` of `w` against input `h` of `src` alone, summed
+    /// as in [`tile`].
+    ///
+    /// # Safety
+    /// As [`tile`], with `(h + 1)·n_in ≤ src.len()`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn pair_one(
+        w: &[f32],
+        src: &[f32],
+        n_in: usize,
+        r: usize,
+        h: usize,
+        chunks: usize,
+    ) -> [__m256; ROWS] {
+        debug_assert!((r + ROWS) * n_in <= w.len() && (h + 1) * n_in <= src.len());
+        let (w0, w1) = (w.as_ptr().add(r * n_in), w.as_ptr().add((r + 1) * n_in));
+        let x0 = src.as_ptr().add(h * n_in);
+        let (mut a0, mut a1) = (_mm256_setzero_ps(), _mm256_setzero_ps());
+        for c in 0..chunks {
+            let o = 8 * c;
+            let v = _mm256_loadu_ps(x0.add(o));
+            a0 = _mm256_add_ps(a0, _mm256_mul_ps(_mm256_loadu_ps(w0.add(o)), v));
+            a1 = _mm256_add_ps(a1, _mm256_mul_ps(_mm256_loadu_ps(w1.add(o)), v));
+        }
+        [a0, a1]
     }
 
     /// The accumulators of a whole tile: rows `r`, `r + 1` of `w` against inputs `h..h + 4`
