@@ -73,8 +73,10 @@ pub struct EngineConfig {
     /// Stems the caller supplies directly (never separated).
     pub supplied: StemSet,
     /// Overlap separation of block `n + 1` with the stem chains of block `n` (one thread
-    /// each). Delays the chains by one block; results are identical. The offline driver
-    /// turns it on; a live caller with small blocks leaves it off.
+    /// each; offline, each chain keeps its thread for the whole song and takes blocks from
+    /// a queue, docs/decisions/0056-offline-chains-on-their-own-threads.md). Delays the
+    /// chains by a block or two; results are identical. The offline driver turns it on; a
+    /// live caller with small blocks leaves it off.
     pub pipeline: bool,
     /// Intra-op threads for the ONNX separators (ONNX Runtime); 0 = the available cores
     /// ([`std::thread::available_parallelism`]). Nothing else uses it.

@@ -3,9 +3,10 @@
 //! One [`Engine`] serves both drivers. It accepts planar stereo blocks of any size at the
 //! engine rate, plus optional stems supplied directly (`render --stem`), and builds only
 //! what the glove map needs: a drums-only map runs no pitch tracking and asks the
-//! separator for drums alone. Chains run on their own threads when a block is large enough
-//! to pay for it (offline rendering feeds 1 s blocks); results do not depend on the block
-//! size or on threading, because every stage is chunk-invariant.
+//! separator for drums alone. Offline, each chain keeps a thread of its own for the whole
+//! song and the calling thread separates ahead of them ([`workers`]); otherwise chains run
+//! on scoped threads when a block is large enough to pay for it. Results do not depend on
+//! the block size or on threading, because every stage is chunk-invariant.
 
 mod chain;
 mod config;
