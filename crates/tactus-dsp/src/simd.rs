@@ -9,13 +9,14 @@
 
 #![allow(unsafe_code)]
 
-/// True when the AVX2 kernel can run here (cached by the standard library).
+/// True when the AVX2 kernel can run here (cached by the standard library); always false in
+/// a build with the `portable` feature.
 pub(crate) fn avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
+    #[cfg(all(target_arch = "x86_64", not(feature = "portable")))]
     {
         std::arch::is_x86_feature_detected!("avx2")
     }
-    #[cfg(not(target_arch = "x86_64"))]
+    #[cfg(any(not(target_arch = "x86_64"), feature = "portable"))]
     {
         false
     }
