@@ -259,17 +259,7 @@ impl PitchTrack {
         if let Some(g) = self.plain.as_mut() {
             g.process(block);
         }
-        let mut sink = HopSink {
-            plain: &mut self.plain,
-            f0: (&mut self.raw_f0, &mut self.skipped_f0),
-            conf: self
-                .chain
-                .sure_range
-                .is_some()
-                .then_some((&mut self.raw_conf, &mut self.skipped_conf)),
-            side: &mut self.note_side,
-            advance: self.advance,
-        };
+        let mut sink = hop_sink!(self);
         self.tracker
             .process(block, view, &mut |i, f, nf, c| sink.push(i, f, nf, c));
         let advance = self.advance;
@@ -285,17 +275,7 @@ impl PitchTrack {
         if let Some(g) = self.plain.as_mut() {
             g.finish();
         }
-        let mut sink = HopSink {
-            plain: &mut self.plain,
-            f0: (&mut self.raw_f0, &mut self.skipped_f0),
-            conf: self
-                .chain
-                .sure_range
-                .is_some()
-                .then_some((&mut self.raw_conf, &mut self.skipped_conf)),
-            side: &mut self.note_side,
-            advance: self.advance,
-        };
+        let mut sink = hop_sink!(self);
         self.tracker
             .finish(&mut |i, f, nf, c| sink.push(i, f, nf, c));
         // The advanced track ends as long as it would have: the dropped hops come back
@@ -567,6 +547,25 @@ fn advanced_push(out: &mut Vec<f32>, skipped: &mut usize, advance: usize, v: f32
         out.push(v);
     }
 }
+
+/// The [`HopSink`] of a [`PitchTrack`], borrowing only the fields it writes: a macro, so
+/// that the tracker and the decimators' outputs stay free to borrow beside it.
+macro_rules! hop_sink {
+    ($t:expr) => {
+        HopSink {
+            plain: &mut $t.plain,
+            f0: (&mut $t.raw_f0, &mut $t.skipped_f0),
+            conf: $t
+                .chain
+                .sure_range
+                .is_some()
+                .then_some((&mut $t.raw_conf, &mut $t.skipped_conf)),
+            side: &mut $t.note_side,
+            advance: $t.advance,
+        }
+    };
+}
+use hop_sink;
 
 /// Where the tracker's hops go: through the plain guard, then into the raw tracks, each
 /// moved `advance` hops earlier ([`PitchTrack::set_advance_hops`]).
