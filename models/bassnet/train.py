@@ -39,6 +39,12 @@ STEMS = {
     # The harmonic-view lead models: the separator's vocals + bass + other as input.
     "vocals_harm": dict(bands=216, low_hz=70.0, fmin=70.0, fmax=1400.0, truth="vocals",
                         flags=["--lead", "216", "70", "--harmonic"]),
+    # The live profile's models: the live separator's harmonic sum on short frames
+    # (tactus_engine::profile::LIVE_BASS_NET_FRAME_S, LIVE_LEAD_NET_FRAME_S).
+    "bass_live": dict(bands=183, low_hz=30.0, fmin=35.0, fmax=400.0, truth="bass",
+                      flags=["--live", "--harmonic", "--frame", "384"]),
+    "vocals_live": dict(bands=216, low_hz=70.0, fmin=70.0, fmax=1400.0, truth="vocals",
+                        flags=["--lead", "216", "70", "--live", "--harmonic", "--frame", "512"]),
 }
 BANDS, LOW_HZ, FMIN, FMAX, M, TRUTH, FLAGS = 183, 30.0, 35.0, 400.0, 127, "bass", []
 
@@ -70,8 +76,9 @@ def load(songs, feat_dir, binary, delay):
         x = np.fromfile(path, dtype="<f4").reshape(-1, BANDS)
         f0 = json.load(open(os.path.join(song, "truth.json")))["f0_hz"][TRUTH]
         y = np.full(len(x), float(M))
-        for i, f in enumerate(f0[:max(0, len(x) - delay)]):
-            if f and f > 0:
+        for i, f in enumerate(f0):
+            # A negative delay asks the hop for the truth that many hops after it.
+            if f and f > 0 and 0 <= i + delay < len(x):
                 c = 12 * BPS * np.log2(f / FMIN)
                 if -0.5 <= c < M - 0.5:
                     y[i + delay] = c

@@ -57,6 +57,17 @@
 //! trained on, their ensemble's argmax is the lead's pitch on 0.891 / 0.731 / 0.787 of the
 //! voiced hops (chorales / instrumental leads over an unseen kit / sung) against 0.837 /
 //! 0.676 / 0.683 for the lead-band ensemble (`models/bassnet/README.md`).
+//!
+//! # The live models
+//! The models above need a 209 ms (bass) or 70 ms (lead) frame and look ahead 3–4 hops: with
+//! the Viterbi's lag and the full separator they cannot answer within the live profile's
+//! pitch budget. Two more models share the recipe but read the live profile's separator's
+//! harmonic sum on short frames with a context of past frames only
+//! ([`BassNet::embedded_bass_live`]: 256 samples at 4.9 kHz, 52 ms, frames −8, −4, −2, −1, 0;
+//! [`BassNet::embedded_lead_live`]: 512 samples at 14.7 kHz, 35 ms, frames −6, −3, −2, −1,
+//! 0), trained on songs none of the benches scores
+//! (`docs/decisions/0057-learned-live-pitch.md`). Latency: half the frame plus the
+//! Viterbi's lag, nothing ahead.
 
 use std::sync::OnceLock;
 
@@ -107,6 +118,12 @@ static EMBEDDED_LEAD_HARM_3: &[u8] = include_bytes!("../weights/leadnet_harm_3.b
 /// `models/bassnet/bass_train_songs_2.txt` (`docs/decisions/0042-bass-reads-the-harmonic-sum.md`;
 /// module docs, "The harmonic view").
 static EMBEDDED_BASS_HARM: &[u8] = include_bytes!("../weights/bassnet_harm.bin");
+
+/// The live models: the bass and the lead recipes on the live profile's separator's
+/// harmonic sum, short frames and a past-only context (module docs, "The live models";
+/// `docs/decisions/0057-learned-live-pitch.md`).
+static EMBEDDED_BASS_LIVE: &[u8] = include_bytes!("../weights/bassnet_live.bin");
+static EMBEDDED_LEAD_LIVE: &[u8] = include_bytes!("../weights/leadnet_live.bin");
 
 /// The network and its input layout.
 #[derive(Clone, Debug, PartialEq)]
@@ -201,6 +218,24 @@ impl BassNet {
                     .expect("embedded harmonic lead model is valid")
             }),
         ]
+    }
+
+    /// The live bass model (parsed once; module docs, "The live models").
+    pub fn embedded_bass_live() -> &'static BassNet {
+        static MODEL: OnceLock<BassNet> = OnceLock::new();
+        // Checked by a unit test, like the other models.
+        MODEL.get_or_init(|| {
+            Self::from_bytes(EMBEDDED_BASS_LIVE).expect("embedded live bass model is valid")
+        })
+    }
+
+    /// The live lead model (parsed once; module docs, "The live models").
+    pub fn embedded_lead_live() -> &'static BassNet {
+        static MODEL: OnceLock<BassNet> = OnceLock::new();
+        // Checked by a unit test, like the other models.
+        MODEL.get_or_init(|| {
+            Self::from_bytes(EMBEDDED_LEAD_LIVE).expect("embedded live lead model is valid")
+        })
     }
 
     /// Parses the format written by `models/bassnet/train.py`: `"TACTUSBN"`, then

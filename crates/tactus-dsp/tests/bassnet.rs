@@ -874,3 +874,47 @@ fn the_bass_view_feeds_the_network_and_the_harmonic_sum_keeps_the_stem() {
     });
     assert_eq!(allocs, 0);
 }
+
+/// The live models' files (`BassNet::embedded_bass_live`, `BassNet::embedded_lead_live`).
+const BASS_LIVE_WEIGHTS: &[u8] = include_bytes!("../weights/bassnet_live.bin");
+const LEAD_LIVE_WEIGHTS: &[u8] = include_bytes!("../weights/leadnet_live.bin");
+
+#[test]
+fn live_models_match_a_separate_f64_reader_and_look_only_back() {
+    // Each live model against its own f64 reader, on the layout (bands, grid) of the model
+    // it stands in for; its context is past frames only, so it adds no latency of its own.
+    for (live, like, weights, seed) in [
+        (
+            BassNet::embedded_bass_live(),
+            BassNet::embedded(),
+            BASS_LIVE_WEIGHTS,
+            41,
+        ),
+        (
+            BassNet::embedded_lead_live(),
+            BassNet::embedded_lead(),
+            LEAD_LIVE_WEIGHTS,
+            43,
+        ),
+    ] {
+        let or = oracle_of(weights, like.bands(), like.low_hz());
+        assert_eq!(live.offsets(), &or.offsets[..]);
+        assert_eq!(live.future(), 0, "{:?}", live.offsets());
+        assert!(live.offsets().iter().all(|&o| o <= 0));
+        assert_eq!(
+            (
+                live.bands(),
+                live.low_hz(),
+                live.cand_fmin_hz(),
+                live.candidates()
+            ),
+            (
+                like.bands(),
+                like.low_hz(),
+                like.cand_fmin_hz(),
+                like.candidates()
+            )
+        );
+        check_against_oracle(live, &or, seed, 3);
+    }
+}

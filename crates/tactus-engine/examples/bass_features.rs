@@ -11,7 +11,10 @@
 //! vocals stem and the vocals chain's front end (60 Hz high-pass, the melody frame) with
 //! BANDS bands from LOW_HZ (the lead model's). With `--lead … --harmonic`, the separator's
 //! harmonic sum (vocals + bass + other, the harmonic-view lead models' input) instead of
-//! the vocals stem.
+//! the vocals stem. With `--live`, the live profile's separator
+//! (`tactus_engine::profile::separator`) instead of the default one (with `--harmonic`:
+//! its harmonic sum). `--frame N` sets the frame at the pitch rate (default: the
+//! harmonic sum's; the FFT length stays the preset's).
 use std::io::Write;
 use std::path::Path;
 
@@ -52,7 +55,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map(|(l, r)| 0.5 * (l + r))
             .collect()
     } else {
-        let mut sep = SpectralSeparator::new(rate, StemSet::all(), SpectralConfig::default())?;
+        let live = args[3..].iter().any(|a| a == "--live");
+        let sep_cfg = if live {
+            tactus_engine::profile::separator()
+        } else {
+            SpectralConfig::default()
+        };
+        let mut sep = SpectralSeparator::new(rate, StemSet::all(), sep_cfg)?;
         let mut out = StemOutput::new();
         sep.process(&d.left, &d.right, &mut out);
         sep.finish(&mut out);
@@ -79,11 +88,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut dec = Decimator::new(rate, factor)?;
     dec.process(&bass);
     let low = dec.output().to_vec();
-    let cfg = if lead.is_some() {
+    let mut cfg = if lead.is_some() {
         ShsConfig::melody(rate / factor as u32, fmin, fmax)
     } else {
         ShsConfig::new(rate / factor as u32, fmin, fmax)
     };
+    if let Some(i) = args.iter().position(|a| a == "--frame") {
+        cfg.frame = args.get(i + 1).ok_or("--frame N")?.parse()?;
+    }
     let hop = ((rate / factor as u32) as f64 * 0.010).round() as usize;
     let mut framer = Framer::new(cfg.frame, hop)?;
     let mut front =

@@ -20,14 +20,15 @@
 //! | drum onsets (`--drums bands`) | Butterworth bands, spectral flux with 1024-point frames every 5 ms, causal rising-edge picking, the gate's level over two hops | 220 (5.0 ms) |
 //! | drum onsets (`--drums classes`) | the per-instrument transcriber on the mix (its embedded 4-hop model and the snare's one-hop second stage) | 2,717 (61.6 ms) |
 //! | separator (melodic stems) | spectral, [`separator`]: 512-point frames, hop 128, harmonic median over 5 frames, no look-ahead | 511 (11.6 ms) |
-//! | pitch | YIN (`--pitch auto`) on two frames ([`tactus_dsp::twoframe`]): two periods of [`TWO_FRAME_SPLIT`]` · fmin` ([`pitch_frame`]) answer for every note but those below that split, which come from a frame of two periods of `fmin`, one hop later; bass from 41 Hz (E1); `--pitch pyin` gets one frame of two periods of `fmin` and a Viterbi lag of [`PITCH_LAG_HOPS`] hops | bass 819 (18.6 ms; below 54.7 Hz 1,260), vocals 477, other 666 |
+//! | pitch, bass and lead (`--pitch auto`) | the live models ([`tactus_dsp::bassnet`], "The live models") on the separator's harmonic sum: frames of [`LIVE_BASS_NET_FRAME_S`] (78 ms) and [`LIVE_LEAD_NET_FRAME_S`] (35 ms) centred on their hop, past frames as context, Viterbi lags of [`LIVE_BASS_LAG_HOPS`] and [`LIVE_LEAD_LAG_HOPS`] hops; YIN behind them on a plain tone (`tactus_dsp::plain`) | bass 1,728 (39.2 ms), vocals 1,209 (27.4 ms) |
+//! | pitch, other (and bass and lead with `--pitch yin`) | YIN on two frames ([`tactus_dsp::twoframe`]): two periods of [`TWO_FRAME_SPLIT`]` · fmin` ([`pitch_frame`]) answer for every note but those below that split, which come from a frame of two periods of `fmin`, one hop later; a YIN bass from 41 Hz (E1); `--pitch pyin` gets one frame of two periods of `fmin` and a Viterbi lag of [`PITCH_LAG_HOPS`] hops | YIN bass 819 (18.6 ms; below 54.7 Hz 1,260), vocals 477, other 666 |
 //! | bins | [`BIN_MS`] = 10 ms | 441 |
 //! | pins | a beat holds its pins up for [`PULSE_MS`] = 50 ms, so a 50 ms pin rise completes | 0 |
 //!
 //! The rhythm path sums to 1 + 953 + 441 = 1,395 samples (31.6 ms; with `--drums bands`,
 //! 1 + 220 + 441 = 662 samples, 15 ms), the slowest pitch path (bass) to
-//! 511 + 1 + 819 + 441 = 1,772 samples (40.2 ms; 2,213 = 50.2 ms for a bass note below
-//! 54.7 Hz, which only the long frame hears); `tests/profile.rs` feeds a
+//! 511 + 1 + 1,728 + 441 = 2,681 samples (60.8 ms; with `--pitch yin` 1,772 = 40.2 ms);
+//! `tests/profile.rs` feeds a
 //! drum hit and tone steps in 64-sample blocks and checks that the frame showing them
 //! exists within that (plus one detector hop and one block). Measured from outside, sound to
 //! frame at the glove: `tests/live_latency.rs` and `docs/decisions/0006-live-latency-profile.md`.
@@ -79,6 +80,15 @@ pub const PULSE_MS: u32 = 50;
 /// Viterbi lag of the live profile's pYIN and harmonic-sum trackers (`--pitch pyin|shs`),
 /// hops of 10 ms. The default live tracker is plain YIN, which has none.
 pub const PITCH_LAG_HOPS: usize = 2;
+/// Viterbi lag of the live profile's learned bass tracker (the default), hops of 10 ms:
+/// none, so that a bass note reaches the thumb within the 80 ms pitch budget measured from
+/// outside (`benches/live_latency.py`: 98 Hz bursts p95 82 ms at lag 0 on this 2-core
+/// machine; each hop of lag adds 10 ms). On 20 tuning mixes a lag of 1 would give bass RPA
+/// 0.772 against 0.766 (`docs/decisions/0057-learned-live-pitch.md`).
+pub const LIVE_BASS_LAG_HOPS: usize = 0;
+/// Viterbi lag of the live profile's learned lead tracker, hops: one (lead RPA on the 20
+/// tuning mixes 0.805 / 0.811 / 0.813 at lags 0 / 1 / 2; its frame is 35 ms, the bass's 78).
+pub const LIVE_LEAD_LAG_HOPS: usize = 1;
 /// Where the live profile's YIN hands over from its long frame to its short one
 /// ([`tactus_dsp::twoframe`]), as a ratio to the stem's lowest note: a fourth above it. Notes
 /// from there up are shown with a frame of two periods of `4/3·fmin` (bass: 819 samples of
@@ -123,6 +133,24 @@ pub fn separator() -> SpectralConfig {
 pub fn pitch_frame(rate: u32, fmin_hz: f32) -> usize {
     let tau_max = (rate as f64 / fmin_hz.max(1.0) as f64).ceil() as usize;
     (2 * (tau_max + 1)).next_multiple_of(2).max(64)
+}
+
+/// Frame of the live bass model, seconds: 384 samples at the bass chain's 4.9 kHz
+/// (78 ms; its latency is half of it). A 256-sample model gave bass RPA 0.717 against
+/// 0.772 on the 20 tuning mixes (both at a lag of one hop). `models/bassnet/train.py --stem bass_live`.
+pub const LIVE_BASS_NET_FRAME_S: f64 = 384.0 / 4900.0;
+/// Frame of the live lead model, seconds: 512 samples at the lead chain's 14.7 kHz (35 ms).
+pub const LIVE_LEAD_NET_FRAME_S: f64 = 512.0 / 14700.0;
+
+/// The live models' frame at the decimated `rate` (the lead's for a `melody` grid): the
+/// nearest even number of samples to [`LIVE_BASS_NET_FRAME_S`] or [`LIVE_LEAD_NET_FRAME_S`].
+pub fn live_net_frame(rate: u32, melody: bool) -> usize {
+    let secs = if melody {
+        LIVE_LEAD_NET_FRAME_S
+    } else {
+        LIVE_BASS_NET_FRAME_S
+    };
+    (((rate as f64 * secs / 2.0).round() as usize) * 2).max(8)
 }
 
 /// The search range of a melodic stem in a profile: the live profile starts the bass at

@@ -161,10 +161,10 @@ fn a_tone_step_reaches_the_pitch_pins_within_the_stated_latency() {
         let l = stated(&e, "pitch");
         let paths = e.latency_paths();
         // The live pitch path of the slowest melodic stem: the 512-point separator (511),
-        // denoise (1), two-frame YIN answering with two periods of 4/3·fmin (the bass: 819;
-        // a note below 54.7 Hz comes from the 1,089-sample frame, one hop later: 1,260), a
-        // 10 ms bin.
-        assert!(l <= 511 + 1 + 819 + 441, "{paths:?}");
+        // denoise (1), the live bass model's frame of 384 samples at 4.9 kHz, half of it
+        // (1,728 at 44.1 kHz) and no Viterbi lag (the lead's: 256 at 14.7 kHz, 768, and one
+        // hop, 441), a 10 ms bin.
+        assert_eq!(l, 511 + 1 + 1728 + 441, "{paths:?}");
         let n0 = SR / 2 + 77;
         let mut x = vec![0.0f32; SR * 2];
         for (i, v) in tone(f0, SR).into_iter().enumerate() {
@@ -182,15 +182,14 @@ fn a_tone_step_reaches_the_pitch_pins_within_the_stated_latency() {
             "{f0} Hz step ({map} map) shown {delay} samples ({:.1} ms) after it began; stated {l}",
             delay as f64 * 1e3 / SR as f64
         );
-        // The stated latency says when a hop is final. YIN's frame is centred on its hop
-        // and voices a step once most of the frame holds it: from 0.3 frame before the
-        // hop's centre to 0.2 after (tactus_dsp::twoframe's tests), so half the short frame
-        // (819 samples, as much as its stated part) plus one 10 ms pitch hop and one block
-        // of margin. A bass note below the split (41-54.7 Hz) is the long frame's, one hop
-        // older (`TwoFrameYin::lag_hops`): 441 samples more.
-        let lowest = if f0 < 54.7 { 441 } else { 0 };
+        // The stated latency says when a hop is final. The live models' frames are centred
+        // on their hop and voice a step once most of the frame holds it, up to half a frame
+        // after the hop's centre (the bass's 1,728 samples, the lead's 768; measured: 49 Hz
+        // 4,497 samples, 98 Hz 1,873, 220 Hz 3,217, 392 Hz 593), plus one 10 ms pitch hop
+        // and one block of margin.
+        let half = if f0 < 250.0 { 1728 } else { 768 };
         assert!(
-            delay <= l + 819 + lowest + 441 + BLOCK,
+            delay <= l + half + 441 + BLOCK,
             "{f0} Hz: shown {delay} samples after the step; stated {l}"
         );
     }

@@ -109,6 +109,13 @@ pub struct ShsConfig {
     /// [`Shs`]: super::Shs
     /// [`HopStage::process_with`]: crate::HopStage::process_with
     pub learned_harmonic: bool,
+    /// With [`ShsConfig::learned`]: the live models ([`BassNet::embedded_bass_live`],
+    /// [`BassNet::embedded_lead_live`]), trained on short frames ([`crate::bassnet`] module
+    /// docs, "The live models"); the frame must be theirs. Off by default.
+    ///
+    /// [`BassNet::embedded_bass_live`]: crate::bassnet::BassNet::embedded_bass_live
+    /// [`BassNet::embedded_lead_live`]: crate::bassnet::BassNet::embedded_lead_live
+    pub learned_live: bool,
     /// Attack alignment of a clean lead's note changes (module docs, step 9): a decided
     /// voiced hop reports the note the provisional path jumps to within the lag when the
     /// frame's band level rises from the hop to the jump by at least this many dB (and
@@ -168,6 +175,7 @@ impl ShsConfig {
             learned_voicing_nats: 0.0,
             learned_ensemble: false,
             learned_harmonic: false,
+            learned_live: false,
             attack_rise_db: 0.0,
             attack_salience_ratio: 0.0,
         }
@@ -310,6 +318,12 @@ impl ShsConfig {
         if self.learned_harmonic && !self.learned {
             return Err(ConfigError::invalid(
                 "learned_harmonic",
+                "applies only to the learned salience (learned = true)",
+            ));
+        }
+        if self.learned_live && !self.learned {
+            return Err(ConfigError::invalid(
+                "learned_live",
                 "applies only to the learned salience (learned = true)",
             ));
         }

@@ -71,13 +71,17 @@ impl NetState {
         };
         let harmonic = cfg.learned_harmonic;
         let model = if fits(BassNet::embedded()) {
-            if harmonic {
+            if cfg.learned_live {
+                BassNet::embedded_bass_live()
+            } else if harmonic {
                 BassNet::embedded_bass_harmonic()
             } else {
                 BassNet::embedded()
             }
         } else if fits(BassNet::embedded_lead()) {
-            if harmonic {
+            if cfg.learned_live {
+                BassNet::embedded_lead_live()
+            } else if harmonic {
                 BassNet::embedded_lead_harmonic()
             } else {
                 BassNet::embedded_lead()

@@ -56,7 +56,7 @@ impl Engine {
                 _ => " + the separator's note lag",
             };
             v.push((
-                format!("{} pitch (YIN frame/2, + Viterbi lag{lag})", c.stem.name()),
+                format!("{} pitch (frame/2 + Viterbi lag{lag})", c.stem.name()),
                 c.pitch.as_ref().map_or(0, |p| p.latency_samples()),
             ));
             out.push(("pitch".to_string(), v));

@@ -301,12 +301,25 @@ pub enum Network {
     /// The mean of the three harmonic-view lead models (seeds 7, 11 and 13), reading the
     /// separator's harmonic sum (`docs/decisions/0037-learned-lead-reads-the-harmonic-sum.md`).
     LeadHarmonic,
+    /// The live bass model: the live separator's harmonic sum on short frames, a past-only
+    /// context (`docs/decisions/0057-learned-live-pitch.md`).
+    BassLive,
+    /// The live lead model, the same for the lead's grid.
+    LeadLive,
 }
 
 impl Network {
     /// Whether the network reads the harmonic view.
     pub fn harmonic(self) -> bool {
-        matches!(self, Network::BassHarmonic | Network::LeadHarmonic)
+        matches!(
+            self,
+            Network::BassHarmonic | Network::LeadHarmonic | Network::BassLive | Network::LeadLive
+        )
+    }
+
+    /// Whether the network is one of the live profile's (short frames, no look-ahead).
+    pub fn live(self) -> bool {
+        matches!(self, Network::BassLive | Network::LeadLive)
     }
 
     /// Whether the network is an ensemble (the lead's).
@@ -322,6 +335,8 @@ impl Network {
             Network::BassHarmonic => "bass-harmonic",
             Network::Lead => "lead",
             Network::LeadHarmonic => "lead-harmonic",
+            Network::BassLive => "bass-live",
+            Network::LeadLive => "lead-live",
         }
     }
 }
@@ -408,6 +423,9 @@ pub fn recipe(
         // The live profile: plain YIN on short frames (pYIN's HMM needs more than its 2-hop
         // lag to trust a new note: 89 ms against 60 ms median in benches/live_latency.py;
         // the harmonic-sum tracker's 200 ms frames do not fit at all).
+        // The spectral separator's bass and lead live: the live models on its harmonic sum
+        // (docs/decisions/0057-learned-live-pitch.md).
+        PitchMethod::Auto if live && line && spectral_mix => PitchMethod::Learned,
         PitchMethod::Auto | PitchMethod::AutoShs if live => PitchMethod::Yin,
         // The spectral separator's bass: the learned salience times the harmonic sum
         // (trained on that stem); its lead: the harmonic sum decides whether, the learned
@@ -424,10 +442,18 @@ pub fn recipe(
     let tracker = match method {
         PitchMethod::Yin => TrackerRecipe::Yin,
         PitchMethod::Pyin | PitchMethod::Auto | PitchMethod::AutoShs => TrackerRecipe::Pyin,
+        PitchMethod::Learned if live && harmonic_view => live_tracker(bass),
         PitchMethod::Shs | PitchMethod::Learned => shs_tracker(bass, mix, learned, harmonic_view),
     };
     Recipe {
-        range_hz: profile::pitch_range_hz(profile, role.stem()).unwrap_or_default(),
+        // A learned tracker searches its network's grid (the live bass's too: the live
+        // profile's higher floor is for YIN's frame).
+        range_hz: if learned {
+            role.stem().pitch_range_hz()
+        } else {
+            profile::pitch_range_hz(profile, role.stem())
+        }
+        .unwrap_or_default(),
         levels: levels(
             role,
             mix,
@@ -435,7 +461,11 @@ pub fn recipe(
             matches!(tracker, TrackerRecipe::Pair { .. }),
         ),
         tracker,
-        lag_hops: if live {
+        lag_hops: if live && learned && bass {
+            profile::LIVE_BASS_LAG_HOPS
+        } else if live && learned {
+            profile::LIVE_LEAD_LAG_HOPS
+        } else if live {
             profile::PITCH_LAG_HOPS
         } else {
             PYIN_LAG_HOPS
@@ -466,6 +496,24 @@ pub fn recipe(
             clean_lead: !mix && role == Role::Lead,
         },
     }
+}
+
+/// The live profile's learned tracker of a bass (or of a higher line) on a band of the
+/// spectral separator's mix: the live model alone decides whether and which pitch, reading
+/// the separator's harmonic sum (docs/decisions/0057-learned-live-pitch.md).
+fn live_tracker(bass: bool) -> TrackerRecipe {
+    TrackerRecipe::View(ShsTuning {
+        melody: !bass,
+        fundamental_ratio: MIXTURE_FUNDAMENTAL_RATIO,
+        network: if bass {
+            Network::BassLive
+        } else {
+            Network::LeadLive
+        },
+        learned_blend: 0.0,
+        learned_voicing_nats: LIVE_VOICING_NATS,
+        ..ShsTuning::default()
+    })
 }
 
 /// The harmonic-sum tracker of a bass (or of a higher line), on a band of the `mix` or a

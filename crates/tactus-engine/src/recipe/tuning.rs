@@ -148,6 +148,13 @@ pub(super) const MIXTURE_BASS_REGISTER_ST: f32 = 12.0;
 /// validation songs over 0 / 2 / 3 / 4 / 6
 /// (`docs/decisions/0028-learned-lead-voicing-veto.md`).
 pub(super) const LEARNED_LEAD_VOICING_NATS: f32 = 3.0;
+/// Bias against "no pitch" of the live profile's learned bass and lead trackers, nats
+/// ([`tactus_dsp::shs::ShsConfig::learned_voicing_nats`]). Chosen on 20 tuning mixes
+/// (the live models' 16 validation songs and the 4 even sung songs): 0 / 2 / 3 / 4 gave bass
+/// RPA 0.643 / 0.717 / 0.721 / 0.721, lead RPA 0.728 / 0.811 / 0.821 / 0.824 with lead
+/// voicing false alarms 0.136 / 0.285 / 0.395 / 0.511
+/// (`docs/decisions/0057-learned-live-pitch.md`).
+pub(super) const LIVE_VOICING_NATS: f32 = 2.0;
 
 /// [`tactus_dsp::shs::ShsConfig::learned_blend`] of the learned bass salience: the weight
 /// of the harmonic sum's observation log-probabilities added to the network's. Chosen on the

@@ -30,6 +30,10 @@ pub(super) fn shs_config(tuning: &ShsTuning, yc: &YinConfig, lag_hops: usize) ->
     sc.attack_salience_ratio = tuning.attack_salience_ratio;
     sc.learned = tuning.network != Network::None;
     sc.learned_harmonic = tuning.network.harmonic();
+    sc.learned_live = tuning.network.live();
+    if sc.learned_live {
+        sc.frame = crate::profile::live_net_frame(rate, tuning.melody);
+    }
     sc.learned_ensemble = tuning.network.ensemble();
     sc.learned_blend = tuning.learned_blend;
     sc.learned_voicing_nats = tuning.learned_voicing_nats;
