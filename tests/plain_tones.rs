@@ -203,10 +203,10 @@ fn held_and_gliding_tones_from_41_hz_to_2_khz_are_tracked_by_their_finger() {
 }
 
 #[test]
-fn the_live_profile_tracks_plain_tones_like_its_yin() {
-    // The live profile's learned trackers (docs/decisions/0057-learned-live-pitch.md) stand
-    // in for live YIN on a mix's bass and lead: held and gliding tones from 41 Hz to 2 kHz,
-    // streamed as `tactus live` computes them, must reach the same 0.95.
+fn the_live_profile_tracks_plain_tones_on_their_finger() {
+    // The live profile's learned trackers (docs/decisions/0057-learned-live-pitch.md), backed
+    // by YIN (docs/decisions/0051-plain-guard.md): held and gliding tones from 41 Hz to 2 kHz,
+    // streamed as `tactus live` computes them, must reach the offline render's 0.95.
     let mut cases = Vec::new();
     for wave in [Wave::Sine, Wave::Saw, Wave::Eight08] {
         for f0 in [41.2, 55.0, 110.0, 220.0, 440.0, 1000.0, 2000.0] {

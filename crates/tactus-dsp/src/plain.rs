@@ -28,9 +28,11 @@
 //!   [`LOWER_APERIODICITY`] where YIN reads lower than the tracker (a common period of two
 //!   notes reads lower than either: the held-out jazz bass had YIN an octave or two under
 //!   the note at 0.012–0.015);
-//! * or YIN overruled the tracker on the hop before at the same pitch (within half a
-//!   semitone) and this hop is still plain: a note YIN has taken over stays YIN's, so that a
-//!   held tone does not alternate between two readings.
+//! * or YIN took the hop before at the same pitch (within half a semitone) and this hop is
+//!   nearly plain (aperiodicity at most [`HELD_APERIODICITY`]): a note YIN has overruled the
+//!   tracker on stays YIN's, so that a held tone does not alternate between two readings,
+//!   and a note YIN filled stays filled while the tracker stays silent (a saw near 2 kHz
+//!   gliding at 14.7 kHz reads 0.04-0.06).
 //!
 //! A strictly plain tone above the ceiling means nothing in the tracker's range is sounding:
 //! the hop is unvoiced (the tracker's reading there is a multiple of the tone's period).
@@ -53,6 +55,10 @@ const SLACK: f32 = 1.029_302_2;
 
 /// Ceiling on YIN's aperiodicity for a plain hop (docs/decisions/0051-plain-guard.md).
 pub const MAX_APERIODICITY: f32 = 0.05;
+
+/// Ceiling on YIN's aperiodicity for a note YIN has taken over to stay YIN's
+/// ([`PlainGuard::resolve`]): the hysteresis of [`MAX_APERIODICITY`].
+pub const HELD_APERIODICITY: f32 = 0.1;
 
 /// YIN's aperiodicity under which a plain hop overrules a tracker that reads its pitch or
 /// lower ([`PlainGuard::resolve`]).
@@ -114,9 +120,19 @@ impl Track {
 pub struct PlainGuard {
     stem: Track,
     range_hz: (f32, f32),
-    /// YIN's pitch of the last hop if it overruled the tracker: a note YIN has taken over
-    /// stays YIN's while it stays plain at that pitch.
-    run: Option<f32>,
+    /// The note YIN took on the last hop: it stays YIN's while it stays nearly plain at
+    /// that pitch.
+    run: Option<Run>,
+}
+
+/// A note YIN took ([`PlainGuard::resolve`]).
+#[derive(Clone, Copy, Debug)]
+struct Run {
+    /// YIN's pitch on the last hop, Hz.
+    f0_hz: f32,
+    /// Whether YIN overruled the tracker's reading (held against it) or filled its silence
+    /// (held only while the tracker stays silent).
+    overruled: bool,
 }
 
 impl PlainGuard {
@@ -155,7 +171,13 @@ impl PlainGuard {
     /// What YIN says of hop `i` of the stem ([`Plain`]); forgets hops up to `i`. Call with
     /// increasing `i`.
     pub fn take(&mut self, i: usize) -> Plain {
-        match self.stem.take(i) {
+        let e = self.stem.take(i);
+        self.classify(e)
+    }
+
+    /// [`Plain`] of YIN's estimate of a hop.
+    fn classify(&self, e: Option<PitchEstimate>) -> Plain {
+        match e {
             Some(e) if e.f0_hz > 0.0 && e.aperiodicity <= MAX_APERIODICITY => {
                 if e.f0_hz > self.range_hz.1 {
                     Plain::Above(e)
@@ -174,7 +196,25 @@ impl PlainGuard {
     /// `i`. See the module docs.
     pub fn resolve(&mut self, i: usize, f0: f32) -> Option<f32> {
         let run = self.run.take();
-        match self.take(i) {
+        let est = self.stem.take(i);
+        // A note YIN has taken over stays YIN's while YIN reads it at the same pitch, in
+        // range, a little less plain than it must be to take it: a saw near the top of the
+        // lead's range gliding at a decimated rate reads 0.04-0.06.
+        if let (Some(r), Some(e)) = (run, est) {
+            if (r.overruled || f0 <= 0.0)
+                && e.f0_hz >= self.range_hz.0
+                && e.f0_hz <= self.range_hz.1
+                && e.aperiodicity <= HELD_APERIODICITY
+                && same_pitch(r.f0_hz, e.f0_hz)
+            {
+                self.run = Some(Run {
+                    f0_hz: e.f0_hz,
+                    ..r
+                });
+                return Some(e.f0_hz);
+            }
+        }
+        match self.classify(est) {
             Plain::Tone(e) => {
                 // A YIN pitch below the tracker's may be a common period of two notes: it
                 // must be plainer still.
@@ -183,12 +223,20 @@ impl PlainGuard {
                 } else {
                     STRICT_APERIODICITY
                 };
-                let held = run.is_some_and(|r| same_pitch(r, e.f0_hz));
-                if e.aperiodicity <= strict || held {
-                    self.run = Some(e.f0_hz);
+                if e.aperiodicity <= strict {
+                    self.run = Some(Run {
+                        f0_hz: e.f0_hz,
+                        overruled: true,
+                    });
+                    Some(e.f0_hz)
+                } else if f0 <= 0.0 {
+                    self.run = Some(Run {
+                        f0_hz: e.f0_hz,
+                        overruled: false,
+                    });
                     Some(e.f0_hz)
                 } else {
-                    (f0 <= 0.0).then_some(e.f0_hz)
+                    None
                 }
             }
             Plain::Above(e) if e.aperiodicity <= STRICT_APERIODICITY => Some(0.0),
@@ -368,9 +416,20 @@ mod tests {
             // Taken: the note stays YIN's while plain at the same pitch...
             (e(110.5, 0.04), 220.0, Some(110.5)),
             (e(111.0, 0.04), 220.0, Some(111.0)),
+            // ...or nearly plain (the hysteresis)...
+            (e(111.2, 0.08), 220.0, Some(111.2)),
+            (e(111.0, 0.11), 220.0, None),
+            (e(110.0, 0.004), 220.0, Some(110.0)),
             // ...until it moves or stops being plain.
             (e(130.0, 0.04), 220.0, None),
             (e(130.0, 0.03), 220.0, None),
+            // A filled note stays filled while nearly plain and the tracker silent...
+            (e(130.0, 0.03), 0.0, Some(130.0)),
+            (e(130.5, 0.08), 0.0, Some(130.5)),
+            // ...but does not overrule the tracker when it speaks.
+            (e(130.5, 0.08), 260.0, None),
+            (e(130.0, 0.03), 0.0, Some(130.0)),
+            (e(130.0, 0.08), 260.0, None),
             // YIN higher than (or at) the tracker: 0.015 is enough.
             (e(110.0, 0.012), 55.0, Some(110.0)),
             (e(110.0, 0.2), 55.0, None),

@@ -5,7 +5,7 @@
 //! has arrived, to within one decimated sample, and the step's first voiced hop is decided within one hop of it), streaming
 //! is chunk-invariant, and the engine turns it on only where it belongs.
 
-use tactus_engine::profile::Profile;
+use tactus_engine::profile::{self, Profile};
 use tactus_engine::recipe::Role;
 use tactus_engine::track::Geometry;
 use tactus_engine::{Engine, EngineConfig, Mode, PitchMethod, SeparatorChoice};
@@ -144,7 +144,7 @@ fn an_advanced_track_decides_nothing_before_its_stated_latency() {
 fn the_engine_advances_only_the_spectral_separators_tracks_and_not_live() {
     // The pitch group's tracker stage in the latency report: the spectral separator's
     // tracks state 3 hops (10 ms each) more than the same tracks on the mix itself
-    // (`none`), plus the learned bass salience's look-ahead; the live profile adds nothing.
+    // (`none`), plus the learned bass salience's look-ahead; the live profile adds no advance.
     let tracker = |separator, profile| {
         let e = Engine::new(EngineConfig {
             separator,
@@ -174,7 +174,18 @@ fn the_engine_advances_only_the_spectral_separators_tracks_and_not_live() {
         "{name}"
     );
     assert!(name.contains("separator's note lag"), "{name}");
-    let (_, live_spectral) = tracker(SeparatorChoice::Spectral, Profile::Live);
-    let (_, live_none) = tracker(SeparatorChoice::None, Profile::Live);
-    assert_eq!(live_spectral, live_none);
+    // Live, the spectral separator's bass is the live model (no look-ahead): it states half
+    // its frame and its Viterbi lag, and the separator's note lag adds nothing.
+    let (live_name, live_spectral) = tracker(SeparatorChoice::Spectral, Profile::Live);
+    let half_frame = (profile::LIVE_BASS_NET_FRAME_S * f64::from(SR) / 2.0).round() as usize;
+    assert_eq!(
+        live_spectral,
+        half_frame + profile::LIVE_BASS_LAG_HOPS * hop,
+        "{live_name}"
+    );
+    assert!(!live_name.contains("separator's note lag"), "{live_name}");
+    // On the mix itself (no separator) the live bass is YIN, with no advance either.
+    let (none_name, live_none) = tracker(SeparatorChoice::None, Profile::Live);
+    assert!(!none_name.contains("separator's note lag"), "{none_name}");
+    assert!(live_none < live_spectral, "{none_name}");
 }

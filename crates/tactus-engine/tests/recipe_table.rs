@@ -39,19 +39,19 @@ bass  clean live spectral yin      | 41-400 Hz yin lag 2 | iqr 12 span 20 regist
 bass  clean live spectral pyin     | 41-400 Hz pyin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live spectral shs      | 41-400 Hz shs(bass) lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live spectral auto-shs | 41-400 Hz yin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
-bass  clean live spectral learned  | 41-400 Hz shs(bass net bass blend 0.3) lag 2 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
+bass  clean live spectral learned  | 35-400 Hz shs(bass net bass blend 0.3) lag 0 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live none     auto     | 41-400 Hz yin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live none     yin      | 41-400 Hz yin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live none     pyin     | 41-400 Hz pyin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live none     shs      | 41-400 Hz shs(bass) lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live none     auto-shs | 41-400 Hz yin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
-bass  clean live none     learned  | 41-400 Hz shs(bass net bass blend 0.3) lag 2 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
+bass  clean live none     learned  | 35-400 Hz shs(bass net bass blend 0.3) lag 0 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live onnx     auto     | 41-400 Hz yin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live onnx     yin      | 41-400 Hz yin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live onnx     pyin     | 41-400 Hz pyin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live onnx     shs      | 41-400 Hz shs(bass) lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live onnx     auto-shs | 41-400 Hz yin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
-bass  clean live onnx     learned  | 41-400 Hz shs(bass net bass blend 0.3) lag 2 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
+bass  clean live onnx     learned  | 35-400 Hz shs(bass net bass blend 0.3) lag 0 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  mix   full spectral auto     | 35-400 Hz view(bass fr 0.1 reg 12 net bass-harmonic blend 0.3) lag 10 harmonic-view advance 3 plain-guard 400 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25 sure 0.95 q 0.01 -1 +inf
 bass  mix   full spectral yin      | 35-400 Hz yin lag 10 advance 3 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   full spectral pyin     | 35-400 Hz pyin lag 10 advance 3 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
@@ -70,24 +70,24 @@ bass  mix   full onnx     pyin     | 35-400 Hz pyin lag 10 plucked-mix | iqr 12 
 bass  mix   full onnx     shs      | 35-400 Hz shs(bass fr 0.1 reg 12) lag 10 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   full onnx     auto-shs | 35-400 Hz shs(bass fr 0.1 reg 12) lag 10 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   full onnx     learned  | 35-400 Hz shs(bass fr 0.1 reg 12 net bass blend 0.3) lag 10 plain-guard 400 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25 sure 0.95 q 0.01 -1 +inf
-bass  mix   live spectral auto     | 41-400 Hz yin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
+bass  mix   live spectral auto     | 35-400 Hz view(bass fr 0.1 net bass-live veto 2) lag 0 harmonic-view plain-guard 400 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25 sure 0.95 q 0.01 -1 +inf
 bass  mix   live spectral yin      | 41-400 Hz yin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   live spectral pyin     | 41-400 Hz pyin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   live spectral shs      | 41-400 Hz shs(bass fr 0.1 reg 12) lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   live spectral auto-shs | 41-400 Hz yin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
-bass  mix   live spectral learned  | 41-400 Hz view(bass fr 0.1 reg 12 net bass-harmonic blend 0.3) lag 2 harmonic-view plain-guard 400 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25 sure 0.95 q 0.01 -1 +inf
+bass  mix   live spectral learned  | 35-400 Hz view(bass fr 0.1 net bass-live veto 2) lag 0 harmonic-view plain-guard 400 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25 sure 0.95 q 0.01 -1 +inf
 bass  mix   live none     auto     | 41-400 Hz yin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   live none     yin      | 41-400 Hz yin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   live none     pyin     | 41-400 Hz pyin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   live none     shs      | 41-400 Hz shs(bass fr 0.1 reg 12) lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   live none     auto-shs | 41-400 Hz yin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
-bass  mix   live none     learned  | 41-400 Hz shs(bass fr 0.1 reg 12 net bass blend 0.3) lag 2 plain-guard 400 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25 sure 0.95 q 0.01 -1 +inf
+bass  mix   live none     learned  | 35-400 Hz shs(bass fr 0.1 reg 12 net bass blend 0.3) lag 0 plain-guard 400 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25 sure 0.95 q 0.01 -1 +inf
 bass  mix   live onnx     auto     | 41-400 Hz yin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   live onnx     yin      | 41-400 Hz yin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   live onnx     pyin     | 41-400 Hz pyin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   live onnx     shs      | 41-400 Hz shs(bass fr 0.1 reg 12) lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
 bass  mix   live onnx     auto-shs | 41-400 Hz yin lag 2 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25
-bass  mix   live onnx     learned  | 41-400 Hz shs(bass fr 0.1 reg 12 net bass blend 0.3) lag 2 plain-guard 400 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25 sure 0.95 q 0.01 -1 +inf
+bass  mix   live onnx     learned  | 35-400 Hz shs(bass fr 0.1 reg 12 net bass blend 0.3) lag 0 plain-guard 400 plucked-mix | iqr 12 span 20 register 41.203-293.66 held 3 shadow 25 sure 0.95 q 0.01 -1 +inf
 lead  clean full spectral auto     | 70-1400 Hz aligned(melody h 12 rise 0.5 sal 0.3) lag 10 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean full spectral yin      | 70-1400 Hz yin lag 10 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean full spectral pyin     | 70-1400 Hz pyin lag 10 clean-lead | iqr 4 span 16 register 220-783.99
@@ -111,19 +111,19 @@ lead  clean live spectral yin      | 70-1400 Hz yin lag 2 clean-lead | iqr 4 spa
 lead  clean live spectral pyin     | 70-1400 Hz pyin lag 2 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live spectral shs      | 70-1400 Hz aligned(melody h 12 rise 0.5 sal 0.3) lag 2 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live spectral auto-shs | 70-1400 Hz yin lag 2 clean-lead | iqr 4 span 16 register 220-783.99
-lead  clean live spectral learned  | 70-1400 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 2 plain-guard 2000 clean-lead | iqr 4 span 16 register 220-783.99
+lead  clean live spectral learned  | 70-1400 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 1 plain-guard 2000 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live none     auto     | 70-1400 Hz yin lag 2 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live none     yin      | 70-1400 Hz yin lag 2 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live none     pyin     | 70-1400 Hz pyin lag 2 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live none     shs      | 70-1400 Hz aligned(melody h 12 rise 0.5 sal 0.3) lag 2 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live none     auto-shs | 70-1400 Hz yin lag 2 clean-lead | iqr 4 span 16 register 220-783.99
-lead  clean live none     learned  | 70-1400 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 2 plain-guard 2000 clean-lead | iqr 4 span 16 register 220-783.99
+lead  clean live none     learned  | 70-1400 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 1 plain-guard 2000 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live onnx     auto     | 70-1400 Hz yin lag 2 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live onnx     yin      | 70-1400 Hz yin lag 2 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live onnx     pyin     | 70-1400 Hz pyin lag 2 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live onnx     shs      | 70-1400 Hz aligned(melody h 12 rise 0.5 sal 0.3) lag 2 clean-lead | iqr 4 span 16 register 220-783.99
 lead  clean live onnx     auto-shs | 70-1400 Hz yin lag 2 clean-lead | iqr 4 span 16 register 220-783.99
-lead  clean live onnx     learned  | 70-1400 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 2 plain-guard 2000 clean-lead | iqr 4 span 16 register 220-783.99
+lead  clean live onnx     learned  | 70-1400 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 1 plain-guard 2000 clean-lead | iqr 4 span 16 register 220-783.99
 lead  mix   full spectral auto     | 70-1400 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead-harmonic veto 3) lag 10 harmonic-view advance 3 plain-guard 2000 | iqr 4 span 16 register 220-783.99 held 8 agree 1 sure 0.7 q 0.02 -1 +1
 lead  mix   full spectral yin      | 70-1400 Hz yin lag 10 advance 3 | iqr 4 span 16 register 220-783.99
 lead  mix   full spectral pyin     | 70-1400 Hz pyin lag 10 advance 3 | iqr 4 span 16 register 220-783.99
@@ -142,24 +142,24 @@ lead  mix   full onnx     pyin     | 70-1400 Hz pyin lag 10 | iqr 4 span 16 regi
 lead  mix   full onnx     shs      | 70-1400 Hz shs(melody fr 0.1 gate 6) lag 10 | iqr 4 span 16 register 220-783.99
 lead  mix   full onnx     auto-shs | 70-1400 Hz shs(melody fr 0.1 gate 6) lag 10 | iqr 4 span 16 register 220-783.99
 lead  mix   full onnx     learned  | 70-1400 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 10 plain-guard 2000 | iqr 4 span 16 register 220-783.99 held 8 agree 1 sure 0.7 q 0.02 -1 +1
-lead  mix   live spectral auto     | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
+lead  mix   live spectral auto     | 70-1400 Hz view(melody fr 0.1 net lead-live veto 2) lag 1 harmonic-view plain-guard 2000 | iqr 4 span 16 register 220-783.99
 lead  mix   live spectral yin      | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live spectral pyin     | 70-1400 Hz pyin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live spectral shs      | 70-1400 Hz shs(melody fr 0.1 gate 6) lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live spectral auto-shs | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
-lead  mix   live spectral learned  | 70-1400 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead-harmonic veto 3) lag 2 harmonic-view plain-guard 2000 | iqr 4 span 16 register 220-783.99 held 8 agree 1 sure 0.7 q 0.02 -1 +1
+lead  mix   live spectral learned  | 70-1400 Hz view(melody fr 0.1 net lead-live veto 2) lag 1 harmonic-view plain-guard 2000 | iqr 4 span 16 register 220-783.99
 lead  mix   live none     auto     | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live none     yin      | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live none     pyin     | 70-1400 Hz pyin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live none     shs      | 70-1400 Hz shs(melody fr 0.1 gate 6) lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live none     auto-shs | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
-lead  mix   live none     learned  | 70-1400 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 2 plain-guard 2000 | iqr 4 span 16 register 220-783.99 held 8 agree 1 sure 0.7 q 0.02 -1 +1
+lead  mix   live none     learned  | 70-1400 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 1 plain-guard 2000 | iqr 4 span 16 register 220-783.99 held 8 agree 1 sure 0.7 q 0.02 -1 +1
 lead  mix   live onnx     auto     | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live onnx     yin      | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live onnx     pyin     | 70-1400 Hz pyin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live onnx     shs      | 70-1400 Hz shs(melody fr 0.1 gate 6) lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live onnx     auto-shs | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
-lead  mix   live onnx     learned  | 70-1400 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 2 plain-guard 2000 | iqr 4 span 16 register 220-783.99 held 8 agree 1 sure 0.7 q 0.02 -1 +1
+lead  mix   live onnx     learned  | 70-1400 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 1 plain-guard 2000 | iqr 4 span 16 register 220-783.99 held 8 agree 1 sure 0.7 q 0.02 -1 +1
 other clean full spectral auto     | 50-2000 Hz pyin lag 10 | iqr 4 span 16
 other clean full spectral yin      | 50-2000 Hz yin lag 10 | iqr 4 span 16
 other clean full spectral pyin     | 50-2000 Hz pyin lag 10 | iqr 4 span 16
@@ -183,19 +183,19 @@ other clean live spectral yin      | 50-2000 Hz yin lag 2 | iqr 4 span 16
 other clean live spectral pyin     | 50-2000 Hz pyin lag 2 | iqr 4 span 16
 other clean live spectral shs      | 50-2000 Hz aligned(melody h 12 rise 0.5 sal 0.3) lag 2 | iqr 4 span 16
 other clean live spectral auto-shs | 50-2000 Hz yin lag 2 | iqr 4 span 16
-other clean live spectral learned  | 50-2000 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 2 plain-guard 2000 | iqr 4 span 16
+other clean live spectral learned  | 50-2000 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 1 plain-guard 2000 | iqr 4 span 16
 other clean live none     auto     | 50-2000 Hz yin lag 2 | iqr 4 span 16
 other clean live none     yin      | 50-2000 Hz yin lag 2 | iqr 4 span 16
 other clean live none     pyin     | 50-2000 Hz pyin lag 2 | iqr 4 span 16
 other clean live none     shs      | 50-2000 Hz aligned(melody h 12 rise 0.5 sal 0.3) lag 2 | iqr 4 span 16
 other clean live none     auto-shs | 50-2000 Hz yin lag 2 | iqr 4 span 16
-other clean live none     learned  | 50-2000 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 2 plain-guard 2000 | iqr 4 span 16
+other clean live none     learned  | 50-2000 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 1 plain-guard 2000 | iqr 4 span 16
 other clean live onnx     auto     | 50-2000 Hz yin lag 2 | iqr 4 span 16
 other clean live onnx     yin      | 50-2000 Hz yin lag 2 | iqr 4 span 16
 other clean live onnx     pyin     | 50-2000 Hz pyin lag 2 | iqr 4 span 16
 other clean live onnx     shs      | 50-2000 Hz aligned(melody h 12 rise 0.5 sal 0.3) lag 2 | iqr 4 span 16
 other clean live onnx     auto-shs | 50-2000 Hz yin lag 2 | iqr 4 span 16
-other clean live onnx     learned  | 50-2000 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 2 plain-guard 2000 | iqr 4 span 16
+other clean live onnx     learned  | 50-2000 Hz pair(melody h 12 rise 0.5 sal 0.3 / melody h 12 rise 0.5 sal 0.3 net lead veto 3) lag 1 plain-guard 2000 | iqr 4 span 16
 other mix   full spectral auto     | 50-2000 Hz pyin lag 10 | iqr 4 span 16
 other mix   full spectral yin      | 50-2000 Hz yin lag 10 | iqr 4 span 16
 other mix   full spectral pyin     | 50-2000 Hz pyin lag 10 | iqr 4 span 16
@@ -219,19 +219,19 @@ other mix   live spectral yin      | 50-2000 Hz yin lag 2 | iqr 4 span 16
 other mix   live spectral pyin     | 50-2000 Hz pyin lag 2 | iqr 4 span 16
 other mix   live spectral shs      | 50-2000 Hz shs(melody fr 0.1 gate 6) lag 2 | iqr 4 span 16
 other mix   live spectral auto-shs | 50-2000 Hz yin lag 2 | iqr 4 span 16
-other mix   live spectral learned  | 50-2000 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 2 plain-guard 2000 | iqr 4 span 16 held 8 agree 1 sure 0.7 q 0.02 -1 +1
+other mix   live spectral learned  | 50-2000 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 1 plain-guard 2000 | iqr 4 span 16 held 8 agree 1 sure 0.7 q 0.02 -1 +1
 other mix   live none     auto     | 50-2000 Hz yin lag 2 | iqr 4 span 16
 other mix   live none     yin      | 50-2000 Hz yin lag 2 | iqr 4 span 16
 other mix   live none     pyin     | 50-2000 Hz pyin lag 2 | iqr 4 span 16
 other mix   live none     shs      | 50-2000 Hz shs(melody fr 0.1 gate 6) lag 2 | iqr 4 span 16
 other mix   live none     auto-shs | 50-2000 Hz yin lag 2 | iqr 4 span 16
-other mix   live none     learned  | 50-2000 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 2 plain-guard 2000 | iqr 4 span 16 held 8 agree 1 sure 0.7 q 0.02 -1 +1
+other mix   live none     learned  | 50-2000 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 1 plain-guard 2000 | iqr 4 span 16 held 8 agree 1 sure 0.7 q 0.02 -1 +1
 other mix   live onnx     auto     | 50-2000 Hz yin lag 2 | iqr 4 span 16
 other mix   live onnx     yin      | 50-2000 Hz yin lag 2 | iqr 4 span 16
 other mix   live onnx     pyin     | 50-2000 Hz pyin lag 2 | iqr 4 span 16
 other mix   live onnx     shs      | 50-2000 Hz shs(melody fr 0.1 gate 6) lag 2 | iqr 4 span 16
 other mix   live onnx     auto-shs | 50-2000 Hz yin lag 2 | iqr 4 span 16
-other mix   live onnx     learned  | 50-2000 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 2 plain-guard 2000 | iqr 4 span 16 held 8 agree 1 sure 0.7 q 0.02 -1 +1
+other mix   live onnx     learned  | 50-2000 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 1 plain-guard 2000 | iqr 4 span 16 held 8 agree 1 sure 0.7 q 0.02 -1 +1
 ";
 
 fn rows() -> Vec<String> {
