@@ -142,12 +142,12 @@ lead  mix   full onnx     pyin     | 70-1400 Hz pyin lag 10 | iqr 4 span 16 regi
 lead  mix   full onnx     shs      | 70-1400 Hz shs(melody fr 0.1 gate 6) lag 10 | iqr 4 span 16 register 220-783.99
 lead  mix   full onnx     auto-shs | 70-1400 Hz shs(melody fr 0.1 gate 6) lag 10 | iqr 4 span 16 register 220-783.99
 lead  mix   full onnx     learned  | 70-1400 Hz pair(melody fr 0.1 gate 6 / melody fr 0.1 net lead veto 3) lag 10 plain-guard 2000 | iqr 4 span 16 register 220-783.99 held 8 agree 1 sure 0.7 q 0.02 -1 +1
-lead  mix   live spectral auto     | 70-1400 Hz view(melody fr 0.1 net lead-live veto 2) lag 1 harmonic-view plain-guard 2000 | iqr 4 span 16 register 220-783.99
+lead  mix   live spectral auto     | 70-1400 Hz view(melody fr 0.1 net lead-live veto 2) lag 1 harmonic-view plain-guard 2000 | iqr 4 span 16 register 220-783.99 held 8 sure 0.7 q 0.02 -1 +1
 lead  mix   live spectral yin      | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live spectral pyin     | 70-1400 Hz pyin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live spectral shs      | 70-1400 Hz shs(melody fr 0.1 gate 6) lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live spectral auto-shs | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
-lead  mix   live spectral learned  | 70-1400 Hz view(melody fr 0.1 net lead-live veto 2) lag 1 harmonic-view plain-guard 2000 | iqr 4 span 16 register 220-783.99
+lead  mix   live spectral learned  | 70-1400 Hz view(melody fr 0.1 net lead-live veto 2) lag 1 harmonic-view plain-guard 2000 | iqr 4 span 16 register 220-783.99 held 8 sure 0.7 q 0.02 -1 +1
 lead  mix   live none     auto     | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live none     yin      | 70-1400 Hz yin lag 2 | iqr 4 span 16 register 220-783.99
 lead  mix   live none     pyin     | 70-1400 Hz pyin lag 2 | iqr 4 span 16 register 220-783.99

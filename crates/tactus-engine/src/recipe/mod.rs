@@ -578,8 +578,11 @@ fn shs_tracker(bass: bool, mix: bool, learned: bool, harmonic_view: bool) -> Tra
 fn levels(role: Role, mix: bool, learned: bool, pair: bool) -> LevelRecipe {
     let bass = role == Role::Bass;
     // A mixture's lead through the pair: from held notes or hops both trackers agree on,
-    // narrowed to the hops where the learned tracker is sure of its pitch.
+    // narrowed to the hops where the learned tracker is sure of its pitch. A mixture's
+    // learned lead alone (the live profile's) from held notes, narrowed the same way
+    // (docs/decisions/0058-live-lead-levels-from-held-sure-notes.md).
     let agree = mix && pair;
+    let held_lead = agree || (mix && role == Role::Lead && learned);
     LevelRecipe {
         // A bass line: 12, so the fences (k = 1.5) stay 18 semitones beyond the quartiles
         // and root–octave patterns survive; its octave errors are left to the percentile
@@ -590,7 +593,7 @@ fn levels(role: Role, mix: bool, learned: bool, pair: bool) -> LevelRecipe {
         held_hops: match (bass, mix) {
             (true, false) => CLEAN_BASS_HELD_HOPS,
             (true, true) => MIX_BASS_HELD_HOPS,
-            (false, _) if agree => MIX_LEAD_HELD_HOPS,
+            (false, _) if held_lead => MIX_LEAD_HELD_HOPS,
             (false, _) => 0,
         },
         held_tol_st: HELD_TOL_ST,
@@ -601,7 +604,7 @@ fn levels(role: Role, mix: bool, learned: bool, pair: bool) -> LevelRecipe {
         agree_tol_st: agree.then_some(AGREE_TOL_ST),
         // Narrowed to the hops the learned tracker is sure of: both ends for the lead, the
         // bottom for the mix's learned bass.
-        sure: if agree {
+        sure: if held_lead {
             Some(LEAD_SURE)
         } else if mix && bass && learned {
             Some(BASS_SURE)
