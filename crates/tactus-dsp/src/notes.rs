@@ -140,6 +140,13 @@ pub struct NoteConfig {
     /// cross-fades without a level rise, but the aligned pitch changes where the new note
     /// starts to sound. 0 = off; without a guide it changes nothing.
     pub guide_back_hops: usize,
+    /// How far a pitch onset may move back to its attack, hops (`None`: `attack_back_hops`).
+    /// With `Some(m)` the attack search still reads `attack_back_hops` past hops to keep or
+    /// drop an onset (rules 2, 3 and 5), but the onset moves back at most `m` hops, so the
+    /// detector's latency holds `m` hops, not `attack_back_hops` (the live profile); no other
+    /// rule moves an onset (`backtrack_hops`, `pitch_back_hops` and `guide_back_hops` are
+    /// ignored).
+    pub attack_move_hops: Option<usize>,
 }
 
 impl NoteConfig {
@@ -161,6 +168,7 @@ impl NoteConfig {
             pitch_back_hops: 0,
             reattack_min_hops: 0,
             guide_back_hops: 0,
+            attack_move_hops: None,
         }
     }
 
@@ -285,7 +293,13 @@ impl NoteOnsets {
     /// Hops of look-ahead: hop `j` is emitted when hop `j + latency_hops()` arrives (the
     /// decision's look-ahead plus the attack search, which may still move an onset back).
     pub fn latency_hops(&self) -> usize {
-        self.ahead() + self.cfg.attack_back_hops
+        self.ahead() + self.move_back_hops()
+    }
+
+    /// Hops an onset may still move back after its hop is decided.
+    fn move_back_hops(&self) -> usize {
+        let back = self.cfg.attack_back_hops;
+        self.cfg.attack_move_hops.map_or(back, |m| m.min(back))
     }
 
     /// Feeds hop `i`'s f0 (hops in order, from 0) without a level; calls `emit(j, onset)`
@@ -343,7 +357,7 @@ impl NoteOnsets {
     }
 
     fn drain(&mut self, emit: &mut dyn FnMut(usize, bool), all: bool) {
-        let back = self.cfg.attack_back_hops;
+        let back = self.move_back_hops();
         while self.emitted < self.decided && (all || self.emitted + back < self.decided) {
             let k = self.emitted % HIST;
             emit(self.emitted, self.flag[k]);
@@ -482,7 +496,11 @@ impl NoteOnsets {
                     && self.rise(j) >= self.cfg.reattack_db
                     && self.steepest(j)
                 {
-                    let h = self.foot(j, j);
+                    let h = if self.cfg.attack_move_hops.is_some() {
+                        j
+                    } else {
+                        self.foot(j, j)
+                    };
                     self.mark(h);
                 }
             }
@@ -493,14 +511,20 @@ impl NoteOnsets {
     /// note already started there, or kept at `j`.
     fn pitch_onset_at(&mut self, j: usize, med: f32, need_attack: bool) {
         let back = self.cfg.attack_back_hops;
+        let limited = self.cfg.attack_move_hops.is_some();
         if back > 0 {
-            let from = j.saturating_sub(back).max(self.emitted);
+            // A limited move still searches hops already emitted (their levels are kept).
+            let from = if limited {
+                j.saturating_sub(back)
+            } else {
+                j.saturating_sub(back).max(self.emitted)
+            };
             if self.last_onset.is_some_and(|l| l >= from) {
                 return; // a re-attack in the window already started this note
             }
             let mut best: Option<(usize, f32)> = None;
             for h in from..j {
-                if !self.spaced(h) {
+                if !limited && !self.spaced(h) {
                     continue;
                 }
                 let r = self.rise(h);
@@ -512,8 +536,19 @@ impl NoteOnsets {
                 }
             }
             if let Some((h, _)) = best {
-                let h = self.foot(h, j);
-                self.mark(h);
+                if limited {
+                    let h = h
+                        .max(j.saturating_sub(self.move_back_hops()))
+                        .max(self.emitted);
+                    if self.spaced(h) {
+                        self.mark(h);
+                    } else if self.spaced(j) {
+                        self.mark(j);
+                    }
+                } else {
+                    let h = self.foot(h, j);
+                    self.mark(h);
+                }
                 return;
             }
             if need_attack {
@@ -521,6 +556,10 @@ impl NoteOnsets {
             }
         }
         if self.spaced(j) {
+            if limited {
+                self.mark(j);
+                return;
+            }
             if let Some(h) = self.guided_start(j, med) {
                 self.mark(h);
                 return;

@@ -55,7 +55,7 @@ fn oracle_guided(f0: &[f32], db: &[f32], guide: &[f32], c: NoteConfig) -> Vec<bo
     // rising steps that ends at h, at most `backtrack_hops` back, not before
     // j − attack_back_hops nor within the minimum interval of the last onset.
     let foot = |h: usize, j: usize, last: Option<usize>| -> usize {
-        if c.backtrack_hops == 0 {
+        if c.backtrack_hops == 0 || c.attack_move_hops.is_some() {
             return h;
         }
         let mut lo = j
@@ -121,11 +121,15 @@ fn oracle_guided(f0: &[f32], db: &[f32], guide: &[f32], c: NoteConfig) -> Vec<bo
                 if last.is_some_and(|l| l >= from) {
                     continue;
                 }
-                // The steepest attack in the window before the pitch settled.
+                // The steepest attack in the window before the pitch settled (a limited move
+                // judges every hop of it, and checks the interval where the onset lands).
+                let limit = c.attack_move_hops.map(|m| m.min(c.attack_back_hops));
                 let mut best: Option<(usize, f32)> = None;
                 for h in from..j {
                     let hi = h as isize;
-                    if spaced(last, h) && rise(hi).is_some_and(|r| r >= c.attack_db) && steepest(hi)
+                    if (limit.is_some() || spaced(last, h))
+                        && rise(hi).is_some_and(|r| r >= c.attack_db)
+                        && steepest(hi)
                     {
                         let s = step(hi).unwrap();
                         if best.is_none_or(|(_, b)| s > b) {
@@ -134,9 +138,22 @@ fn oracle_guided(f0: &[f32], db: &[f32], guide: &[f32], c: NoteConfig) -> Vec<bo
                     }
                 }
                 if let Some((h, _)) = best {
-                    let h = foot(h, j, last);
-                    out[h] = true;
-                    last = Some(h);
+                    let h = match limit {
+                        // At most `m` hops back towards the attack; at j if that is too close.
+                        Some(m) => {
+                            let p = h.max(j.saturating_sub(m));
+                            if spaced(last, p) {
+                                Some(p)
+                            } else {
+                                spaced(last, j).then_some(j)
+                            }
+                        }
+                        None => Some(foot(h, j, last)),
+                    };
+                    if let Some(h) = h {
+                        out[h] = true;
+                        last = Some(h);
+                    }
                     continue;
                 }
                 if resumed {
@@ -146,7 +163,7 @@ fn oracle_guided(f0: &[f32], db: &[f32], guide: &[f32], c: NoteConfig) -> Vec<bo
             if spaced(last, j) {
                 // Rule 6: back over the run of hops before j whose guide holds the new note,
                 // at most guide_back_hops and attack_back_hops, not within the interval.
-                if c.guide_back_hops > 0 {
+                if c.guide_back_hops > 0 && c.attack_move_hops.is_none() {
                     let mut lo = j
                         .saturating_sub(c.attack_back_hops)
                         .max(j.saturating_sub(c.guide_back_hops));
@@ -166,7 +183,7 @@ fn oracle_guided(f0: &[f32], db: &[f32], guide: &[f32], c: NoteConfig) -> Vec<bo
                 // No attack: the pitch onset moves `pitch_back_hops` back, not before the
                 // attack window nor within the minimum interval.
                 let mut h = j;
-                if c.pitch_back_hops > 0 {
+                if c.pitch_back_hops > 0 && c.attack_move_hops.is_none() {
                     h = j
                         .saturating_sub(c.pitch_back_hops)
                         .max(j.saturating_sub(c.attack_back_hops));
@@ -336,6 +353,25 @@ fn configs() -> Vec<NoteConfig> {
             attack_back_hops: 2,
             ..d
         },
+        // Limited moves (the live profile's: in place), with the moves they switch off.
+        NoteConfig {
+            pitch_needs_attack: true,
+            attack_move_hops: Some(0),
+            ..d
+        },
+        NoteConfig {
+            attack_move_hops: Some(2),
+            backtrack_hops: 3,
+            pitch_back_hops: 2,
+            guide_back_hops: 4,
+            ..d
+        },
+        NoteConfig {
+            pitch_needs_attack: true,
+            attack_move_hops: Some(30),
+            min_ioi_hops: 0,
+            ..d
+        },
     ]
 }
 
@@ -388,6 +424,12 @@ fn guided_onsets_equal_the_slow_oracle_on_random_tracks() {
             attack_back_hops: 3,
             ..d
         },
+        // A limited move switches the guide off.
+        NoteConfig {
+            guide_back_hops: 5,
+            attack_move_hops: Some(2),
+            ..lead
+        },
     ];
     for c in cfgs {
         let mut moved = 0;
@@ -415,8 +457,13 @@ fn guided_onsets_equal_the_slow_oracle_on_random_tracks() {
                 moved += (0..n).filter(|&i| want[i] && !plain[i]).count();
             }
         }
-        // The guide moves onsets: the comparison is not between unchanged tracks.
-        assert!(moved >= 30, "{c:?}: {moved} onsets moved");
+        // The guide moves onsets (the comparison is not between unchanged tracks), unless a
+        // limited move switches it off.
+        if c.attack_move_hops.is_some() {
+            assert_eq!(moved, 0, "{c:?}");
+        } else {
+            assert!(moved >= 30, "{c:?}: {moved} onsets moved");
+        }
     }
 }
 
@@ -561,6 +608,60 @@ fn a_pitch_onset_moves_back_to_its_attack() {
 }
 
 #[test]
+fn an_attack_judged_in_place_adds_no_latency_and_keeps_the_settled_hop() {
+    // The live profile's rule: the attack search keeps or drops a change of note but does
+    // not move it, so the detector's latency is the stability window's alone.
+    let d = NoteConfig::default();
+    let live = NoteConfig {
+        pitch_needs_attack: true,
+        attack_move_hops: Some(0),
+        ..d
+    };
+    let det = NoteOnsets::new(live).unwrap();
+    assert_eq!(det.latency_hops(), (d.stable_hops - 1).max(RISE_AHEAD_HOPS));
+    // A note, a second one plucked softly at hop 30 (a 5 dB rise: an attack, not a
+    // re-attack) whose pitch the tracker reads from hop 32, then a change of pitch at hop 60
+    // with no attack (a chord tone the tracker took).
+    let f0: Vec<f32> = (0..90)
+        .map(|i| {
+            semitones_to_hz(if i < 32 {
+                45.0
+            } else if i < 60 {
+                50.0
+            } else {
+                52.0
+            })
+        })
+        .collect();
+    let mut db: Vec<f32> = (0..90)
+        .map(|i| {
+            if i < 30 {
+                -20.0 - 0.3 * i as f32
+            } else {
+                -20.0 - 0.3 * (i - 30) as f32
+            }
+        })
+        .collect();
+    for v in &mut db[27..30] {
+        *v = -25.0;
+    }
+    let onsets = |c: NoteConfig| -> Vec<usize> {
+        let got = streamed(&f0, &db, c);
+        assert_eq!(oracle(&f0, &db, c), got, "{c:?}");
+        (0..got.len()).filter(|&i| got[i]).collect()
+    };
+    // In place: the second note where its pitch settled, the unattacked change dropped.
+    assert_eq!(onsets(live), vec![0, 32]);
+    // One hop of move, and the full move back to the attack.
+    let moved = |m| NoteConfig {
+        attack_move_hops: m,
+        ..live
+    };
+    assert_eq!(onsets(moved(Some(1))), vec![0, 31]);
+    assert_eq!(onsets(moved(None)), vec![0, 30]);
+}
+
+#[test]
 fn a_clean_lead_starts_at_the_foot_of_the_rise() {
     // A syllable sung on the previous note's pitch: the level dips for the consonant
     // (hops 40–44, lowest at 44) and the vowel rises over hops 45–47, steepest at 46.
@@ -648,7 +749,9 @@ fn latency_reset_and_no_allocation() {
         } else {
             c.stable_hops - 1
         };
-        assert_eq!(d.latency_hops(), ahead + c.attack_back_hops, "{c:?}");
+        let back = c.attack_back_hops;
+        let moves = c.attack_move_hops.map_or(back, |m| m.min(back));
+        assert_eq!(d.latency_hops(), ahead + moves, "{c:?}");
         let mut first = Vec::new();
         for i in 0..f0.len() {
             d.push_level(f0[i], db[i], &mut |_, o| first.push(o));

@@ -40,7 +40,8 @@ pub enum NoteRule {
     /// The pitch and the stem's level: also re-attacks inside a held pitch, each onset
     /// moved back to its attack, a minimum interval, dropouts that resume the same note
     /// without an attack ignored ([`NoteConfig::default`]). The live profile keeps the
-    /// pitch rule's latency: no attack search, re-attacks and the interval only.
+    /// pitch rule's latency: the attack search keeps or drops an onset but never moves it
+    /// ([`NoteConfig::attack_move_hops`]).
     #[default]
     Attack,
     /// [`NoteRule::Attack`], but a change of note never needs an attack, also for the bass
@@ -87,9 +88,15 @@ impl NoteRule {
         };
         match (self, profile) {
             (NoteRule::Pitch, _) => NoteConfig::pitch_only(),
-            (NoteRule::Attack | NoteRule::Legato, Profile::Live) => NoteConfig {
-                attack_back_hops: 0,
-                resume_hops: 0,
+            // Live: the attack search judges in place, so it adds no latency
+            // (docs/decisions/0059-live-note-onsets-judge-attacks-in-place.md).
+            (NoteRule::Attack, Profile::Live) => NoteConfig {
+                pitch_needs_attack: role.plucked_mix,
+                attack_move_hops: Some(0),
+                ..NoteConfig::default()
+            },
+            (NoteRule::Legato, Profile::Live) => NoteConfig {
+                attack_move_hops: Some(0),
                 ..NoteConfig::default()
             },
             (NoteRule::Attack, Profile::Full) => lead(NoteConfig {
