@@ -107,7 +107,8 @@ pub(crate) struct EngineArgs {
     #[arg(long)]
     pub(crate) map: Option<PathBuf>,
     /// Pitch tracker.
-    /// [default: auto (the live profile: YIN on short frames); pyin for live --profile full]
+    /// [default: auto (the live profile: the live learned models for the bass and the lead,
+    /// YIN on short frames for the rest); pyin for live --profile full]
     #[arg(long, value_enum)]
     pub(crate) pitch: Option<PitchArg>,
     /// Drum transcription: classes (embedded per-instrument transcriber; the default for

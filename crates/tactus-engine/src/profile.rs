@@ -78,7 +78,8 @@ pub const BIN_MS: u32 = 10;
 /// (`tactus_glove::RISE_MS`), so a one-bin beat of 10 ms would be lowered before it is felt.
 pub const PULSE_MS: u32 = 50;
 /// Viterbi lag of the live profile's pYIN and harmonic-sum trackers (`--pitch pyin|shs`),
-/// hops of 10 ms. The default live tracker is plain YIN, which has none.
+/// hops of 10 ms. Plain YIN (the live `other`, and `--pitch yin`) has none; the live models
+/// have their own ([`LIVE_BASS_LAG_HOPS`], [`LIVE_LEAD_LAG_HOPS`]).
 pub const PITCH_LAG_HOPS: usize = 2;
 /// Viterbi lag of the live profile's learned bass tracker (the default), hops of 10 ms:
 /// none, so that a bass note reaches the thumb within the 80 ms pitch budget measured from

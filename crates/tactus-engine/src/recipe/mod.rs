@@ -44,7 +44,8 @@ pub enum PitchMethod {
     Learned,
     /// [`PitchMethod::Learned`] for the spectral separator's bass and lead (vocals) stems,
     /// [`PitchMethod::Shs`] for other basses and leads (supplied stems, other separators),
-    /// pYIN for the polyphonic rest; plain YIN in the live profile.
+    /// pYIN for the polyphonic rest. In the live profile the live models for the spectral
+    /// separator's bass and lead, plain YIN for every other stem.
     #[default]
     Auto,
     /// The default before the learned bass salience: [`PitchMethod::Shs`] for every bass and
@@ -420,11 +421,11 @@ pub fn recipe(
     let spectral_mix = mix && separator == SeparatorKind::Spectral;
     let line = matches!(role, Role::Bass | Role::Lead);
     let method = match pitch {
-        // The live profile: plain YIN on short frames (pYIN's HMM needs more than its 2-hop
-        // lag to trust a new note: 89 ms against 60 ms median in benches/live_latency.py;
-        // the harmonic-sum tracker's 200 ms frames do not fit at all).
-        // The spectral separator's bass and lead live: the live models on its harmonic sum
-        // (docs/decisions/0057-learned-live-pitch.md).
+        // The live profile: the spectral separator's bass and lead from the live models on
+        // its harmonic sum (docs/decisions/0057-learned-live-pitch.md); every other stem from
+        // plain YIN on short frames (pYIN's HMM needs more than its 2-hop lag to trust a new
+        // note: 89 ms against 60 ms median in benches/live_latency.py; the harmonic-sum
+        // tracker's 200 ms frames do not fit at all).
         PitchMethod::Auto if live && line && spectral_mix => PitchMethod::Learned,
         PitchMethod::Auto | PitchMethod::AutoShs if live => PitchMethod::Yin,
         // The spectral separator's bass: the learned salience times the harmonic sum
