@@ -496,11 +496,7 @@ impl NoteOnsets {
                     && self.rise(j) >= self.cfg.reattack_db
                     && self.steepest(j)
                 {
-                    let h = if self.cfg.attack_move_hops.is_some() {
-                        j
-                    } else {
-                        self.foot(j, j)
-                    };
+                    let h = self.foot(j, j);
                     self.mark(h);
                 }
             }
@@ -606,7 +602,8 @@ impl NoteOnsets {
     /// the minimum interval of the last onset.
     fn foot(&self, h: usize, j: usize) -> usize {
         let t = self.cfg.backtrack_hops;
-        if t == 0 {
+        // A limited move ([`NoteConfig::attack_move_hops`]) never goes to the foot.
+        if t == 0 || self.cfg.attack_move_hops.is_some() {
             return h;
         }
         let mut lo = j

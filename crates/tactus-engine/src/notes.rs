@@ -90,12 +90,8 @@ impl NoteRule {
             (NoteRule::Pitch, _) => NoteConfig::pitch_only(),
             // Live: the attack search judges in place, so it adds no latency
             // (docs/decisions/0059-live-note-onsets-judge-attacks-in-place.md).
-            (NoteRule::Attack, Profile::Live) => NoteConfig {
-                pitch_needs_attack: role.plucked_mix,
-                attack_move_hops: Some(0),
-                ..NoteConfig::default()
-            },
-            (NoteRule::Legato, Profile::Live) => NoteConfig {
+            (NoteRule::Attack | NoteRule::Legato, Profile::Live) => NoteConfig {
+                pitch_needs_attack: self == NoteRule::Attack && role.plucked_mix,
                 attack_move_hops: Some(0),
                 ..NoteConfig::default()
             },
