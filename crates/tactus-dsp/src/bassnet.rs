@@ -87,6 +87,10 @@ pub const RANGE_DB: f32 = 60.0;
 
 const WHAT: &str = "bass model";
 
+/// Power ratio under a frame's loudest band (63 dB, 3 dB past [`RANGE_DB`]) below which the
+/// front end skips a band's logarithm: its feature is 0 whatever the logarithm's rounding.
+const QUIET_POWER: f32 = 5e-7;
+
 const MAGIC: &[u8; 8] = b"TACTUSBN";
 
 /// The embedded model (see `models/bassnet/README.md`).
@@ -449,6 +453,8 @@ pub struct BassFront {
     fft: FrameFft,
     /// FFT bin range `(lo, hi)` per band.
     ranges: Vec<(usize, usize)>,
+    /// Power per FFT bin of the frame in hand (scratch, `n_fft / 2 + 1` values).
+    power: Vec<f32>,
     /// Peak of the last frame before normalisation (its level).
     pub last_peak: f32,
 }
@@ -474,6 +480,7 @@ impl BassFront {
         if frame < 8 || n_fft < frame || !n_fft.is_multiple_of(2) {
             return Err(ConfigError::invalid("bass front end", "frame and n_fft"));
         }
+        ConfigError::require(bands > 0, "bass front end", "at least one band")?;
         let df = sample_rate as f64 / n_fft as f64;
         let nyq = n_fft / 2;
         let half = 2f64.powf(1.0 / (6.0 * BINS_PER_SEMITONE as f64));
@@ -493,6 +500,7 @@ impl BassFront {
         Ok(BassFront {
             fft: FrameFft::new(frame, n_fft),
             ranges,
+            power: vec![0.0; nyq + 1],
             last_peak: 0.0,
         })
     }
@@ -528,15 +536,36 @@ impl BassFront {
             return false;
         };
         self.last_peak = peak;
-        let mut top = f32::NEG_INFINITY;
+        // Each bin's power (in vector registers: no bin depends on another), then each
+        // band's (its largest bin's), floored at 1e-24. A power may be NaN (a NaN frame) but
+        // is never −0, and the running maximum starts at 0, so `max_skip_nan` is `f32::max`
+        // here.
+        let (first, last) = (self.ranges[0].0, self.ranges[nb - 1].1);
+        for (p, c) in self.power[first..=last].iter_mut().zip(&spec[first..=last]) {
+            *p = c.re * c.re + c.im * c.im;
+        }
+        let mut loudest = 1e-24f32;
         for (o, &(lo, hi)) in out.iter_mut().zip(&self.ranges) {
             let mut mx = 0.0f32;
-            for c in &spec[lo..=hi] {
-                mx = mx.max(c.re * c.re + c.im * c.im);
+            for &p in &self.power[lo..=hi] {
+                mx = crate::max_skip_nan(mx, p);
             }
-            let db = 10.0 * mx.max(1e-24).log10();
-            *o = db;
-            top = top.max(db);
+            *o = mx.max(1e-24);
+            loudest = loudest.max(*o);
+        }
+        // In dB. A band more than 63 dB under the loudest ends at 0 below, whatever the last
+        // bit of its logarithm (the range is 60 dB), and cannot be the top: its logarithm
+        // is not taken (-∞ clamps to the same 0), so the values are those of taking every one.
+        let quiet = loudest * QUIET_POWER;
+        let mut top = f32::NEG_INFINITY;
+        for o in out[..nb].iter_mut() {
+            if *o >= quiet {
+                let db = 10.0 * o.log10();
+                *o = db;
+                top = top.max(db);
+            } else {
+                *o = f32::NEG_INFINITY;
+            }
         }
         for o in out[..nb].iter_mut() {
             *o = ((*o - top + RANGE_DB) / RANGE_DB).clamp(0.0, 1.0);
@@ -579,6 +608,59 @@ mod tests {
             assert_eq!(own.last_peak.to_bits(), shared.last_peak.to_bits());
             for (p, q) in a.iter().zip(&b) {
                 assert_eq!(p.to_bits(), q.to_bits(), "frame {k}");
+            }
+        }
+    }
+
+    /// The front end's bands from a spectrum the obvious way: every band's logarithm taken.
+    fn bands_every_log(f: &BassFront, spec: &[realfft::num_complex::Complex<f32>]) -> Vec<f32> {
+        let db: Vec<f32> = f
+            .ranges
+            .iter()
+            .map(|&(lo, hi)| {
+                let mx = spec[lo..=hi]
+                    .iter()
+                    .fold(0.0f32, |m, c| m.max(c.re * c.re + c.im * c.im));
+                10.0 * mx.max(1e-24).log10()
+            })
+            .collect();
+        let top = db.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+        db.iter()
+            .map(|&d| ((d - top + super::RANGE_DB) / super::RANGE_DB).clamp(0.0, 1.0))
+            .collect()
+    }
+
+    #[test]
+    fn skipped_logarithms_change_no_band() {
+        use realfft::num_complex::Complex;
+        let (sr, frame, n_fft) = (4900u32, 1024usize, 2048usize);
+        let mut front = BassFront::with_bands(sr, frame, n_fft, BANDS, LOW_HZ).unwrap();
+        let mut seed = 0x1234_5677u32;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32
+        };
+        let mut out = vec![0.0f32; BANDS];
+        // Spectra spread over 160 dB, or bunched around the 60 and 63 dB lines under the
+        // loudest bin, or all but silent (the 1e-24 floor), or all zero.
+        for case in 0..40 {
+            let spec: Vec<Complex<f32>> = (0..n_fft / 2 + 1)
+                .map(|i| {
+                    let db = match case % 4 {
+                        0 => -160.0 * rnd(),
+                        1 => -58.0 - 7.0 * rnd() - if i == 100 { -60.0 } else { 0.0 },
+                        2 => -250.0 - 30.0 * rnd(),
+                        _ => f32::NEG_INFINITY,
+                    };
+                    let a = 10f32.powf(db / 20.0);
+                    Complex::new(a * (rnd() - 0.5), a * (rnd() - 0.5))
+                })
+                .collect();
+            assert!(front.features_from_spectrum(&spec, Some(1.0), &mut out));
+            for (b, (g, w)) in out.iter().zip(bands_every_log(&front, &spec)).enumerate() {
+                assert_eq!(g.to_bits(), w.to_bits(), "case {case} band {b}");
             }
         }
     }

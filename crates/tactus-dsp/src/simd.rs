@@ -22,6 +22,27 @@ pub(crate) fn avx2() -> bool {
     }
 }
 
+/// True when the AVX-512 dense layer can run here ([`crate::nn`]; AVX-512F, cached by the
+/// standard library); always false in a build with the `portable` or `avx2-only` feature.
+pub(crate) fn avx512() -> bool {
+    #[cfg(all(
+        target_arch = "x86_64",
+        not(feature = "portable"),
+        not(feature = "avx2-only")
+    ))]
+    {
+        std::arch::is_x86_feature_detected!("avx512f")
+    }
+    #[cfg(any(
+        not(target_arch = "x86_64"),
+        feature = "portable",
+        feature = "avx2-only"
+    ))]
+    {
+        false
+    }
+}
+
 /// A tracker whose Viterbi step [`viterbi_step`] compiles for AVX2: `step` must be
 /// `#[inline(always)]`, and so must what it calls, to be compiled inside the AVX2 frame.
 pub(crate) trait ViterbiStep {

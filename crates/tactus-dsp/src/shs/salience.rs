@@ -126,9 +126,10 @@ impl Salience {
                 if lo > hi || w == 0.0 {
                     continue;
                 }
+                // Magnitudes are never −0 and the maximum starts at 0: `f32::max`'s value.
                 let mut mx = 0.0f32;
                 for &a in &self.mag[lo as usize..=hi as usize] {
-                    mx = mx.max(a);
+                    mx = crate::max_skip_nan(mx, a);
                 }
                 acc += w * mx;
                 if h == 0 {
