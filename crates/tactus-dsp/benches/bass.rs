@@ -5,14 +5,16 @@
 //!   register prior σ 12 semitones) and through the learned salience times the harmonic
 //!   sum^0.3 (the render's default for the spectral separator's bass): what the learned
 //!   salience adds to a 3.5-minute song's bass chain.
-//! * `bassnet_forward`, `leadnet_forward`: one pass of the bass / lead network (one hop).
+//! * `networks/NAME/HOPS`: every embedded pitch network (the lead's mix default: the
+//!   harmonic view's three-member ensemble) on one hop and on a batch of 8, in hops per
+//!   second.
 //! * `lead_210s/shs` and `lead_210s/pair`: a 210 s melody at the lead chain's 14.7 kHz
 //!   through the harmonic-sum melody tracker alone and through the voicing/pitch pair with
 //!   the lead network's tracker and its veto (the render's default for the spectral
 //!   separator's lead): what the learned lead adds to a song's lead chain.
 use std::hint::black_box;
 
-use criterion::{criterion_group, criterion_main, Criterion};
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use tactus_dsp::bassnet::BassNet;
 use tactus_dsp::pair::VoicingPitchPair;
 use tactus_dsp::shs::{Shs, ShsConfig};
@@ -70,83 +72,66 @@ fn song(c: &mut Criterion) {
 }
 
 fn forward(c: &mut Criterion) {
-    for (name, net) in [
-        ("bassnet_forward", BassNet::embedded()),
-        ("leadnet_forward", BassNet::embedded_lead()),
-    ] {
+    // Every embedded pitch network as the trackers run it: one hop (a live block) and a
+    // batch of 8 (`shs::net`'s batch in a render), throughput in hops per second. The lead's
+    // mix default is the harmonic view's three-member ensemble.
+    let mut g = c.benchmark_group("networks");
+    let ensembles: [(&str, &'static BassNet, Vec<&'static BassNet>); 7] = [
+        ("bass", BassNet::embedded(), Vec::new()),
+        ("lead", BassNet::embedded_lead(), Vec::new()),
+        (
+            "bass_harmonic",
+            BassNet::embedded_bass_harmonic(),
+            Vec::new(),
+        ),
+        ("bass_live", BassNet::embedded_bass_live(), Vec::new()),
+        ("lead_live", BassNet::embedded_lead_live(), Vec::new()),
+        (
+            "lead_pair",
+            BassNet::embedded_lead(),
+            vec![BassNet::embedded_lead_sung()],
+        ),
+        (
+            "lead_harmonic_x3",
+            BassNet::embedded_lead_harmonic(),
+            BassNet::embedded_lead_harmonic_others(),
+        ),
+    ];
+    for (name, net, others) in &ensembles {
         let (len, w, out) = (
             net.input_len(),
             net.width().max(net.input_len()),
             net.candidates() + 1,
         );
-        let x: Vec<f32> = (0..len)
-            .map(|i| ((i * 7919) % 1000) as f32 / 1000.0)
-            .collect();
-        let (mut a, mut b, mut o) = (vec![0.0f32; w], vec![0.0f32; w], vec![0.0f32; out]);
-        c.bench_function(name, |bch| {
-            bch.iter(|| {
-                net.forward(black_box(&x), &mut a, &mut b, &mut o);
-                o[0]
-            })
-        });
+        for hops in [1usize, 8] {
+            let xs: Vec<f32> = (0..hops * len)
+                .map(|i| ((i * 7919) % 1000) as f32 / 1000.0)
+                .collect();
+            let (mut a, mut b) = (vec![0.0f32; hops * w], vec![0.0f32; hops * w]);
+            let mut o = vec![0.0f32; hops * out];
+            let mut o2 = vec![0.0f32; others.len().max(1) * hops * out];
+            g.throughput(Throughput::Elements(hops as u64));
+            g.bench_function(format!("{name}/{hops}"), |bch| {
+                bch.iter(|| {
+                    if others.is_empty() {
+                        net.forward_batch(black_box(&xs), hops, &mut a, &mut b, &mut o);
+                    } else {
+                        net.forward_ensemble_batch(
+                            others,
+                            black_box(&xs),
+                            hops,
+                            &mut a,
+                            &mut b,
+                            &mut o,
+                            &mut o2,
+                        );
+                    }
+                    o[0]
+                })
+            });
+        }
     }
-    // The lead ensemble: both lead models and the mean of their probabilities.
-    let (n1, n2) = (BassNet::embedded_lead(), BassNet::embedded_lead_sung());
-    let (len, w, out) = (
-        n1.input_len(),
-        n1.width().max(n1.input_len()),
-        n1.candidates() + 1,
-    );
-    let x: Vec<f32> = (0..len)
-        .map(|i| ((i * 7919) % 1000) as f32 / 1000.0)
-        .collect();
-    let (mut a, mut b) = (vec![0.0f32; w], vec![0.0f32; w]);
-    let (mut o, mut o2) = (vec![0.0f32; out], vec![0.0f32; out]);
-    c.bench_function("leadnet_ensemble_forward", |bch| {
-        bch.iter(|| {
-            n1.forward_mean(n2, black_box(&x), &mut a, &mut b, &mut o, &mut o2);
-            o[0]
-        })
-    });
-    // Eight hops at once, as the tracker runs them inside a block (time per 8 hops).
-    const BATCH: usize = 8;
-    let xs: Vec<f32> = (0..BATCH * len)
-        .map(|i| ((i * 7919) % 1000) as f32 / 1000.0)
-        .collect();
-    let (mut a, mut b) = (vec![0.0f32; BATCH * w], vec![0.0f32; BATCH * w]);
-    let (mut o, mut o2) = (vec![0.0f32; BATCH * out], vec![0.0f32; BATCH * out]);
-    c.bench_function("leadnet_ensemble_forward_batch8", |bch| {
-        bch.iter(|| {
-            n1.forward_ensemble_batch(
-                &[n2],
-                black_box(&xs),
-                BATCH,
-                &mut a,
-                &mut b,
-                &mut o,
-                &mut o2,
-            );
-            o[0]
-        })
-    });
-    // The default's ensemble: the first lead model and both others
-    // (`BassNet::embedded_lead_others`), 8 hops at once (time per 8 hops).
-    let others = BassNet::embedded_lead_others();
-    let mut o3 = vec![0.0f32; others.len() * BATCH * out];
-    c.bench_function("leadnet_ensemble3_forward_batch8", |bch| {
-        bch.iter(|| {
-            n1.forward_ensemble_batch(
-                &others,
-                black_box(&xs),
-                BATCH,
-                &mut a,
-                &mut b,
-                &mut o,
-                &mut o3,
-            );
-            o[0]
-        })
-    });
+    g.finish();
 }
 
 /// The lead chain's rate and range (44.1 kHz decimated by 3; `Stem::Vocals`).
