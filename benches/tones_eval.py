@@ -10,7 +10,11 @@ saws a register away (C4 under a bass tone, C3 under a lead tone). The finger: t
 Score: raw pitch accuracy (within 50 cents) over 0.3-2.7 s.
 
     V/bin/python benches/tones_eval.py --bin target/release/tactus \\
-        [--background none,drums,drums+chords] [--json OUT.json] [-- RENDER OPTIONS...]
+        [--background none,drums,drums+chords] [--supply] [--json OUT.json] [-- RENDER OPTIONS...]
+
+With --supply the tone alone is also given as its finger's stem (`--stem bass=` or
+`--stem vocals=`), as a clean stem from an ONNX separator or the user would be: the
+recipes for clean stems.
 
 Needs numpy. Prints one line per case and, per background, the mean and how many cases
 reach 0.95.
@@ -109,6 +113,8 @@ def main():
     ap.add_argument("--bin", required=True)
     ap.add_argument("--background", default="none,drums,drums+chords")
     ap.add_argument("--json")
+    ap.add_argument("--supply", action="store_true",
+                    help="give the tone alone as its finger's stem (--stem)")
     ap.add_argument("render", nargs="*", help="extra render options (after --)")
     a = ap.parse_args()
     loop = drum_loop()
@@ -118,6 +124,11 @@ def main():
         for bg in a.background.split(","):
             for kind, f0, glide in cases():
                 x = tone(kind, f0, glide)
+                stem = "bass" if f0 < 250 else "vocals"
+                supplied = []
+                if a.supply:
+                    write_wav(d / "stem.wav", x)
+                    supplied = ["--stem", f"{stem}={d / 'stem.wav'}"]
                 if "drums" in bg:
                     x = x + loop
                 if "chords" in bg:
@@ -125,11 +136,10 @@ def main():
                 write_wav(d / "t.wav", x)
                 r = subprocess.run(
                     [a.bin, "render", str(d / "t.wav"), "-o", str(d / "p.json"),
-                     "--features", str(d / "f.json"), *a.render],
+                     "--features", str(d / "f.json"), *supplied, *a.render],
                     capture_output=True, text=True)
                 if r.returncode != 0:
                     sys.exit(f"render failed: {r.stderr}")
-                stem = "bass" if f0 < 250 else "vocals"
                 score = rpa(json.loads((d / "f.json").read_text()), stem, f0, glide)
                 rows.append(dict(background=bg, kind=kind, f0=f0, glide=glide, stem=stem, rpa=score))
                 print(f"{bg:13s} {kind:6s} {f0:7.1f} Hz glide {glide:+.0f}  {stem:6s} {score:.3f}", flush=True)

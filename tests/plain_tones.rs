@@ -222,6 +222,30 @@ fn the_live_profile_tracks_plain_tones_on_their_finger() {
 }
 
 #[test]
+fn a_supplied_bass_stem_of_plain_low_tones_is_tracked_on_the_thumb() {
+    // A clean bass stem (supplied, or an ONNX separator's) goes to the harmonic sum, whose
+    // lowest candidates share FFT bins: a 41 Hz sine came out 65 cents flat. YIN backs it
+    // (docs/decisions/0061-plain-guard-beside-the-clean-bass.md).
+    let d = tempfile::tempdir().unwrap();
+    let mut failures = Vec::new();
+    for wave in [Wave::Sine, Wave::Square, Wave::Saw, Wave::Eight08] {
+        for f0 in [41.2, 55.0, 110.0, 220.0] {
+            for glide in [0.0, 2.0] {
+                let wav = d.path().join(format!("{wave:?}{f0}{glide}.wav"));
+                write_wav(&wav, 44_100, 1, PCM16, &synth(wave, f0, glide, 44_100));
+                let stem = format!("bass={}", wav.display());
+                let r = rpa(&render_with(&wav, &["--stem", &stem]), "bass", f0, glide);
+                eprintln!("{wave:?} {f0} Hz glide {glide} st, supplied bass stem: RPA {r:.3}");
+                if r < 0.95 {
+                    failures.push(format!("{wave:?} {f0} Hz glide {glide}: RPA {r:.3} < 0.95"));
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
 fn tones_are_tracked_at_every_rate_and_sample_format() {
     check_tones(&[
         (Wave::Sine, 220.0, 0.0, 8_000, 1, Format::Int(8)),

@@ -16,23 +16,23 @@ use tactus_engine::recipe::{recipe, PitchMethod, Role, SeparatorKind, Source};
 /// margins. The `mix onnx` rows do not occur (an ONNX separator's stems are clean); they
 /// are here because the function is total.
 const TABLE: &str = "
-bass  clean full spectral auto     | 35-400 Hz shs(bass) lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
+bass  clean full spectral auto     | 35-400 Hz shs(bass) lag 10 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full spectral yin      | 35-400 Hz yin lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full spectral pyin     | 35-400 Hz pyin lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full spectral shs      | 35-400 Hz shs(bass) lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
-bass  clean full spectral auto-shs | 35-400 Hz shs(bass) lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
+bass  clean full spectral auto-shs | 35-400 Hz shs(bass) lag 10 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full spectral learned  | 35-400 Hz shs(bass net bass blend 0.3) lag 10 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
-bass  clean full none     auto     | 35-400 Hz shs(bass) lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
+bass  clean full none     auto     | 35-400 Hz shs(bass) lag 10 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full none     yin      | 35-400 Hz yin lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full none     pyin     | 35-400 Hz pyin lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full none     shs      | 35-400 Hz shs(bass) lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
-bass  clean full none     auto-shs | 35-400 Hz shs(bass) lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
+bass  clean full none     auto-shs | 35-400 Hz shs(bass) lag 10 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full none     learned  | 35-400 Hz shs(bass net bass blend 0.3) lag 10 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
-bass  clean full onnx     auto     | 35-400 Hz shs(bass) lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
+bass  clean full onnx     auto     | 35-400 Hz shs(bass) lag 10 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full onnx     yin      | 35-400 Hz yin lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full onnx     pyin     | 35-400 Hz pyin lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full onnx     shs      | 35-400 Hz shs(bass) lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
-bass  clean full onnx     auto-shs | 35-400 Hz shs(bass) lag 10 | iqr 12 span 20 register 41.203-293.66 held 5
+bass  clean full onnx     auto-shs | 35-400 Hz shs(bass) lag 10 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean full onnx     learned  | 35-400 Hz shs(bass net bass blend 0.3) lag 10 plain-guard 400 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live spectral auto     | 41-400 Hz yin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5
 bass  clean live spectral yin      | 41-400 Hz yin lag 2 | iqr 12 span 20 register 41.203-293.66 held 5

@@ -437,6 +437,13 @@ pub fn recipe(
         m => m,
     };
     let learned = method == PitchMethod::Learned;
+    // The harmonic sum where `auto` chose it for a clean bass (a supplied stem, an ONNX
+    // separator's): its lowest candidates share FFT bins, so a plain low tone comes out up
+    // to a semitone off (docs/decisions/0061-plain-guard-beside-the-clean-bass.md).
+    let auto_shs = bass
+        && !mix
+        && method == PitchMethod::Shs
+        && matches!(pitch, PitchMethod::Auto | PitchMethod::AutoShs);
     // The spectral separator's lead and bass through the learned trackers: their networks
     // read the separator's harmonic sum.
     let harmonic_view = line && learned && spectral_mix;
@@ -475,7 +482,7 @@ pub fn recipe(
         // A learned network may not know a plain tone; YIN does. The spectral separator
         // sends a centred tone up to its vocal band's top to the lead, so the lead's guard
         // reaches the glove's highest pitch (the other stem's top): a whistle or a flute.
-        plain_guard: learned.then(|| {
+        plain_guard: (learned || auto_shs).then(|| {
             let top = |stem| profile::pitch_range_hz(profile, stem).map_or(0.0, |r| r.1);
             match role {
                 Role::Lead => top(tactus_dsp::Stem::Other).max(top(role.stem())),
